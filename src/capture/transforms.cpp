@@ -1,0 +1,137 @@
+#include "capture/transforms.h"
+
+#include <spdlog/spdlog.h>
+
+#include "core/error.h"
+#include "io/json.h"
+
+namespace relume {
+namespace {
+
+struct Intrinsics {
+  std::optional<double> fx, fy, cx, cy, w, h, k1, k2, p1, p2, k3, exposure, clipLow, clipHigh;
+  std::optional<std::string> model;
+};
+
+void readIntrinsics(const Json& j, Intrinsics& in, const std::string& where) {
+  auto num = [&](const char* key, std::optional<double>& dst) {
+    if (!j.contains(key)) return;
+    if (!j[key].is_number() || !std::isfinite(j[key].get<double>())) fail("{}: field '{}' must be a finite number", where, key);
+    dst = j[key].get<double>();
+  };
+  num("fl_x", in.fx); num("fl_y", in.fy); num("cx", in.cx); num("cy", in.cy);
+  num("w", in.w); num("h", in.h); num("k1", in.k1); num("k2", in.k2);
+  num("p1", in.p1); num("p2", in.p2); num("k3", in.k3); num("exposure", in.exposure);
+  num("clip_low", in.clipLow); num("clip_high", in.clipHigh);
+  if (j.contains("camera_model")) {
+    if (!j["camera_model"].is_string()) fail("{}: 'camera_model' must be a string", where);
+    in.model = j["camera_model"].get<std::string>();
+  }
+}
+
+template <typename T> T need(const std::optional<T>& v, const char* key, const std::string& where) {
+  if (!v) fail("{}: missing '{}'", where, key);
+  return *v;
+}
+
+}  // namespace
+
+Capture readTransforms(const std::filesystem::path& path) {
+  const Json root = readJson(path);
+  const std::string file = path.string();
+  if (!root.is_object()) fail("{}: top level must be an object", file);
+  if (!root.contains("frames") || !root["frames"].is_array()) fail("{}: missing 'frames' array", file);
+  Intrinsics global;
+  readIntrinsics(root, global, file);
+  Capture cap;
+  cap.file = path;
+  const auto dir = path.parent_path();
+  for (size_t i = 0; i < root["frames"].size(); ++i) {
+    const Json& f = root["frames"][i];
+    const std::string where = fmt::format("{}: frame {}", file, i);
+    if (!f.is_object()) fail("{}: must be an object", where);
+    Intrinsics in = global;
+    readIntrinsics(f, in, where);
+    Frame fr;
+    Camera& c = fr.camera;
+    c.fx = static_cast<float>(need(in.fx, "fl_x", where));
+    c.fy = static_cast<float>(in.fy.value_or(c.fx));
+    c.width = static_cast<int>(need(in.w, "w", where));
+    c.height = static_cast<int>(need(in.h, "h", where));
+    c.cx = static_cast<float>(in.cx.value_or(c.width * 0.5));
+    c.cy = static_cast<float>(in.cy.value_or(c.height * 0.5));
+    if (c.width <= 0 || c.height <= 0 || c.width > 65536 || c.height > 65536) fail("{}: bad image size {}x{}", where, c.width, c.height);
+    if (!(c.fx > 0) || !(c.fy > 0)) fail("{}: focal lengths must be positive", where);
+    const std::string model = in.model.value_or("PINHOLE");
+    if (model == "OPENCV") {
+      c.distortion = {static_cast<float>(in.k1.value_or(0)), static_cast<float>(in.k2.value_or(0)),
+                      static_cast<float>(in.p1.value_or(0)), static_cast<float>(in.p2.value_or(0)),
+                      static_cast<float>(in.k3.value_or(0))};
+    } else if (model != "PINHOLE") {
+      fail("{}: unsupported camera_model '{}' (PINHOLE or OPENCV)", where, model);
+    }
+    if (!f.contains("transform_matrix") || !f["transform_matrix"].is_array() || f["transform_matrix"].size() < 3)
+      fail("{}: 'transform_matrix' must be a 4x4 (or 3x4) array", where);
+    Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+    for (int r = 0; r < static_cast<int>(std::min<size_t>(4, f["transform_matrix"].size())); ++r) {
+      const Json& row = f["transform_matrix"][r];
+      if (!row.is_array() || row.size() != 4) fail("{}: transform_matrix row {} must have 4 numbers", where, r);
+      for (int k = 0; k < 4; ++k) {
+        if (!row[k].is_number() || !std::isfinite(row[k].get<double>())) fail("{}: transform_matrix[{}][{}] is not a finite number", where, r, k);
+        m(r, k) = row[k].get<double>();
+      }
+    }
+    const Mat3 gl = m.block<3, 3>(0, 0).cast<float>();
+    if (std::abs(gl.determinant() - 1.0f) > 1e-3f) fail("{}: transform_matrix rotation is not orthonormal (det {})", where, gl.determinant());
+    c.rotation = Camera::rotationFromOpenGL(gl);
+    c.position = m.block<3, 1>(0, 3).cast<float>();
+    if (!f.contains("file_path") || !f["file_path"].is_string()) fail("{}: missing 'file_path'", where);
+    fr.image = dir / f["file_path"].get<std::string>();
+    fr.exposure = static_cast<float>(in.exposure.value_or(1.0));
+    if (!(fr.exposure > 0)) fail("{}: exposure must be positive", where);
+    if (in.clipLow) fr.clipLow = static_cast<float>(*in.clipLow);
+    if (in.clipHigh) fr.clipHigh = static_cast<float>(*in.clipHigh);
+    cap.frames.push_back(fr);
+  }
+  if (cap.frames.empty()) fail("{}: no frames", file);
+  return cap;
+}
+
+void writeTransforms(const std::filesystem::path& path, const std::vector<Frame>& frames) {
+  Json root;
+  root["camera_model"] = "OPENCV";
+  Json arr = Json::array();
+  for (const Frame& fr : frames) {
+    const Camera& c = fr.camera;
+    Json f;
+    f["file_path"] = std::filesystem::relative(fr.image, path.parent_path()).generic_string();
+    f["fl_x"] = c.fx; f["fl_y"] = c.fy; f["cx"] = c.cx; f["cy"] = c.cy; f["w"] = c.width; f["h"] = c.height;
+    f["k1"] = c.distortion.k1; f["k2"] = c.distortion.k2; f["p1"] = c.distortion.p1; f["p2"] = c.distortion.p2;
+    f["k3"] = c.distortion.k3;
+    if (fr.exposure != 1.0f) f["exposure"] = fr.exposure;
+    const Mat3 gl = c.rotationToOpenGL();
+    Json m = Json::array();
+    for (int r = 0; r < 3; ++r) m.push_back({gl(r, 0), gl(r, 1), gl(r, 2), c.position[r]});
+    m.push_back({0, 0, 0, 1});
+    f["transform_matrix"] = m;
+    arr.push_back(f);
+  }
+  root["frames"] = arr;
+  writeJson(path, root);
+}
+
+Image loadFrameImage(const Frame& frame, ImageReadStats* stats) {
+  ImageReadStats local;
+  Image img = readImage(frame.image, &local);
+  if (img.width != frame.camera.width || img.height != frame.camera.height)
+    fail("{}: image is {}x{} but transforms.json says {}x{}", frame.image.string(), img.width, img.height,
+         frame.camera.width, frame.camera.height);
+  if (local.nonFinitePixels) spdlog::warn("{}: {} NaN/Inf pixels masked", frame.image.string(), local.nonFinitePixels);
+  const float inv = 1.0f / frame.exposure;
+  for (float& v : img.rgb) v *= inv;
+  for (size_t i : local.nonFiniteIndex) img.rgb[3 * i] = img.rgb[3 * i + 1] = img.rgb[3 * i + 2] = kMaskedPixel;
+  if (stats) *stats = local;
+  return img;
+}
+
+}  // namespace relume

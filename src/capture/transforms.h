@@ -1,0 +1,37 @@
+// Posed frames in the nerfstudio transforms.json convention.
+#pragma once
+#include <filesystem>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "core/camera.h"
+#include "io/image.h"
+
+namespace relume {
+
+struct Frame {
+  Camera camera;
+  std::filesystem::path image;  // absolute
+  float exposure = 1.0f;        // pixels are divided by it to get scene radiance
+  // Clip thresholds in the linear (exposure-corrected) domain: values at or beyond them are
+  // saturated (high) or buried in noise (low) and only constrain the loss one-sidedly.
+  float clipLow = 0.0f;
+  float clipHigh = std::numeric_limits<float>::infinity();
+};
+
+struct Capture {
+  std::filesystem::path file;
+  std::vector<Frame> frames;
+};
+
+// Throws relume::Error naming the file, the frame index and the field.
+Capture readTransforms(const std::filesystem::path& path);
+// Writes frames with paths relative to the json's folder (atomic).
+void writeTransforms(const std::filesystem::path& path, const std::vector<Frame>& frames);
+// Radiance is never negative, so a negative value marks a pixel that must not be used (NaN/Inf on disk).
+inline constexpr float kMaskedPixel = -1.0f;
+// Reads a frame's image, checks its size against the camera, applies the exposure.
+Image loadFrameImage(const Frame& frame, ImageReadStats* stats = nullptr);
+
+}  // namespace relume

@@ -1,0 +1,36 @@
+// The relume executable: parses subcommands and calls the pipeline; holds no algorithm.
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include "cli/commands.h"
+#include "core/error.h"
+#include "core/system.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"relume: relightable materials and lights from scanned indoor scenes"};
+  app.require_subcommand(1);
+  int threads = 0;
+  std::string logLevel = "info";
+  app.add_option("--threads", threads, "worker threads (0 = all cores)");
+  app.add_option("--log", logLevel, "log level: debug, info, warn, error");
+  const relume::CommandTable commands = relume::registerCommands(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  spdlog::set_level(spdlog::level::from_str(logLevel));
+  spdlog::set_pattern("[%T] %^%l%$ %v");
+  auto pool = relume::initThreads(threads);
+  try {
+    const int rc = commands.at(app.get_subcommands().front())();
+    spdlog::info("peak RSS {:.0f} MiB", relume::peakRssMiB());
+    return rc;
+  } catch (const relume::Error& e) {
+    spdlog::error("{}", e.what());
+    return 1;
+  } catch (const std::exception& e) {
+    spdlog::error("internal error: {}", e.what());
+    return 1;
+  }
+}

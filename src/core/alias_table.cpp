@@ -1,0 +1,46 @@
+#include "core/alias_table.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace relume {
+
+AliasTable::AliasTable(const std::vector<double>& weights) {
+  double sum = 0.0;
+  for (double w : weights) sum += (w > 0.0 && std::isfinite(w)) ? w : 0.0;
+  if (!(sum > 0.0)) return;
+  const size_t n = weights.size();
+  prob_.resize(n);
+  pmf_.resize(n);
+  alias_.resize(n);
+  std::vector<double> scaled(n);
+  std::vector<uint32_t> small, large;
+  for (size_t i = 0; i < n; ++i) {
+    const double w = (weights[i] > 0.0 && std::isfinite(weights[i])) ? weights[i] : 0.0;
+    pmf_[i] = static_cast<float>(w / sum);
+    scaled[i] = w / sum * static_cast<double>(n);
+    (scaled[i] < 1.0 ? small : large).push_back(static_cast<uint32_t>(i));
+  }
+  while (!small.empty() && !large.empty()) {
+    const uint32_t s = small.back(), l = large.back();
+    small.pop_back();
+    prob_[s] = static_cast<float>(scaled[s]);
+    alias_[s] = l;
+    scaled[l] -= 1.0 - scaled[s];
+    if (scaled[l] < 1.0) {
+      large.pop_back();
+      small.push_back(l);
+    }
+  }
+  for (uint32_t i : large) prob_[i] = 1.0f, alias_[i] = i;
+  for (uint32_t i : small) prob_[i] = 1.0f, alias_[i] = i;  // round-off leftovers
+}
+
+uint32_t AliasTable::sample(float u) const {
+  const float x = u * static_cast<float>(prob_.size());
+  const uint32_t i = std::min(static_cast<uint32_t>(x), static_cast<uint32_t>(prob_.size() - 1));
+  const float frac = x - static_cast<float>(i);
+  return frac < prob_[i] ? i : alias_[i];
+}
+
+}  // namespace relume

@@ -1,0 +1,41 @@
+// Basic math types (Eigen fixed-size) and small helpers shared by every module.
+#pragma once
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
+namespace relume {
+
+using Vec2 = Eigen::Vector2f;
+using Vec3 = Eigen::Vector3f;
+using Vec3d = Eigen::Vector3d;
+using Mat3 = Eigen::Matrix3f;
+using Mat4d = Eigen::Matrix4d;
+using Color = Eigen::Array3f;  // linear Rec.709 RGB
+
+inline constexpr float kPi = 3.14159265358979323846f;
+inline constexpr float kInvPi = 1.0f / kPi;
+
+inline float luminance(const Color& c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
+inline bool isFinite(const Color& c) { return std::isfinite(c[0]) && std::isfinite(c[1]) && std::isfinite(c[2]); }
+inline float safeSqrt(float x) { return std::sqrt(std::max(x, 0.0f)); }
+template <typename T> inline T sqr(T x) { return x * x; }
+
+// Orthonormal basis around a unit normal (Duff et al. 2017, branchless).
+struct ShadingFrame {
+  Vec3 s, t, n;
+  ShadingFrame() = default;
+  explicit ShadingFrame(const Vec3& normal) : n(normal) {
+    const float sign = std::copysign(1.0f, n.z());
+    const float a = -1.0f / (sign + n.z());
+    const float b = n.x() * n.y() * a;
+    s = Vec3(1.0f + sign * n.x() * n.x() * a, sign * b, -sign * n.x());
+    t = Vec3(b, sign + n.y() * n.y() * a, -n.y());
+  }
+  Vec3 toLocal(const Vec3& v) const { return {v.dot(s), v.dot(t), v.dot(n)}; }
+  Vec3 toWorld(const Vec3& v) const { return s * v.x() + t * v.y() + n * v.z(); }
+};
+
+}  // namespace relume

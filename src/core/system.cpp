@@ -1,0 +1,65 @@
+#include "core/system.h"
+
+#include <fmt/format.h>
+#include <pmmintrin.h>
+#include <unistd.h>
+#include <xmmintrin.h>
+
+#include <atomic>
+#include <cstdio>
+#include <fstream>
+#include <mutex>
+#include <thread>
+
+namespace relume {
+
+std::unique_ptr<tbb::global_control> initThreads(int threads) {
+  // Workers capture the FP mode of the thread that creates the arena, so set it first.
+  _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
+  _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+  const int n = threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  return std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, n);
+}
+
+int threadCount() {
+  return static_cast<int>(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+}
+
+double peakRssMiB() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
+  }
+  return 0.0;
+}
+
+Progress::Progress(std::string label, size_t total)
+    : label_(std::move(label)), total_(std::max<size_t>(total, 1)), enabled_(isatty(STDERR_FILENO)) {}
+
+Progress::~Progress() {
+  if (enabled_) draw(true);
+}
+
+void Progress::advance(size_t n) {
+  done_ += n;
+  if (!enabled_) return;
+  const long now = static_cast<long>(timer_.seconds() * 1000.0);
+  long last = lastDrawMs_.load();
+  if (now - last >= 200 && lastDrawMs_.compare_exchange_strong(last, now)) draw(false);
+}
+
+void Progress::draw(bool final) {
+  static std::mutex m;
+  std::lock_guard lock(m);
+  const double frac = std::min(1.0, static_cast<double>(done_) / static_cast<double>(total_));
+  const double elapsed = timer_.seconds();
+  const double eta = frac > 0 ? elapsed * (1.0 - frac) / frac : 0.0;
+  const int width = 30, filled = static_cast<int>(frac * width);
+  std::fprintf(stderr, "\r%-18s [%s%s] %5.1f%% %6.1fs ETA %5.1fs%s", label_.c_str(),
+               std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(), 100.0 * frac,
+               elapsed, eta, final ? "\n" : "");
+  std::fflush(stderr);
+}
+
+}  // namespace relume

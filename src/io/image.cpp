@@ -1,0 +1,72 @@
+#include "io/image.h"
+
+#include <OpenImageIO/imageio.h>
+
+#include "core/error.h"
+#include "io/atomic_file.h"
+
+namespace relume {
+
+float srgbToLinear(float v) { return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f); }
+float linearToSrgb(float v) { return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f; }
+
+Image readImage(const std::filesystem::path& path, ImageReadStats* stats) {
+  const std::string file = path.string();
+  if (!std::filesystem::exists(path)) fail("{}: image not found", file);
+  auto in = OIIO::ImageInput::open(file);
+  if (!in) fail("{}: cannot read image: {}", file, OIIO::geterror());
+  const OIIO::ImageSpec& spec = in->spec();
+  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.width > 65536 || spec.height > 65536)
+    fail("{}: unsupported image size {}x{}x{}", file, spec.width, spec.height, spec.nchannels);
+  const int nc = spec.nchannels;
+  std::vector<float> raw(static_cast<size_t>(spec.width) * spec.height * nc);
+  if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, raw.data())) fail("{}: corrupt image data: {}", file, in->geterror());
+  const bool isInteger = spec.format.basetype == OIIO::TypeDesc::UINT8 || spec.format.basetype == OIIO::TypeDesc::UINT16;
+  const std::string colorSpace = spec.get_string_attribute("oiio:ColorSpace");
+  const bool decodeSrgb = isInteger && colorSpace != "Linear" && colorSpace != "linear";
+  Image img(spec.width, spec.height);
+  size_t bad = 0;
+  for (size_t i = 0; i < static_cast<size_t>(spec.width) * spec.height; ++i) {
+    for (int c = 0; c < 3; ++c) {
+      float v = raw[i * nc + std::min(c, nc >= 3 ? c : 0)];
+      if (decodeSrgb) v = srgbToLinear(v);
+      img.rgb[3 * i + c] = v;
+    }
+    if (!std::isfinite(img.rgb[3 * i]) || !std::isfinite(img.rgb[3 * i + 1]) || !std::isfinite(img.rgb[3 * i + 2])) {
+      img.rgb[3 * i] = img.rgb[3 * i + 1] = img.rgb[3 * i + 2] = 0.0f;
+      ++bad;
+      if (stats) stats->nonFiniteIndex.push_back(i);
+    }
+  }
+  if (stats) stats->nonFinitePixels = bad;
+  return img;
+}
+
+namespace {
+void writeOiio(const std::filesystem::path& path, int w, int h, OIIO::TypeDesc storage, OIIO::TypeDesc memory,
+               const void* pixels) {
+  writeAtomically(path, [&](const std::filesystem::path& tmp) {
+    auto out = OIIO::ImageOutput::create(tmp.string());
+    if (!out) fail("{}: cannot create image writer: {}", path.string(), OIIO::geterror());
+    OIIO::ImageSpec spec(w, h, 3, storage);
+    if (storage == OIIO::TypeDesc::FLOAT) spec.attribute("compression", "zip");
+    if (!out->open(tmp.string(), spec) || !out->write_image(memory, pixels) || !out->close())
+      fail("{}: cannot write image: {}", path.string(), out->geterror());
+  });
+}
+}  // namespace
+
+void writeExr(const std::filesystem::path& path, const Image& image) {
+  writeOiio(path, image.width, image.height, OIIO::TypeDesc::FLOAT, OIIO::TypeDesc::FLOAT, image.rgb.data());
+}
+
+void writePng(const std::filesystem::path& path, const Image& image, float exposure) {
+  std::vector<uint8_t> bytes(image.rgb.size());
+  for (size_t i = 0; i < bytes.size(); ++i) {
+    const float v = std::clamp(linearToSrgb(std::max(0.0f, image.rgb[i] * exposure)), 0.0f, 1.0f);
+    bytes[i] = static_cast<uint8_t>(std::lround(v * 255.0f));
+  }
+  writeOiio(path, image.width, image.height, OIIO::TypeDesc::UINT8, OIIO::TypeDesc::UINT8, bytes.data());
+}
+
+}  // namespace relume

@@ -1,0 +1,41 @@
+// Image I/O through OpenImageIO. In memory every image is linear RGB float32.
+#pragma once
+#include <filesystem>
+#include <vector>
+
+#include "core/math.h"
+
+namespace relume {
+
+struct Image {
+  int width = 0, height = 0;
+  std::vector<float> rgb;  // row-major, row 0 at the top, 3 floats per pixel
+  Image() = default;
+  Image(int w, int h) : width(w), height(h), rgb(static_cast<size_t>(w) * h * 3, 0.0f) {}
+  Color at(int x, int y) const {
+    const float* p = &rgb[3 * (static_cast<size_t>(y) * width + x)];
+    return {p[0], p[1], p[2]};
+  }
+  void set(int x, int y, const Color& c) {
+    float* p = &rgb[3 * (static_cast<size_t>(y) * width + x)];
+    p[0] = c[0], p[1] = c[1], p[2] = c[2];
+  }
+};
+
+struct ImageReadStats {
+  size_t nonFinitePixels = 0;          // NaN/Inf pixels, set to 0 and counted
+  std::vector<size_t> nonFiniteIndex;  // their pixel indices, so callers can mask them
+};
+
+// EXR/HDR are read as linear; 8/16-bit integer formats are sRGB-decoded. Greyscale is expanded,
+// alpha dropped. NaN/Inf pixels become 0 and are counted in `stats`.
+Image readImage(const std::filesystem::path& path, ImageReadStats* stats = nullptr);
+// Float EXR (never half: small gradients and bright emitters would not survive). Atomic.
+void writeExr(const std::filesystem::path& path, const Image& image);
+// Tone-mapped preview: exposure scale, clamp, sRGB encode, 8-bit PNG. Atomic.
+void writePng(const std::filesystem::path& path, const Image& image, float exposure = 1.0f);
+
+float srgbToLinear(float v);
+float linearToSrgb(float v);
+
+}  // namespace relume

@@ -1,0 +1,35 @@
+#include "io/json.h"
+
+#include <fstream>
+
+#include "core/error.h"
+#include "io/atomic_file.h"
+
+namespace relume {
+
+Json readJson(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) fail("{}: cannot open file", path.string());
+  try {
+    return Json::parse(in);
+  } catch (const Json::parse_error& e) {
+    fail("{}: malformed JSON at byte {}", path.string(), e.byte);
+  }
+}
+
+void writeJson(const std::filesystem::path& path, const Json& json) { writeTextAtomically(path, json.dump(2) + "\n"); }
+
+double jsonNumber(const Json& j, const char* key, const std::filesystem::path& file) {
+  if (!j.is_object() || !j.contains(key)) fail("{}: missing field '{}'", file.string(), key);
+  const Json& v = j.at(key);
+  if (!v.is_number()) fail("{}: field '{}' must be a number", file.string(), key);
+  const double d = v.get<double>();
+  if (!std::isfinite(d)) fail("{}: field '{}' is not finite", file.string(), key);
+  return d;
+}
+
+double jsonNumberOr(const Json& j, const char* key, double fallback, const std::filesystem::path& file) {
+  return j.is_object() && j.contains(key) ? jsonNumber(j, key, file) : fallback;
+}
+
+}  // namespace relume

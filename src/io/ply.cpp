@@ -1,0 +1,299 @@
+// PLY reader/writer. The reader trusts nothing in the header: every count is checked against the
+// bytes actually present before anything is allocated, every index against the vertex count.
+#include <bit>
+#include <charconv>
+#include <cstring>
+#include <fstream>
+#include <optional>
+#include <sstream>
+
+#include "core/error.h"
+#include "io/atomic_file.h"
+#include "io/mesh_data.h"
+
+namespace relume {
+namespace {
+
+enum class Format { Ascii, BinaryLE, BinaryBE };
+enum class Type { I8, U8, I16, U16, I32, U32, F32, F64 };
+
+std::optional<Type> parseType(const std::string& s) {
+  if (s == "char" || s == "int8") return Type::I8;
+  if (s == "uchar" || s == "uint8") return Type::U8;
+  if (s == "short" || s == "int16") return Type::I16;
+  if (s == "ushort" || s == "uint16") return Type::U16;
+  if (s == "int" || s == "int32") return Type::I32;
+  if (s == "uint" || s == "uint32") return Type::U32;
+  if (s == "float" || s == "float32") return Type::F32;
+  if (s == "double" || s == "float64") return Type::F64;
+  return std::nullopt;
+}
+
+size_t typeSize(Type t) {
+  switch (t) {
+    case Type::I8: case Type::U8: return 1;
+    case Type::I16: case Type::U16: return 2;
+    case Type::I32: case Type::U32: case Type::F32: return 4;
+    case Type::F64: return 8;
+  }
+  return 0;
+}
+
+struct Property {
+  std::string name;
+  Type type = Type::F32;
+  bool isList = false;
+  Type countType = Type::U8;
+};
+
+struct Element {
+  std::string name;
+  uint64_t count = 0;
+  std::vector<Property> properties;
+};
+
+// Reads values of either encoding from an in-memory body, with bounds checks.
+class Cursor {
+ public:
+  Cursor(const std::string& file, const char* begin, const char* end, Format format)
+      : file_(file), p_(begin), end_(end), format_(format) {}
+
+  double read(Type t, const char* what) {
+    if (format_ == Format::Ascii) return readAscii(what);
+    const size_t n = typeSize(t);
+    if (static_cast<size_t>(end_ - p_) < n) fail("{}: truncated binary data while reading {}", file_, what);
+    unsigned char bytes[8];
+    std::memcpy(bytes, p_, n);
+    p_ += n;
+    if ((format_ == Format::BinaryBE) == (std::endian::native == std::endian::little)) std::reverse(bytes, bytes + n);
+    switch (t) {
+      case Type::I8: return static_cast<int8_t>(bytes[0]);
+      case Type::U8: return bytes[0];
+      case Type::I16: { int16_t v; std::memcpy(&v, bytes, 2); return v; }
+      case Type::U16: { uint16_t v; std::memcpy(&v, bytes, 2); return v; }
+      case Type::I32: { int32_t v; std::memcpy(&v, bytes, 4); return v; }
+      case Type::U32: { uint32_t v; std::memcpy(&v, bytes, 4); return v; }
+      case Type::F32: { float v; std::memcpy(&v, bytes, 4); return v; }
+      case Type::F64: { double v; std::memcpy(&v, bytes, 8); return v; }
+    }
+    return 0;
+  }
+  size_t remaining() const { return static_cast<size_t>(end_ - p_); }
+
+ private:
+  double readAscii(const char* what) {
+    while (p_ < end_ && std::isspace(static_cast<unsigned char>(*p_))) ++p_;
+    if (p_ >= end_) fail("{}: unexpected end of file while reading {}", file_, what);
+    const char* tokenEnd = p_;
+    while (tokenEnd < end_ && !std::isspace(static_cast<unsigned char>(*tokenEnd))) ++tokenEnd;
+    double v = 0;
+    const auto [ptr, ec] = std::from_chars(p_, tokenEnd, v);
+    if (ec != std::errc() || ptr != tokenEnd)
+      fail("{}: non-numeric token '{}' while reading {}", file_, std::string(p_, std::min<size_t>(tokenEnd - p_, 32)), what);
+    p_ = tokenEnd;
+    return v;
+  }
+  const std::string& file_;
+  const char* p_;
+  const char* end_;
+  Format format_;
+};
+
+int findProperty(const Element& e, std::initializer_list<const char*> names) {
+  for (const char* n : names)
+    for (size_t i = 0; i < e.properties.size(); ++i)
+      if (!e.properties[i].isList && e.properties[i].name == n) return static_cast<int>(i);
+  return -1;
+}
+
+}  // namespace
+
+MeshData readPly(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail("{}: cannot open file", file);
+  std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const size_t headerEnd = data.find("end_header");
+  if (data.rfind("ply", 0) != 0) fail("{}: not a PLY file (missing 'ply' magic)", file);
+  if (headerEnd == std::string::npos) fail("{}: PLY header has no 'end_header'", file);
+  size_t bodyStart = data.find('\n', headerEnd);
+  if (bodyStart == std::string::npos) fail("{}: PLY header not terminated by a newline", file);
+  ++bodyStart;
+
+  std::istringstream header(data.substr(0, headerEnd));
+  std::string line;
+  std::optional<Format> format;
+  std::vector<Element> elements;
+  int lineNo = 0;
+  while (std::getline(header, line)) {
+    ++lineNo;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream ls(line);
+    std::string key;
+    ls >> key;
+    if (key.empty() || key == "ply" || key == "comment" || key == "obj_info") continue;
+    if (key == "format") {
+      std::string f;
+      ls >> f;
+      if (f == "ascii") format = Format::Ascii;
+      else if (f == "binary_little_endian") format = Format::BinaryLE;
+      else if (f == "binary_big_endian") format = Format::BinaryBE;
+      else fail("{}: line {}: unknown PLY format '{}'", file, lineNo, f);
+    } else if (key == "element") {
+      Element e;
+      std::string count;
+      ls >> e.name >> count;
+      const auto [ptr, ec] = std::from_chars(count.data(), count.data() + count.size(), e.count);
+      if (e.name.empty() || ec != std::errc() || ptr != count.data() + count.size())
+        fail("{}: line {}: malformed element declaration '{}'", file, lineNo, line);
+      elements.push_back(e);
+    } else if (key == "property") {
+      if (elements.empty()) fail("{}: line {}: property before any element", file, lineNo);
+      Property p;
+      std::string t;
+      ls >> t;
+      if (t == "list") {
+        std::string ct, vt;
+        ls >> ct >> vt >> p.name;
+        const auto c = parseType(ct), v = parseType(vt);
+        if (!c || !v || p.name.empty()) fail("{}: line {}: malformed list property '{}'", file, lineNo, line);
+        p.isList = true;
+        p.countType = *c;
+        p.type = *v;
+      } else {
+        const auto v = parseType(t);
+        ls >> p.name;
+        if (!v || p.name.empty()) fail("{}: line {}: unknown property type in '{}'", file, lineNo, line);
+        p.type = *v;
+      }
+      elements.back().properties.push_back(p);
+    } else {
+      fail("{}: line {}: unexpected header keyword '{}'", file, lineNo, key);
+    }
+  }
+  if (!format) fail("{}: PLY header has no format line", file);
+
+  const char* body = data.data() + bodyStart;
+  const char* bodyEnd = data.data() + data.size();
+  Cursor cur(file, body, bodyEnd, *format);
+  MeshData mesh;
+  bool haveVertices = false;
+  for (const Element& e : elements) {
+    // Each element needs at least one byte per scalar (binary) or two chars (ascii): refuse
+    // absurd counts before reserving memory.
+    size_t minBytes = 0;
+    for (const Property& p : e.properties) minBytes += p.isList ? typeSize(p.countType) : typeSize(p.type);
+    if (*format == Format::Ascii) minBytes = 2 * e.properties.size();
+    if (minBytes > 0 && e.count > cur.remaining() / minBytes)
+      fail("{}: element '{}' declares {} entries but the file holds at most {}", file, e.name, e.count,
+           cur.remaining() / minBytes);
+
+    if (e.name == "vertex") {
+      haveVertices = true;
+      const int px = findProperty(e, {"x"}), py = findProperty(e, {"y"}), pz = findProperty(e, {"z"});
+      if (px < 0 || py < 0 || pz < 0) fail("{}: vertex element lacks x/y/z", file);
+      const int nx = findProperty(e, {"nx"}), ny = findProperty(e, {"ny"}), nz = findProperty(e, {"nz"});
+      const int pu = findProperty(e, {"s", "u", "texture_u"}), pv = findProperty(e, {"t", "v", "texture_v"});
+      const bool hasN = nx >= 0 && ny >= 0 && nz >= 0, hasUv = pu >= 0 && pv >= 0;
+      mesh.positions.resize(e.count);
+      if (hasN) mesh.normals.resize(e.count);
+      if (hasUv) mesh.uvs.resize(e.count);
+      std::vector<double> vals(e.properties.size());
+      for (uint64_t i = 0; i < e.count; ++i) {
+        for (size_t k = 0; k < e.properties.size(); ++k) {
+          const Property& p = e.properties[k];
+          if (p.isList) {
+            const double n = cur.read(p.countType, "vertex list count");
+            if (n < 0 || n > 1e6) fail("{}: vertex {}: bad list length {}", file, i, n);
+            for (int j = 0; j < static_cast<int>(n); ++j) cur.read(p.type, "vertex list item");
+          } else {
+            vals[k] = cur.read(p.type, "vertex property");
+          }
+        }
+        mesh.positions[i] = Vec3(vals[px], vals[py], vals[pz]);
+        if (!mesh.positions[i].allFinite()) fail("{}: vertex {} has a non-finite position", file, i);
+        if (hasN) mesh.normals[i] = Vec3(vals[nx], vals[ny], vals[nz]);
+        if (hasUv) mesh.uvs[i] = Vec2(vals[pu], vals[pv]);
+      }
+    } else if (e.name == "face") {
+      if (!haveVertices) fail("{}: face element before vertex element", file);
+      int listIdx = -1;
+      for (size_t k = 0; k < e.properties.size(); ++k)
+        if (e.properties[k].isList && (e.properties[k].name == "vertex_indices" || e.properties[k].name == "vertex_index"))
+          listIdx = static_cast<int>(k);
+      if (listIdx < 0) fail("{}: face element lacks a vertex_indices list", file);
+      const int label = findProperty(e, {"object_id", "segment_id", "label", "instance", "objectId"});
+      mesh.triangles.reserve(e.count);
+      if (label >= 0) mesh.faceObject.reserve(e.count);
+      std::vector<int64_t> poly;
+      for (uint64_t i = 0; i < e.count; ++i) {
+        double labelValue = 0;
+        for (size_t k = 0; k < e.properties.size(); ++k) {
+          const Property& p = e.properties[k];
+          if (p.isList) {
+            const double n = cur.read(p.countType, "face vertex count");
+            if (n < 0 || n > 1e6 || n != std::floor(n)) fail("{}: face {}: bad vertex count {}", file, i, n);
+            if (static_cast<int>(k) == listIdx) poly.resize(static_cast<size_t>(n));
+            for (int j = 0; j < static_cast<int>(n); ++j) {
+              const double idx = cur.read(p.type, "face vertex index");
+              if (static_cast<int>(k) != listIdx) continue;
+              if (idx < 0 || idx >= static_cast<double>(mesh.positions.size()) || idx != std::floor(idx))
+                fail("{}: face {}: vertex index {} out of range [0,{})", file, i, idx, mesh.positions.size());
+              poly[j] = static_cast<int64_t>(idx);
+            }
+          } else {
+            const double v = cur.read(p.type, "face property");
+            if (static_cast<int>(k) == label) labelValue = v;
+          }
+        }
+        if (poly.size() < 3) fail("{}: face {} has {} vertices (need >= 3)", file, i, poly.size());
+        if (label >= 0 && (labelValue < 0 || labelValue > 1e7 || labelValue != std::floor(labelValue)))
+          fail("{}: face {}: object id {} is not a non-negative integer", file, i, labelValue);
+        if (poly.size() > 3) ++mesh.polygonsTriangulated;
+        for (size_t j = 1; j + 1 < poly.size(); ++j) {
+          mesh.triangles.emplace_back(poly[0], poly[j], poly[j + 1]);
+          if (label >= 0) mesh.faceObject.push_back(static_cast<int32_t>(labelValue));
+        }
+      }
+    } else {
+      for (uint64_t i = 0; i < e.count; ++i)
+        for (const Property& p : e.properties) {
+          const double n = p.isList ? cur.read(p.countType, "list count") : 1;
+          if (n < 0 || n > 1e6) fail("{}: element '{}' {}: bad list length {}", file, e.name, i, n);
+          for (int j = 0; j < static_cast<int>(n); ++j) cur.read(p.type, e.name.c_str());
+        }
+    }
+  }
+  if (!haveVertices) fail("{}: PLY has no vertex element", file);
+  if (mesh.triangles.empty()) fail("{}: PLY has no faces", file);
+  return mesh;
+}
+
+void writePly(const std::filesystem::path& path, const MeshData& mesh) {
+  std::string out;
+  out += "ply\nformat binary_little_endian 1.0\ncomment written by relume\n";
+  out += fmt::format("element vertex {}\nproperty float x\nproperty float y\nproperty float z\n", mesh.positions.size());
+  const bool hasN = mesh.normals.size() == mesh.positions.size() && !mesh.normals.empty();
+  const bool hasUv = mesh.uvs.size() == mesh.positions.size() && !mesh.uvs.empty();
+  const bool hasObj = mesh.faceObject.size() == mesh.triangles.size() && !mesh.faceObject.empty();
+  if (hasN) out += "property float nx\nproperty float ny\nproperty float nz\n";
+  if (hasUv) out += "property float s\nproperty float t\n";
+  out += fmt::format("element face {}\nproperty list uchar int vertex_indices\n", mesh.triangles.size());
+  if (hasObj) out += "property int object_id\n";
+  out += "end_header\n";
+  auto put = [&out](const auto& v) { out.append(reinterpret_cast<const char*>(&v), sizeof(v)); };
+  static_assert(std::endian::native == std::endian::little);
+  for (size_t i = 0; i < mesh.positions.size(); ++i) {
+    for (int k = 0; k < 3; ++k) put(mesh.positions[i][k]);
+    if (hasN) for (int k = 0; k < 3; ++k) put(mesh.normals[i][k]);
+    if (hasUv) for (int k = 0; k < 2; ++k) put(mesh.uvs[i][k]);
+  }
+  for (size_t i = 0; i < mesh.triangles.size(); ++i) {
+    put(static_cast<uint8_t>(3));
+    for (int k = 0; k < 3; ++k) put(static_cast<int32_t>(mesh.triangles[i][k]));
+    if (hasObj) put(mesh.faceObject[i]);
+  }
+  writeTextAtomically(path, out);
+}
+
+}  // namespace relume

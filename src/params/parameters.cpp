@@ -1,0 +1,100 @@
+#include "params/parameters.h"
+
+#include "core/error.h"
+
+namespace relume {
+
+const char* paramKindName(ParamKind kind) {
+  switch (kind) {
+    case ParamKind::Albedo: return "albedo";
+    case ParamKind::Roughness: return "roughness";
+    case ParamKind::Specular: return "specular";
+    case ParamKind::Emission: return "emission";
+    case ParamKind::EmissionTexture: return "emission_tex";
+  }
+  return "";
+}
+
+ParamKind parseParamKind(const std::string& name) {
+  for (ParamKind k : kAllParamKinds)
+    if (name == paramKindName(k)) return k;
+  fail("unknown parameter kind '{}' (albedo, roughness, specular, emission, emission_tex)", name);
+}
+
+std::string ParamRef::label() const {
+  const char* rgb = "rgb";
+  switch (kind) {
+    case ParamKind::Albedo: return fmt::format("albedo[texel {}].{}", texel, rgb[channel]);
+    case ParamKind::Roughness: return fmt::format("roughness[obj {}]", object);
+    case ParamKind::Specular: return fmt::format("specular[obj {}]", object);
+    case ParamKind::Emission: return fmt::format("emission[obj {}].{}", object, rgb[channel]);
+    case ParamKind::EmissionTexture: return fmt::format("emission_tex[obj {} texel {}].{}", object, texel, rgb[channel]);
+  }
+  return "";
+}
+
+float& paramValue(Appearance& a, const ParamRef& p) {
+  switch (p.kind) {
+    case ParamKind::Albedo: return a.albedo.rgb[3 * p.texel + p.channel];
+    case ParamKind::Roughness: return a.roughness[p.object];
+    case ParamKind::Specular: return a.specular[p.object];
+    case ParamKind::Emission: return a.emission[p.object][p.channel];
+    case ParamKind::EmissionTexture: return a.emissionTextures[a.emissionTextureOf[p.object]].rgb[3 * p.texel + p.channel];
+  }
+  fail("bad parameter reference");
+}
+
+float paramValue(const Appearance& a, const ParamRef& p) { return paramValue(const_cast<Appearance&>(a), p); }
+
+void projectToDomain(Appearance& a, const ParamDomain& domain) {
+  for (float& v : a.albedo.rgb) v = std::clamp(v, 0.0f, 1.0f);
+  for (Color& c : a.albedoConstant) c = c.max(0.0f).min(1.0f);
+  for (float& r : a.roughness) r = std::clamp(r, domain.roughnessMin, 1.0f);
+  for (float& s : a.specular) s = std::clamp(s, 0.0f, 1.0f);
+  for (Color& e : a.emission) e = e.max(0.0f);
+  for (Texture& t : a.emissionTextures)
+    for (float& v : t.rgb) v = std::max(v, 0.0f);
+}
+
+Gradients::Gradients(const Appearance& shape)
+    : albedo(shape.albedo.rgb.size(), 0.0f),
+      objects(5 * static_cast<size_t>(shape.objectCount()), 0.0),
+      objectCount_(shape.objectCount()),
+      emissionTextureOf_(shape.emissionTextureOf),
+      objectLocal_([n = 5 * static_cast<size_t>(shape.objectCount())] { return std::vector<double>(n, 0.0); }) {
+  for (const Texture& t : shape.emissionTextures) emissionTexture.emplace_back(t.rgb.size(), 0.0f);
+}
+
+void Gradients::clear() {
+  std::fill(albedo.begin(), albedo.end(), 0.0f);
+  for (auto& t : emissionTexture) std::fill(t.begin(), t.end(), 0.0f);
+  std::fill(objects.begin(), objects.end(), 0.0);
+  for (auto& local : objectLocal_) std::fill(local.begin(), local.end(), 0.0);
+}
+
+void Gradients::combine() {
+  for (auto& local : objectLocal_) {
+    for (size_t i = 0; i < objects.size(); ++i) objects[i] += local[i];
+    std::fill(local.begin(), local.end(), 0.0);
+  }
+}
+
+double Gradients::value(const ParamRef& p) const {
+  switch (p.kind) {
+    case ParamKind::Albedo: return albedo[3 * p.texel + p.channel];
+    case ParamKind::Roughness: return objects[roughnessSlot(p.object)];
+    case ParamKind::Specular: return objects[specularSlot(p.object)];
+    case ParamKind::Emission: return objects[emissionSlot(p.object, p.channel)];
+    case ParamKind::EmissionTexture: return emissionTexture[emissionTextureOf_[p.object]][3 * p.texel + p.channel];
+  }
+  return 0.0;
+}
+
+void Gradients::scale(double s) {
+  for (float& v : albedo) v = static_cast<float>(v * s);
+  for (auto& t : emissionTexture)
+    for (float& v : t) v = static_cast<float>(v * s);
+  for (double& v : objects) v *= s;
+}
+
+}  // namespace relume

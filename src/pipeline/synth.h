@@ -1,0 +1,42 @@
+// Procedural scenes whose ground truth we control, and complete synthetic captures of them.
+#pragma once
+#include <filesystem>
+#include <string>
+
+#include "capture/transforms.h"
+#include "scene/appearance.h"
+
+namespace relume {
+
+enum class SynthSceneKind { Room, Cornell, Furnace };
+SynthSceneKind parseSynthScene(const std::string& name);  // throws relume::Error
+
+struct SynthScene {
+  SynthSceneKind kind;
+  SceneDescription scene;  // mesh with a uv atlas; appearance with the true parameters
+};
+
+// Builds the scene in memory. atlasResolution sets the ground-truth albedo texture size.
+SynthScene makeSynthScene(SynthSceneKind kind, int atlasResolution = 1024);
+
+// A smooth hand-held-like walk that sees every wall, the floor and the lights. `phase` in [0,1)
+// shifts the walk, so test views differ from training views.
+std::vector<Camera> synthCameraPath(SynthSceneKind kind, int frames, int width, int height, double phase);
+
+struct SynthCaptureOptions {
+  SynthSceneKind kind = SynthSceneKind::Room;
+  std::filesystem::path out;
+  int frames = 24, testFrames = 4;
+  int width = 256, height = 192;
+  int spp = 32;
+  int maxDepth = 8;
+  uint64_t seed = 1;
+  bool withUv = false;
+  int atlasResolution = 1024;
+};
+
+// Writes mesh.ply, transforms.json, transforms_test.json, images/, test/, gt/ (scene.json,
+// textures, uv-mapped mesh). Returns the number of rendered frames.
+int writeSynthCapture(const SynthCaptureOptions& options);
+
+}  // namespace relume

@@ -1,0 +1,38 @@
+// Rendering whole images from a camera: TBB over 16x16 tiles, one PCG32 per (pixel, sample, seed).
+#pragma once
+#include <string>
+#include <vector>
+
+#include "core/camera.h"
+#include "io/image.h"
+#include "render/path_tracer.h"
+
+namespace relume {
+
+enum class Aov { Albedo, Normal, Depth, Object };
+std::vector<Aov> parseAovs(const std::string& commaList);  // throws relume::Error on unknown names
+const char* aovName(Aov aov);
+
+struct RenderOptions {
+  int spp = 16;
+  uint64_t seed = 0;
+  PathSettings path;
+  std::vector<Aov> aovs;
+};
+
+struct RenderStats {
+  double seconds = 0;
+  uint64_t paths = 0;
+  uint64_t rays = 0;  // closest-hit + shadow rays actually traced
+};
+
+struct RenderResult {
+  Image color;
+  std::vector<Image> aovs;  // same order as RenderOptions::aovs
+  RenderStats stats;
+};
+
+RenderResult renderImage(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
+                         const Camera& camera, const RenderOptions& options);
+
+}  // namespace relume

@@ -1,0 +1,44 @@
+#include "render/lights.h"
+
+#include "core/warp.h"
+
+namespace relume {
+
+LightSampler::LightSampler(const Scene& scene, const Appearance& appearance) : scene_(&scene) {
+  const TriangleMesh& mesh = scene.mesh();
+  std::vector<std::vector<uint32_t>> trisOf(appearance.objectCount());
+  for (uint32_t f = 0; f < mesh.triangles.size(); ++f)
+    if (mesh.faceObject[f] < appearance.objectCount()) trisOf[mesh.faceObject[f]].push_back(f);
+  std::vector<double> power;
+  pdfArea_.assign(appearance.objectCount(), 0.0f);
+  std::vector<double> objectArea;
+  for (int o = 0; o < appearance.objectCount(); ++o) {
+    if (trisOf[o].empty() || !appearance.isEmissive(o)) continue;
+    EmitterObject e;
+    e.object = o;
+    e.triangles = std::move(trisOf[o]);
+    std::vector<double> areas;
+    double area = 0;
+    for (uint32_t f : e.triangles) areas.push_back(mesh.faceArea[f]), area += mesh.faceArea[f];
+    e.byArea = AliasTable(areas);
+    power.push_back(area * kPi * luminance(appearance.meanEmission(o)) + 1e-12);
+    objectArea.push_back(area);
+    objects_.push_back(std::move(e));
+  }
+  byPower_ = AliasTable(power);
+  for (size_t i = 0; i < objects_.size(); ++i)
+    pdfArea_[objects_[i].object] = static_cast<float>(byPower_.pmf(static_cast<uint32_t>(i)) / objectArea[i]);
+}
+
+std::optional<LightSample> LightSampler::sample(float uObject, float uTriangle, const Vec2& uPoint) const {
+  if (objects_.empty()) return std::nullopt;
+  const EmitterObject& e = objects_[byPower_.sample(uObject)];
+  const uint32_t prim = e.triangles[e.byArea.sample(uTriangle)];
+  const Vec2 b = squareToTriangle(uPoint);
+  LightSample s;
+  s.hit = scene_->surfacePoint(prim, b.x(), b.y());
+  s.pdfArea = pdfArea_[e.object];
+  return s;
+}
+
+}  // namespace relume

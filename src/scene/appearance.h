@@ -1,0 +1,57 @@
+// The appearance of every surface: what the renderer evaluates and what the optimiser changes.
+// Per-object roughness/specular/emission, an albedo atlas texture (or per-object constants) and
+// emission textures allocated only over emitter objects.
+#pragma once
+#include <filesystem>
+#include <string>
+
+#include "scene/mesh.h"
+#include "scene/texture.h"
+
+namespace relume {
+
+enum class DiffuseModel { Disney, Lambert };
+
+inline constexpr float kRoughnessMin = 0.03f;  // keeps the optimiser out of the alpha clamp
+
+struct Appearance {
+  DiffuseModel diffuse = DiffuseModel::Disney;
+  std::vector<std::string> names;
+  std::vector<float> roughness, specular;
+  std::vector<Color> emission;             // Lambertian radiance per object (front side)
+  std::vector<Color> albedoConstant;       // used where albedoFromTexture[o] == 0
+  std::vector<uint8_t> albedoFromTexture;
+  Texture albedo;                          // uv atlas, row 0 at the top
+  std::vector<int> emissionTextureOf;      // per object: index into emissionTextures or -1
+  std::vector<Texture> emissionTextures;   // windows of the atlas, one per textured emitter
+
+  explicit Appearance(int objectCount = 0);
+  int objectCount() const { return static_cast<int>(roughness.size()); }
+  bool usesTexture(int object) const { return albedoFromTexture[object] != 0 && !albedo.empty(); }
+  Color albedoAt(int object, const Vec2& uv) const {
+    return usesTexture(object) ? albedo.lookup(uv) : albedoConstant[object];
+  }
+  const Texture* emissionTexture(int object) const {
+    return emissionTextureOf[object] >= 0 ? &emissionTextures[emissionTextureOf[object]] : nullptr;
+  }
+  Color emissionAt(int object, const Vec2& uv) const {
+    const Texture* t = emissionTexture(object);
+    return t ? t->lookup(uv) : emission[object];
+  }
+  bool isEmissive(int object) const;
+  // Average emitted radiance of an object (texture mean if textured): drives light selection.
+  Color meanEmission(int object) const;
+};
+
+struct SceneDescription {
+  std::filesystem::path meshPath;
+  TriangleMesh mesh;
+  Appearance appearance;
+};
+
+// scene.json (schema in the README). Throws relume::Error naming the file and field.
+SceneDescription loadSceneFile(const std::filesystem::path& path);
+// Writes scene.json plus textures next to it (albedo.exr, emission_<object>.exr) and the mesh (atomic).
+void saveSceneFile(const std::filesystem::path& path, const SceneDescription& scene);
+
+}  // namespace relume

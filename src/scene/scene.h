@@ -1,0 +1,51 @@
+// Ray queries against the mesh (Embree 3 BVH) and surface attributes at a hit.
+#pragma once
+#include <embree3/rtcore.h>
+
+#include <memory>
+#include <optional>
+
+#include "scene/mesh.h"
+
+namespace relume {
+
+struct SurfaceHit {
+  Vec3 p = Vec3::Zero();
+  Vec3 ng = Vec3::UnitZ();  // unit geometric normal in winding order (emitters emit on this side)
+  Vec3 ns = Vec3::UnitZ();  // unit shading normal, same side as ng
+  Vec2 uv = Vec2::Zero();  // atlas uv (zero when the mesh has none)
+  uint32_t prim = 0;
+  int object = 0;
+  float t = 0;
+};
+
+struct SceneOptions {
+  bool robust = false;  // RTC_SCENE_FLAG_ROBUST: see README "Performance" for its measured cost
+};
+
+class Scene {
+ public:
+  explicit Scene(TriangleMesh mesh, SceneOptions options = {});
+  ~Scene();
+  Scene(const Scene&) = delete;
+  Scene& operator=(const Scene&) = delete;
+
+  const TriangleMesh& mesh() const { return mesh_; }
+  std::optional<SurfaceHit> intersect(const Vec3& origin, const Vec3& dir, float tmax = INFINITY) const;
+  bool occluded(const Vec3& origin, const Vec3& dir, float tmax) const;
+  SurfaceHit surfacePoint(uint32_t prim, float b1, float b2) const;  // barycentrics of vertices 1 and 2
+  // Origin nudged off the surface towards `dir`, scaled to the coordinate magnitude.
+  static Vec3 offsetOrigin(const SurfaceHit& hit, const Vec3& dir);
+  float sceneRadius() const { return radius_; }
+
+ private:
+  TriangleMesh mesh_;
+  std::vector<float> vertexBuffer_;  // xyz + padding so Embree can read 16 bytes at the end
+  RTCDevice device_ = nullptr;
+  RTCScene scene_ = nullptr;
+  float radius_ = 1.0f;
+};
+
+inline float rayEpsilon(const Vec3& p) { return 1e-4f * (1.0f + p.cwiseAbs().maxCoeff()); }
+
+}  // namespace relume

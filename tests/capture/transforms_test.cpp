@@ -1,0 +1,110 @@
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "capture/transforms.h"
+#include "core/error.h"
+
+using namespace relume;
+namespace fs = std::filesystem;
+
+namespace {
+fs::path writeFile(const std::string& name, const std::string& text) {
+  const fs::path dir = fs::temp_directory_path() / "relume_capture_test";
+  fs::create_directories(dir);
+  std::ofstream(dir / name) << text;
+  return dir / name;
+}
+std::string errorOf(const fs::path& p) {
+  try {
+    readTransforms(p);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+}  // namespace
+
+TEST(Transforms, OpenGLToOpenCVHandComputed) {
+  // Camera at (1,2,3) rotated 90 degrees about +y (OpenGL: looks along -z, so after the rotation
+  // it looks along -x). In OpenCV axes the forward (z) axis must be world -x, down (y) world -y,
+  // right (x) world -z... worked out: R_gl columns = (0,0,-1), (0,1,0), (1,0,0).
+  const fs::path p = writeFile("t1.json", R"({"fl_x": 100, "fl_y": 110, "cx": 50, "cy": 40, "w": 100, "h": 80,
+    "frames": [{"file_path": "a.exr", "transform_matrix": [[0,0,1,1],[0,1,0,2],[-1,0,0,3],[0,0,0,1]]}]})");
+  const Capture cap = readTransforms(p);
+  ASSERT_EQ(cap.frames.size(), 1u);
+  const Camera& c = cap.frames[0].camera;
+  EXPECT_TRUE(c.position.isApprox(Vec3(1, 2, 3)));
+  EXPECT_TRUE(c.rotation.col(0).isApprox(Vec3(0, 0, -1)));  // right
+  EXPECT_TRUE(c.rotation.col(1).isApprox(Vec3(0, -1, 0)));  // down
+  EXPECT_TRUE(c.rotation.col(2).isApprox(Vec3(-1, 0, 0)));  // forward
+  // A point straight ahead projects to the principal point; one above projects above it.
+  EXPECT_TRUE(c.project(Vec3(-4, 2, 3))->isApprox(Vec2(50, 40)));
+  EXPECT_LT(c.project(Vec3(-4, 3, 3))->y(), 40);
+  EXPECT_EQ(cap.frames[0].image, p.parent_path() / "a.exr");
+  EXPECT_FLOAT_EQ(c.fy, 110);
+}
+
+TEST(Transforms, RoundTripThroughWriter) {
+  Frame f;
+  f.camera.width = 64, f.camera.height = 48, f.camera.fx = f.camera.fy = 50, f.camera.cx = 32, f.camera.cy = 24;
+  f.camera.distortion.k1 = -0.1f;
+  f.camera.rotation = Eigen::AngleAxisf(0.7f, Vec3(1, 1, 0).normalized()).toRotationMatrix();
+  f.camera.position = Vec3(0.5f, -1, 2);
+  const fs::path dir = fs::temp_directory_path() / "relume_capture_test";
+  f.image = dir / "images" / "x.exr";
+  f.exposure = 2.0f;
+  writeTransforms(dir / "rt.json", {f});
+  const Capture cap = readTransforms(dir / "rt.json");
+  EXPECT_TRUE(cap.frames[0].camera.rotation.isApprox(f.camera.rotation, 1e-5f));
+  EXPECT_TRUE(cap.frames[0].camera.position.isApprox(f.camera.position));
+  EXPECT_FLOAT_EQ(cap.frames[0].camera.distortion.k1, -0.1f);
+  EXPECT_FLOAT_EQ(cap.frames[0].exposure, 2.0f);
+  EXPECT_EQ(cap.frames[0].image, f.image);
+}
+
+TEST(Transforms, MalformedInputsGiveOneLineErrors) {
+  const std::string frame = R"("file_path": "a.exr", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]])";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"{not json", "malformed JSON"},
+      {R"({"fl_x": 1, "w": 2, "h": 2})", "missing 'frames'"},
+      {R"({"frames": []})", "no frames"},
+      {R"({"w": 10, "h": 10, "frames": [{)" + frame + "}]}", "missing 'fl_x'"},
+      {R"({"fl_x": "ten", "w": 10, "h": 10, "frames": [{)" + frame + "}]}", "'fl_x' must be a finite number"},
+      {R"({"fl_x": 10, "w": -1, "h": 10, "frames": [{)" + frame + "}]}", "bad image size"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "camera_model": "FISHEYE", "frames": [{)" + frame + "}]}", "unsupported camera_model"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"file_path": "a", "transform_matrix": [[1,0,0]]}]})", "must be a 4x4"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"file_path": "a", "transform_matrix": [[2,0,0,0],[0,1,0,0],[0,0,1,0]]}]})", "not orthonormal"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0]]}]})", "missing 'file_path'"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "exposure": 0, "frames": [{)" + frame + "}]}", "exposure must be positive"},
+  };
+  for (size_t i = 0; i < cases.size(); ++i) {
+    const fs::path p = writeFile("bad" + std::to_string(i) + ".json", cases[i].first);
+    const std::string err = errorOf(p);
+    EXPECT_NE(err.find(cases[i].second), std::string::npos) << "case " << i << ": " << err;
+    EXPECT_NE(err.find(p.string()), std::string::npos) << "error must name the file: " << err;
+    EXPECT_EQ(err.find('\n'), std::string::npos);
+  }
+  EXPECT_NE(errorOf("/nonexistent/transforms.json").find("cannot open"), std::string::npos);
+}
+
+TEST(Transforms, NanPixelsAreMaskedAndCounted) {
+  const fs::path dir = fs::temp_directory_path() / "relume_capture_test";
+  Image img(4, 2);
+  img.set(1, 1, Color(NAN, 1, 1));
+  img.set(2, 0, Color(INFINITY, 0, 0));
+  img.set(0, 0, Color(2, 4, 6));
+  writeExr(dir / "nan.exr", img);
+  Frame f;
+  f.camera.width = 4, f.camera.height = 2;
+  f.image = dir / "nan.exr";
+  f.exposure = 2.0f;
+  ImageReadStats stats;
+  const Image loaded = loadFrameImage(f, &stats);
+  EXPECT_EQ(stats.nonFinitePixels, 2u);
+  EXPECT_EQ(loaded.at(1, 1)[0], kMaskedPixel);
+  EXPECT_EQ(loaded.at(2, 0)[1], kMaskedPixel);
+  EXPECT_TRUE(loaded.at(0, 0).isApprox(Color(1, 2, 3)));  // divided by the exposure
+  f.camera.width = 5;
+  EXPECT_THROW(loadFrameImage(f), Error);
+}

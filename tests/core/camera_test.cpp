@@ -1,0 +1,57 @@
+#include <gtest/gtest.h>
+
+#include "core/alias_table.h"
+#include "core/camera.h"
+#include "core/rng.h"
+
+using namespace relume;
+
+TEST(Camera, ProjectUnprojectRoundTripWithDistortion) {
+  Camera c;
+  c.width = 640, c.height = 480;
+  c.fx = 500, c.fy = 510, c.cx = 322, c.cy = 238;
+  c.distortion = {-0.28f, 0.09f, 0.001f, -0.0015f, -0.01f};
+  c.rotation = Eigen::AngleAxisf(0.4f, Vec3(0.2f, 1, 0.1f).normalized()).toRotationMatrix();
+  c.position = Vec3(1, 2, 3);
+  Pcg32 rng(1);
+  for (int i = 0; i < 1000; ++i) {
+    const Vec2 pixel(rng.next1D() * c.width, rng.next1D() * c.height);
+    const auto dir = c.rayDirection(pixel);
+    ASSERT_TRUE(dir);
+    const auto back = c.project(c.position + 3.7f * *dir);
+    ASSERT_TRUE(back);
+    EXPECT_NEAR((*back - pixel).norm(), 0.0f, 2e-3f);
+  }
+  // Distortion really is applied: the corner moves by many pixels.
+  Camera pinhole = c;
+  pinhole.distortion = {};
+  const Vec3 p = c.position + c.rotation * Vec3(0.5f, 0.4f, 1.0f);
+  EXPECT_GT((*c.project(p) - *pinhole.project(p)).norm(), 5.0f);
+}
+
+TEST(Camera, BehindCameraDoesNotProject) {
+  Camera c;
+  c.width = c.height = 10;
+  EXPECT_FALSE(c.project(Vec3(0, 0, -1)));
+}
+
+TEST(AliasTable, MatchesWeights) {
+  AliasTable t({1.0, 0.0, 3.0, 6.0});
+  EXPECT_FLOAT_EQ(t.pmf(2), 0.3f);
+  std::vector<int> counts(4, 0);
+  Pcg32 rng(2);
+  for (int i = 0; i < 100000; ++i) ++counts[t.sample(rng.next1D())];
+  EXPECT_EQ(counts[1], 0);
+  EXPECT_NEAR(counts[3] / 100000.0, 0.6, 0.01);
+  EXPECT_NEAR(counts[0] / 100000.0, 0.1, 0.01);
+  EXPECT_TRUE(AliasTable({0.0, 0.0}).empty());
+}
+
+TEST(Rng, SeedsAreIndependentOfOrder) {
+  Pcg32 a(hashTuple({1, 2, 3})), b(hashTuple({1, 2, 3})), c(hashTuple({1, 3, 2}));
+  EXPECT_EQ(a.nextU32(), b.nextU32());
+  EXPECT_NE(Pcg32(hashTuple({1, 2, 3})).nextU32(), c.nextU32());
+  float mx = 0;
+  for (int i = 0; i < 100000; ++i) mx = std::max(mx, a.next1D());
+  EXPECT_LT(mx, 1.0f);
+}

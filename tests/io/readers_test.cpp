@@ -1,0 +1,194 @@
+// Every reader rejects hostile input with a one-line error naming the file; valid variants load.
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "core/error.h"
+#include "io/image.h"
+#include "io/json.h"
+#include "io/mesh_data.h"
+#include "scene/appearance.h"
+#include "scene/mesh.h"
+
+using namespace relume;
+namespace fs = std::filesystem;
+
+namespace {
+fs::path tmpDir() {
+  const fs::path d = fs::temp_directory_path() / "relume_io_test";
+  fs::create_directories(d);
+  return d;
+}
+fs::path writeBytes(const std::string& name, const std::string& bytes) {
+  const fs::path p = tmpDir() / name;
+  std::ofstream(p, std::ios::binary) << bytes;
+  return p;
+}
+template <typename F> std::string errorOf(F&& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "<no error>";
+}
+const std::string kAsciiHeader =
+    "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+    "element face 1\nproperty list uchar int vertex_indices\nproperty int segment_id\nend_header\n";
+const std::string kAsciiBody = "0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3 7\n";
+
+std::string binaryPly(bool bigEndian, int faceIndex = 2, uint32_t declaredFaces = 1) {
+  std::string s = std::string("ply\nformat ") + (bigEndian ? "binary_big_endian" : "binary_little_endian") +
+                  " 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nproperty float u\nproperty float v\n"
+                  "element face " + std::to_string(declaredFaces) + "\nproperty list uchar uint vertex_indices\nproperty uchar object_id\nend_header\n";
+  auto put = [&](auto v) {
+    char b[sizeof(v)];
+    std::memcpy(b, &v, sizeof(v));
+    if (bigEndian) std::reverse(b, b + sizeof(v));
+    s.append(b, sizeof(v));
+  };
+  const float verts[3][5] = {{0, 0, 0, 0, 0}, {1, 0, 0, 1, 0}, {0, 1, 0, 0, 1}};
+  for (auto& v : verts)
+    for (float x : v) put(x);
+  put(uint8_t{3});
+  put(uint32_t{0}), put(uint32_t{1}), put(static_cast<uint32_t>(faceIndex));
+  put(uint8_t{5});
+  return s;
+}
+}  // namespace
+
+TEST(Ply, AsciiPolygonsAreFanTriangulatedWithLabels) {
+  const MeshData m = readPly(writeBytes("quad.ply", kAsciiHeader + kAsciiBody));
+  ASSERT_EQ(m.triangles.size(), 2u);
+  EXPECT_EQ(m.faceObject, (std::vector<int32_t>{7, 7}));
+  EXPECT_EQ(m.polygonsTriangulated, 1u);
+}
+
+TEST(Ply, BinaryBothEndiannessWithUv) {
+  for (bool be : {false, true}) {
+    const MeshData m = readPly(writeBytes(be ? "be.ply" : "le.ply", binaryPly(be)));
+    ASSERT_EQ(m.triangles.size(), 1u);
+    EXPECT_TRUE(m.positions[1].isApprox(Vec3(1, 0, 0)));
+    ASSERT_EQ(m.uvs.size(), 3u);
+    EXPECT_TRUE(m.uvs[2].isApprox(Vec2(0, 1)));
+    EXPECT_EQ(m.faceObject[0], 5);
+  }
+}
+
+TEST(Ply, WriterRoundTrip) {
+  MeshData m;
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  m.uvs = {{0, 0}, {1, 0}, {0, 1}};
+  m.triangles = {{0, 1, 2}};
+  m.faceObject = {3};
+  writePly(tmpDir() / "rt.ply", m);
+  const MeshData r = readPly(tmpDir() / "rt.ply");
+  EXPECT_EQ(r.triangles, m.triangles);
+  EXPECT_EQ(r.faceObject, m.faceObject);
+  EXPECT_TRUE(r.uvs[1].isApprox(m.uvs[1]));
+}
+
+TEST(Ply, MalformedFilesGiveOneLineErrors) {
+  const std::string good = binaryPly(false);
+  const std::vector<std::tuple<std::string, std::string, std::string>> cases = {
+      {"empty.ply", "", "not a PLY"},
+      {"noend.ply", "ply\nformat ascii 1.0\nelement vertex 1\n", "no 'end_header'"},
+      {"truncated.ply", good.substr(0, good.size() - 7), "truncated"},
+      {"wrongcount.ply", binaryPly(false, 2, 3), "truncated binary data while reading face"},
+      {"huge.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n", "declares 4000000000"},
+      {"oob.ply", binaryPly(false, 9), "out of range"},
+      {"negidx.ply", kAsciiHeader + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 -1 2 0\n", "out of range"},
+      {"token.ply", kAsciiHeader + "0 0 0\n1 zero 0\n1 1 0\n0 1 0\n3 0 1 2 0\n", "non-numeric token 'zero'"},
+      {"badtype.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty quaternion x\nend_header\n0\n", "unknown property type"},
+      {"badformat.ply", "ply\nformat binary_middle_endian 1.0\nend_header\n", "unknown PLY format"},
+      {"noxyz.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float a\nend_header\n0\n", "lacks x/y/z"},
+      {"noface.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n", "no faces"},
+      {"badlabel.ply", kAsciiHeader + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2 -4\n", "not a non-negative integer"},
+      {"hugelist.ply", kAsciiHeader + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n200 0 1 2\n", "unexpected end of file"},
+      {"nanvert.ply", kAsciiHeader + "0 0 nan\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2 0\n", "non-finite position"},
+  };
+  for (const auto& [name, bytes, expected] : cases) {
+    const fs::path p = writeBytes(name, bytes);
+    const std::string err = errorOf([&] { readPly(p); });
+    EXPECT_NE(err.find(expected), std::string::npos) << name << ": " << err;
+    EXPECT_NE(err.find(p.string()), std::string::npos) << name << ": " << err;
+    EXPECT_EQ(err.find('\n'), std::string::npos) << name;
+  }
+  EXPECT_NE(errorOf([] { readPly("/nonexistent.ply"); }).find("cannot open"), std::string::npos);
+}
+
+TEST(Ply, FuzzedTruncationsNeverCrash) {
+  const std::string good = binaryPly(false);
+  const std::string ascii = kAsciiHeader + kAsciiBody;
+  for (const std::string* src : {&good, &ascii})
+    for (size_t n = 0; n < src->size(); ++n) {
+      const fs::path p = writeBytes("cut.ply", src->substr(0, n));
+      try {
+        readPly(p);
+      } catch (const Error&) {
+      }
+    }
+  SUCCEED();
+}
+
+TEST(Obj, GroupsBecomeSegmentsAndErrorsAreClear) {
+  const fs::path ok = writeBytes("a.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\no first\nf 1 2 3\no second\nf 1 3 4\n");
+  const MeshData m = readMesh(ok);
+  ASSERT_EQ(m.triangles.size(), 2u);
+  EXPECT_NE(m.faceObject[0], m.faceObject[1]);
+  EXPECT_EQ(m.objectNames[m.faceObject[1]], "second");
+  const fs::path bad = writeBytes("b.obj", "v 0 0 0\nv 1 0 0\nf 1 2 9\n");
+  const std::string err = errorOf([&] { readMesh(bad); });
+  EXPECT_NE(err.find(bad.string()), std::string::npos) << err;
+  EXPECT_NE(errorOf([] { readMesh("x.stl"); }).find("unsupported mesh format"), std::string::npos);
+}
+
+TEST(Mesh, DegenerateTrianglesAreDroppedAndCounted) {
+  MeshData m;
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {2, 0, 0}};
+  m.triangles = {{0, 1, 2}, {0, 1, 3}, {0, 0, 2}};  // second is collinear, third repeats a vertex
+  const TriangleMesh t = buildMesh(m, "test");
+  EXPECT_EQ(t.triangles.size(), 1u);
+  EXPECT_EQ(t.droppedDegenerate, 2u);
+  m.triangles = {{0, 1, 3}};
+  EXPECT_NE(errorOf([&] { buildMesh(m, "all-bad"); }).find("every triangle is degenerate"), std::string::npos);
+}
+
+TEST(Images, MissingAndCorruptImagesGiveErrors) {
+  EXPECT_NE(errorOf([] { readImage("/nonexistent.exr"); }).find("not found"), std::string::npos);
+  const fs::path junk = writeBytes("junk.exr", "this is not an exr");
+  const std::string err = errorOf([&] { readImage(junk); });
+  EXPECT_NE(err.find(junk.string()), std::string::npos) << err;
+}
+
+TEST(Images, PngIsSrgbDecodedExrIsLinear) {
+  Image img(2, 1);
+  img.set(0, 0, Color::Constant(0.5f));
+  img.set(1, 0, Color::Constant(0.2f));
+  writeExr(tmpDir() / "lin.exr", img);
+  writePng(tmpDir() / "srgb.png", img);
+  EXPECT_FLOAT_EQ(readImage(tmpDir() / "lin.exr").at(0, 0)[0], 0.5f);
+  EXPECT_NEAR(readImage(tmpDir() / "srgb.png").at(1, 0)[0], 0.2f, 0.004f);  // 8-bit quantisation
+}
+
+TEST(SceneFile, RejectsBadFields) {
+  MeshData m;
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  m.triangles = {{0, 1, 2}};
+  writePly(tmpDir() / "scene_mesh.ply", m);
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {R"({"objects": []})", "missing 'mesh'"},
+      {R"({"mesh": "scene_mesh.ply", "diffuse": "oren"})", "'diffuse' must be"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 4}]})", "id 4 not in the mesh"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "roughness": "rough"}]})", "must be a number"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": [1, 2]}]})", "[r,g,b]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": [-1, 0, 0]}]})", "emission must be >= 0"},
+      {R"({"mesh": "scene_mesh.ply", "albedo_texture": "a.exr"})", "has no valid uv"},
+      {R"({"mesh": "missing.ply"})", "cannot open"},
+  };
+  for (size_t i = 0; i < cases.size(); ++i) {
+    const fs::path p = writeBytes("scene" + std::to_string(i) + ".json", cases[i].first);
+    const std::string err = errorOf([&] { loadSceneFile(p); });
+    EXPECT_NE(err.find(cases[i].second), std::string::npos) << i << ": " << err;
+  }
+}

@@ -5,6 +5,7 @@
 #include "capture/transforms.h"
 #include "core/error.h"
 #include "core/system.h"
+#include "pipeline/profile.h"
 #include "pipeline/synth.h"
 #include "render/film.h"
 
@@ -107,6 +108,29 @@ CommandTable registerCommands(CLI::App& app) {
     spdlog::info("ground truth scene:     {}", r.scene);
     spdlog::info("novel views + AOVs:     {}", r.out);
     spdlog::info("next: relume gradcheck --synth room  (adjoint gradients vs finite differences)");
+    return 0;
+  };
+  auto prof = std::make_shared<std::array<int, 4>>(std::array<int, 4>{320, 240, 4, 8});
+  auto profScene = std::make_shared<std::string>("room");
+  CLI::App* profile = app.add_subcommand("profile", "measure the renderer: paths/s, rays/s, Embree-only efficiency");
+  profile->add_option("--synth", *profScene, "room, cornell or furnace")->capture_default_str();
+  profile->add_option("--width", (*prof)[0])->capture_default_str();
+  profile->add_option("--height", (*prof)[1])->capture_default_str();
+  profile->add_option("--spp", (*prof)[2])->capture_default_str();
+  profile->add_option("--max-depth", (*prof)[3])->capture_default_str();
+  table[profile] = [=] {
+    const SynthSceneKind kind = parseSynthScene(*profScene);
+    const SynthScene s = makeSynthScene(kind, 1024);
+    const Camera cam = synthCameraPath(kind, 8, (*prof)[0], (*prof)[1], 0.0)[2];
+    const RenderProfile p = profileRender(s.scene, cam, (*prof)[2], (*prof)[3]);
+    const double rays = static_cast<double>(p.closestRays + p.shadowRays);
+    fmt::print("primal render  {}x{} spp {} depth {} threads {} triangles {}\n", p.width, p.height, p.spp, p.maxDepth,
+               p.threads, s.scene.mesh.triangles.size());
+    fmt::print("  render       {:8.3f} s  {:7.3f} Mpaths/s  {:6.2f} Mrays/s ({:.1f} rays/path: {} closest, {} shadow)\n",
+               p.renderSeconds, p.paths / p.renderSeconds * 1e-6, rays / p.renderSeconds * 1e-6, rays / p.paths,
+               p.closestRays, p.shadowRays);
+    fmt::print("  trace only   {:8.3f} s  {:6.2f} Mrays/s\n", p.traceOnlySeconds, rays / p.traceOnlySeconds * 1e-6);
+    fmt::print("  efficiency   {:8.3f} (trace-only time / render time)\n", p.efficiency());
     return 0;
   };
   return table;

@@ -33,6 +33,8 @@ struct Patch {
 
 class SceneBuilder {
  public:
+  // Quads are tessellated into cells of at most this size (metres), like a scanned mesh.
+  explicit SceneBuilder(float cellSize = 1e9f) : cellSize_(cellSize) {}
   int addObject(const std::string& name, float roughness, float specular, Color emission = Color::Zero()) {
     names_.push_back(name);
     roughness_.push_back(roughness);
@@ -44,7 +46,9 @@ class SceneBuilder {
   void quad(int object, const Vec3& origin, const Vec3& edgeS, const Vec3& edgeT, AlbedoPattern albedo) {
     const float ls = edgeS.norm(), lt = edgeT.norm();
     const Vec3 ds = edgeS / ls, dt = edgeT / lt;
-    patches_.push_back({object, ls, lt, 1, 1, [=](float s, float t) { return Vec3(origin + s * ds + t * dt); }, std::move(albedo)});
+    const int segS = std::max(1, static_cast<int>(std::ceil(ls / cellSize_)));
+    const int segT = std::max(1, static_cast<int>(std::ceil(lt / cellSize_)));
+    patches_.push_back({object, ls, lt, segS, segT, [=](float s, float t) { return Vec3(origin + s * ds + t * dt); }, std::move(albedo)});
   }
   // Axis-aligned box, outward normals; bottom face omitted when it rests on the floor.
   void box(int object, const Vec3& lo, const Vec3& hi, const AlbedoPattern& albedo, bool withBottom = false) {
@@ -151,6 +155,7 @@ class SceneBuilder {
     }
     return true;
   }
+  float cellSize_;
   std::vector<std::string> names_;
   std::vector<float> roughness_, specular_;
   std::vector<Color> emission_;
@@ -166,7 +171,7 @@ float hash01(uint64_t a, uint64_t b) { return static_cast<float>(mix64(hashTuple
 constexpr float kRoomX = 5.0f, kRoomY = 2.7f, kRoomZ = 4.0f;
 
 SceneDescription buildRoom(int resolution) {
-  SceneBuilder b;
+  SceneBuilder b(0.085f);  // ~35k triangles: the density of a coarse room scan
   // Wooden planks: 0.2 m wide, random tone per plank, darker seams.
   const AlbedoPattern planks = [](float s, float t) -> Color {
     const int plank = static_cast<int>(s / 0.2f);

@@ -46,12 +46,6 @@ struct Ggx {
   }
 };
 
-float specularPdf(const Ggx& g, const Vec3& wo, const Vec3& wi) {
-  const Vec3 h = (wo + wi).normalized();
-  if (h.z() <= 0) return 0.0f;
-  return g.G1(wo.z()) * g.D(h.z()) / (4.0f * wo.z());
-}
-
 }  // namespace
 
 float specularLobeProbability(const BsdfParams& p, const Vec3& wo) {
@@ -62,16 +56,23 @@ float specularLobeProbability(const BsdfParams& p, const Vec3& wo) {
   return std::clamp(sum > 0 ? fs / sum : 0.5f, 0.1f, 0.9f);
 }
 
-BsdfEval evalBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi, bool withDerivatives) {
+BsdfEval evalBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi, unsigned query) {
   BsdfEval e;
   const float muO = wo.z(), muI = wi.z();
   if (muO <= kMinCos || muI <= kMinCos) return e;
-  const Vec3 hsum = wo + wi;
-  const Vec3 h = hsum.normalized();
+  const Vec3 h = (wo + wi).normalized();
   const float cosD = std::clamp(wi.dot(h), 0.0f, 1.0f);
   const float cosH = std::clamp(h.z(), 0.0f, 1.0f);
+  const Ggx g{ggxAlpha(p.roughness)};
+  const float D = g.D(cosH);
+  const float lo = g.lambda(muO);
+  if (query & kBsdfPdf) {
+    // Mixture of the cosine lobe and GGX visible normals: pdf(wi) = G1(wo) D(h) / (4 mu_o).
+    const float ps = specularLobeProbability(p, wo);
+    e.pdf = (1.0f - ps) * muI * kInvPi + ps * D / ((1.0f + lo) * 4.0f * muO);
+  }
+  if (!(query & (kBsdfValue | kBsdfDerivatives))) return e;
 
-  // Diffuse.
   float diffuseFactor = kInvPi, dDiffuseDr = 0.0f;
   if (p.diffuse == DiffuseModel::Disney) {
     const float fd90 = 0.5f + 2.0f * p.roughness * cosD * cosD;
@@ -80,36 +81,26 @@ BsdfEval evalBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi, bool with
     diffuseFactor = kInvPi * gi * go;
     dDiffuseDr = kInvPi * (a * go + b * gi) * 2.0f * cosD * cosD;
   }
-  // Specular.
-  const Ggx g{ggxAlpha(p.roughness)};
   const float w = pow5(1.0f - cosD);
   const float f0 = 0.08f * p.specular;
   const float F = f0 + (p.specular - f0) * w;
-  const float D = g.D(cosH);
-  const float li = g.lambda(muI), lo = g.lambda(muO);
+  const float li = g.lambda(muI);
   const float G = 1.0f / (1.0f + li + lo);
   const float denom = 4.0f * muI * muO;
   const float specNoF = D * G / denom;
   e.f = p.albedo * diffuseFactor + Color::Constant(F * specNoF);
-  if (withDerivatives) {
+  if (query & kBsdfDerivatives) {
     e.dAlbedo = diffuseFactor;
     e.dSpecular = (0.08f + 0.92f * w) * specNoF;
-    const bool clamped = p.roughness * p.roughness <= kAlphaMin;
     float dSpecDr = 0.0f;
-    if (!clamped) {
+    if (p.roughness * p.roughness > kAlphaMin) {  // the alpha clamp has zero derivative
       const float dG = -G * G * (g.dLambda(muI) + g.dLambda(muO));
       dSpecDr = F * (g.dD(cosH) * G + D * dG) / denom * (2.0f * p.roughness);
     }
     e.dRoughness = p.albedo * dDiffuseDr + Color::Constant(dSpecDr);
   }
-  if (!isFinite(e.f)) e = BsdfEval{};
+  if (!isFinite(e.f) || !std::isfinite(e.pdf)) e = BsdfEval{};
   return e;
-}
-
-float pdfBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi) {
-  if (wo.z() <= kMinCos || wi.z() <= kMinCos) return 0.0f;
-  const float ps = specularLobeProbability(p, wo);
-  return (1.0f - ps) * cosineHemispherePdf(wi.z()) + ps * specularPdf(Ggx{ggxAlpha(p.roughness)}, wo, wi);
 }
 
 std::optional<BsdfSample> sampleBsdf(const BsdfParams& p, const Vec3& wo, float uLobe, const Vec2& u2) {
@@ -123,11 +114,12 @@ std::optional<BsdfSample> sampleBsdf(const BsdfParams& p, const Vec3& wo, float 
     wi = squareToCosineHemisphere(u2);
   }
   if (wi.z() <= kMinCos) return std::nullopt;
+  const BsdfEval e = evalBsdf(p, wo, wi, kBsdfValue | kBsdfPdf);
+  if (!(e.pdf > 0.0f)) return std::nullopt;
   BsdfSample s;
   s.wi = wi;
-  s.pdf = pdfBsdf(p, wo, wi);
-  if (!(s.pdf > 0.0f)) return std::nullopt;
-  s.f = evalBsdf(p, wo, wi).f;
+  s.pdf = e.pdf;
+  s.f = e.f;
   s.weight = s.f * (wi.z() / s.pdf);
   if (!isFinite(s.weight)) return std::nullopt;
   return s;

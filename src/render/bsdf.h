@@ -21,9 +21,13 @@ struct BsdfParams {
 inline constexpr float kAlphaMin = 1e-3f;
 inline float ggxAlpha(float r) { return std::max(r * r, kAlphaMin); }
 
-// f and its derivatives w.r.t. the parameters, from one evaluation.
+// What evalBsdf computes; value, pdf and derivatives share the half-vector and GGX terms.
+enum BsdfQuery : unsigned { kBsdfValue = 1, kBsdfPdf = 2, kBsdfDerivatives = 4 };
+
+// f, the sampling pdf of wi, and derivatives of f w.r.t. the parameters, from one evaluation.
 struct BsdfEval {
   Color f = Color::Zero();
+  float pdf = 0;                             // solid angle, of the whole sampling mixture
   float dAlbedo = 0;                         // df_c / d albedo_c (same for every channel)
   Color dRoughness = Color::Zero();          // includes the Disney diffuse's roughness coupling
   float dSpecular = 0;                       // achromatic
@@ -36,8 +40,8 @@ struct BsdfSample {
   Color weight;        // f * cos / pdf
 };
 
-BsdfEval evalBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi, bool withDerivatives = false);
-float pdfBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi);
+BsdfEval evalBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi, unsigned query = kBsdfValue);
+inline float pdfBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi) { return evalBsdf(p, wo, wi, kBsdfPdf).pdf; }
 // uLobe picks the lobe (detached), u2 drives the warp.
 std::optional<BsdfSample> sampleBsdf(const BsdfParams& p, const Vec3& wo, float uLobe, const Vec2& u2);
 // Probability of picking the GGX lobe: a detached function of the parameters, in [0.1, 0.9].

@@ -39,7 +39,7 @@ const char* aovName(Aov aov) {
 namespace {
 struct RayCounter : NullPathObserver {
   uint64_t rays = 0;
-  void traced(bool) { ++rays; }
+  void traced(const Vec3&, const Vec3&, float, bool) { ++rays; }
 };
 }  // namespace
 

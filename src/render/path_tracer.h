@@ -42,8 +42,8 @@ inline Color emittedRadiance(const Appearance& a, const SurfaceHit& hit, const V
 
 // Observer interface (all no-ops here). depth = index of the vertex the event happens at.
 struct NullPathObserver {
-  // A ray was traced (for statistics).
-  void traced(bool shadow) {}
+  // A ray was traced (statistics; the profiler replays them through Embree alone).
+  void traced(const Vec3& origin, const Vec3& dir, float tmax, bool shadow) {}
   // A scattering or terminal vertex was reached with throughput beta (before its own terms).
   void vertex(int depth, const SurfaceHit& hit, const ShadingFrame& frame, const Vec3& woLocal, const Color& beta) {}
   // Emission at vertex `depth`, MIS-weighted, not yet multiplied by beta.
@@ -63,7 +63,7 @@ Color tracePath(const Scene& scene, const LightSampler& lights, const Appearance
   float prevPdf = 0.0f;
   for (int depth = 0;; ++depth) {
     const auto hit = scene.intersect(origin, dir);
-    obs.traced(false);
+    obs.traced(origin, dir, INFINITY, false);
     if (!hit) break;
     if (depth == 0 && firstHit) *firstHit = *hit;
 
@@ -100,14 +100,15 @@ Color tracePath(const Scene& scene, const LightSampler& lights, const Appearance
       const Vec3 wi = frame.toLocal(toLight);
       if (cosLight > 0.0f && wi.z() > 0.0f && dist > 0.0f) {
         const Color leLight = scope.emission(depth).emissionAt(ls->hit.object, ls->hit.uv);
-        const Color f = evalBsdf(evalParams, wo, wi).f;
+        const BsdfEval sampled = evalBsdf(sampleParams, wo, wi, kBsdfValue | kBsdfPdf);
+        const Color f = frozen ? evalBsdf(evalParams, wo, wi).f : sampled.f;
         if (leLight.maxCoeff() > 0.0f && f.maxCoeff() > 0.0f) {
           const Vec3 o = Scene::offsetOrigin(*hit, toLight);
           const float tmax = (ls->hit.p - o).norm() - rayEpsilon(ls->hit.p);
-          obs.traced(true);
+          obs.traced(o, toLight, tmax, true);
           if (!scene.occluded(o, toLight, tmax)) {
             const float pdfLight = ls->pdfArea * dist2 / cosLight;
-            const float mis = powerHeuristic(pdfLight, pdfBsdf(sampleParams, wo, wi));
+            const float mis = powerHeuristic(pdfLight, sampled.pdf);
             const float scale = mis / pdfLight;
             obs.nee(depth, wi, f, wi.z(), scale, leLight, ls->hit);
             L += beta * f * (wi.z() * scale) * leLight;

@@ -26,6 +26,13 @@ Scene::Scene(TriangleMesh mesh, SceneOptions options) : mesh_(std::move(mesh)) {
     box.extend(mesh_.positions[i]);
   }
   radius_ = 0.5f * box.diagonal().norm();
+  faces_.resize(mesh_.triangles.size());
+  for (size_t f = 0; f < faces_.size(); ++f) {
+    FaceRecord& r = faces_[f];
+    r.ng = mesh_.faceNormal(f);
+    r.object = mesh_.faceObject[f];
+    for (int k = 0; k < 3; ++k) r.uv[k] = mesh_.hasUv() ? mesh_.uvs[mesh_.triangles[f][k]] : Vec2::Zero();
+  }
   rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, vertexBuffer_.data(), 0,
                              3 * sizeof(float), mesh_.positions.size());
   rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, mesh_.triangles.data(), 0,
@@ -41,25 +48,33 @@ Scene::~Scene() {
   if (device_) rtcReleaseDevice(device_);
 }
 
-SurfaceHit Scene::surfacePoint(uint32_t prim, float b1, float b2) const {
-  const auto& tri = mesh_.triangles[prim];
+SurfaceHit Scene::hitFromFace(uint32_t prim, float b1, float b2) const {
+  const FaceRecord& face = faces_[prim];
   const float b0 = 1.0f - b1 - b2;
   SurfaceHit h;
   h.prim = prim;
-  h.object = mesh_.faceObject[prim];
-  h.p = b0 * mesh_.positions[tri[0]] + b1 * mesh_.positions[tri[1]] + b2 * mesh_.positions[tri[2]];
-  h.ng = mesh_.faceNormal(prim);
-  h.ns = h.ng;
+  h.object = face.object;
+  h.ng = face.ng;
+  h.ns = face.ng;
+  h.uv = b0 * face.uv[0] + b1 * face.uv[1] + b2 * face.uv[2];
   if (!mesh_.normals.empty()) {
+    const auto& tri = mesh_.triangles[prim];
     const Vec3 n = b0 * mesh_.normals[tri[0]] + b1 * mesh_.normals[tri[1]] + b2 * mesh_.normals[tri[2]];
     const float len = n.norm();
     if (len > 1e-6f) h.ns = n.dot(h.ng) >= 0 ? Vec3(n / len) : Vec3(-n / len);
   }
-  h.uv = mesh_.hasUv() ? Vec2(b0 * mesh_.uvs[tri[0]] + b1 * mesh_.uvs[tri[1]] + b2 * mesh_.uvs[tri[2]]) : Vec2::Zero();
   return h;
 }
 
-std::optional<SurfaceHit> Scene::intersect(const Vec3& o, const Vec3& d, float tmax) const {
+SurfaceHit Scene::surfacePoint(uint32_t prim, float b1, float b2) const {
+  SurfaceHit h = hitFromFace(prim, b1, b2);
+  const auto& tri = mesh_.triangles[prim];
+  h.p = (1.0f - b1 - b2) * mesh_.positions[tri[0]] + b1 * mesh_.positions[tri[1]] + b2 * mesh_.positions[tri[2]];
+  return h;
+}
+
+namespace {
+RTCRayHit traceClosest(RTCScene scene, const Vec3& o, const Vec3& d, float tmax) {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRayHit rh;
@@ -72,10 +87,23 @@ std::optional<SurfaceHit> Scene::intersect(const Vec3& o, const Vec3& d, float t
   rh.ray.time = 0.0f;
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-  rtcIntersect1(scene_, &ctx, &rh);
+  rtcIntersect1(scene, &ctx, &rh);
+  return rh;
+}
+}  // namespace
+
+float Scene::hitDistance(const Vec3& o, const Vec3& d, float tmax) const {
+  const RTCRayHit rh = traceClosest(scene_, o, d, tmax);
+  return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? INFINITY : rh.ray.tfar;
+}
+
+std::optional<SurfaceHit> Scene::intersect(const Vec3& o, const Vec3& d, float tmax) const {
+  const RTCRayHit rh = traceClosest(scene_, o, d, tmax);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
-  SurfaceHit h = surfacePoint(rh.hit.primID, rh.hit.u, rh.hit.v);
+  // The hit point from the ray (no vertex fetch); Embree's t is accurate to a few ulps.
+  SurfaceHit h = hitFromFace(rh.hit.primID, rh.hit.u, rh.hit.v);
   h.t = rh.ray.tfar;
+  h.p = o + h.t * d;
   return h;
 }
 

@@ -33,6 +33,8 @@ class Scene {
   const TriangleMesh& mesh() const { return mesh_; }
   std::optional<SurfaceHit> intersect(const Vec3& origin, const Vec3& dir, float tmax = INFINITY) const;
   bool occluded(const Vec3& origin, const Vec3& dir, float tmax) const;
+  // Closest-hit distance only (no surface attributes): Embree's cost alone, for profiling.
+  float hitDistance(const Vec3& origin, const Vec3& dir, float tmax = INFINITY) const;
   SurfaceHit surfacePoint(uint32_t prim, float b1, float b2) const;  // barycentrics of vertices 1 and 2
   // Origin nudged off the surface towards `dir`, scaled to the coordinate magnitude.
   static Vec3 offsetOrigin(const SurfaceHit& hit, const Vec3& dir);
@@ -40,7 +42,16 @@ class Scene {
 
  private:
   TriangleMesh mesh_;
-  std::vector<float> vertexBuffer_;  // xyz + padding so Embree can read 16 bytes at the end
+  // Everything shading needs of a face in one 40-byte record: after Embree's traversal the mesh
+  // arrays are cold, and gathering them from five places dominated hit processing.
+  struct FaceRecord {
+    Vec3 ng;
+    int32_t object;
+    Vec2 uv[3];
+  };
+  SurfaceHit hitFromFace(uint32_t prim, float b1, float b2) const;
+  std::vector<float> vertexBuffer_;
+  std::vector<FaceRecord> faces_;  // xyz + padding so Embree can read 16 bytes at the end
   RTCDevice device_ = nullptr;
   RTCScene scene_ = nullptr;
   float radius_ = 1.0f;

@@ -5,6 +5,8 @@
 #include "capture/transforms.h"
 #include "core/error.h"
 #include "core/system.h"
+#include "adjoint/gradcheck.h"
+#include "pipeline/experiment.h"
 #include "pipeline/profile.h"
 #include "pipeline/synth.h"
 #include "render/film.h"
@@ -44,6 +46,96 @@ int runRender(const RenderArgs& a) {
   spdlog::info("rendered {} views to {} in {:.1f}s: {:.3f} Mpaths/s, {:.2f} Mrays/s", cap.frames.size(), out.string(),
                total.seconds, total.paths / total.seconds * 1e-6, total.rays / total.seconds * 1e-6);
   return 0;
+}
+
+struct GradcheckArgs {
+  std::string scene, cameras, synth = "room", param = "all", gradients = "direct", emitters = "strict",
+                                 pairing = "decorrelated", level = "both";
+  int rays = 256, batches = 32, perKind = 3, maxDepth = 8, atlas = 64;
+  float eps = 1e-3f, emissionScale = 1.0f, clipHigh = INFINITY;
+  bool roulette = false;
+};
+
+int runGradcheck(const GradcheckArgs& a) {
+  ExperimentOptions eo;
+  eo.rays = a.rays;
+  eo.maxDepth = a.maxDepth;
+  eo.atlasResolution = a.atlas;
+  eo.emissionScale = a.emissionScale;
+  eo.clipHigh = a.clipHigh;
+  GradcheckOptions go;
+  go.kinds = a.param == "all" ? std::vector<ParamKind>(kAllParamKinds.begin(), kAllParamKinds.end())
+                              : std::vector<ParamKind>{parseParamKind(a.param)};
+  eo.emissionTextures = std::find(go.kinds.begin(), go.kinds.end(), ParamKind::EmissionTexture) != go.kinds.end();
+  GradientExperiment e;
+  if (!a.scene.empty()) {
+    if (a.cameras.empty()) fail("gradcheck: --scene needs --cameras transforms.json to aim rays");
+    e.truth = loadSceneFile(a.scene);
+    if (eo.emissionTextures && e.truth.appearance.emissionTextures.empty())
+      allocateEmissionTextures(e.truth.appearance, e.truth.mesh, 64, [](float u, float v) { return 0.6f + 0.8f * u * v; });
+    std::vector<Camera> cams;
+    for (const Frame& f : readTransforms(a.cameras).frames) cams.push_back(f.camera);
+    const Scene tmp(e.truth.mesh);
+    e.rays = raysFromCameras(tmp, e.truth.appearance, cams, eo);
+    e.current = perturbAppearance(e.truth.appearance, eo.seed);
+  } else {
+    e = makeGradientExperiment(parseSynthScene(a.synth), eo);
+  }
+  go.settings.mode = parseGradientMode(a.gradients);
+  go.settings.emitters = parseEmitterGradients(a.emitters);
+  go.settings.pairing = parsePairing(a.pairing);
+  go.settings.path.maxDepth = a.maxDepth;
+  go.settings.path.russianRoulette = a.roulette;
+  go.eps = a.eps;
+  go.batches = a.batches;
+  go.paramsPerKind = a.perKind;
+  go.level1 = a.level != "loss";
+  go.level2 = a.level != "sample";
+  const Scene scene(e.truth.mesh);
+  Timer t;
+  const GradcheckReport report = runGradcheck(scene, e.current, e.rays, go);
+  fmt::print("gradcheck: {} rays, gradients {}, emitter gradients {}, pairing {}, depth {}, eps {}\n", e.rays.size(),
+             a.gradients, a.emitters, a.pairing, a.maxDepth, a.eps);
+  fmt::print("{}", report.table());
+  if (go.settings.mode == GradientMode::Direct && go.level2) {
+    std::vector<ParamRef> params;
+    for (const GradcheckRow& r : report.rows)
+      if (r.level == "loss") params.push_back(r.param);
+    AdjointSettings full = go.settings;
+    full.mode = GradientMode::Full;
+    const auto gd = meanAdjointGradient(scene, e.current, e.rays, go.settings, params, go.batches);
+    const auto gf = meanAdjointGradient(scene, e.current, e.rays, full, params, go.batches);
+    fmt::print("\nbias of direct vs full (mean over {} batches):\n{:<34} {:>14} {:>14} {:>10}\n", go.batches, "parameter",
+               "direct", "full", "rel diff");
+    for (size_t i = 0; i < params.size(); ++i)
+      fmt::print("{:<34} {:>14.6e} {:>14.6e} {:>9.1f}%\n", params[i].label(), gd[i], gf[i],
+                 100.0 * std::abs(gd[i] - gf[i]) / std::max(std::abs(gf[i]), 1e-30));
+  }
+  fmt::print("{} in {:.1f}s\n", report.pass() ? "PASS" : "FAIL", t.seconds());
+  return report.pass() ? 0 : 1;
+}
+
+void registerGradcheck(CLI::App& app, CommandTable& table) {
+  auto a = std::make_shared<GradcheckArgs>();
+  CLI::App* c = app.add_subcommand("gradcheck", "adjoint gradients vs central finite differences (common random numbers)");
+  c->add_option("--scene", a->scene, "scene.json (default: a synthetic scene)");
+  c->add_option("--cameras", a->cameras, "transforms.json whose cameras aim the rays (with --scene)");
+  c->add_option("--synth", a->synth, "room, cornell or furnace")->capture_default_str();
+  c->add_option("--param", a->param, "albedo, roughness, specular, emission, emission_tex or all")->capture_default_str();
+  c->add_option("--gradients", a->gradients, "direct or full")->capture_default_str();
+  c->add_option("--emitter-gradients", a->emitters, "strict or all-depth")->capture_default_str();
+  c->add_option("--pairing", a->pairing, "decorrelated, crossfit or reuse")->capture_default_str();
+  c->add_option("--level", a->level, "sample, loss or both")->capture_default_str();
+  c->add_option("--rays", a->rays, "rays per batch")->capture_default_str();
+  c->add_option("--batches", a->batches, "independent batches for the whole-loss check")->capture_default_str();
+  c->add_option("--params-per-kind", a->perKind)->capture_default_str();
+  c->add_option("--eps", a->eps, "finite-difference step (relative for emission)")->capture_default_str();
+  c->add_option("--max-depth", a->maxDepth)->capture_default_str();
+  c->add_option("--atlas-res", a->atlas, "synthetic albedo atlas resolution")->capture_default_str();
+  c->add_option("--emission-scale", a->emissionScale, "multiply emitters (e.g. 1e4 to stress)")->capture_default_str();
+  c->add_option("--clip-high", a->clipHigh, "reference saturation threshold (one-sided loss)");
+  c->add_flag("--russian-roulette", a->roulette);
+  table[c] = [=] { return runGradcheck(*a); };
 }
 
 }  // namespace
@@ -133,6 +225,7 @@ CommandTable registerCommands(CLI::App& app) {
     fmt::print("  efficiency   {:8.3f} (trace-only time / render time)\n", p.efficiency());
     return 0;
   };
+  registerGradcheck(app, table);
   return table;
 }
 

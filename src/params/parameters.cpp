@@ -98,3 +98,34 @@ void Gradients::scale(double s) {
 }
 
 }  // namespace relume
+
+namespace relume {
+
+void allocateEmissionTextures(Appearance& a, const TriangleMesh& mesh, int resolution,
+                              const std::function<float(float, float)>& pattern) {
+  if (!mesh.hasUv()) fail("emission textures need a uv atlas");
+  std::vector<Eigen::AlignedBox2f> boxes(a.objectCount());
+  for (size_t f = 0; f < mesh.triangles.size(); ++f)
+    for (int k = 0; k < 3; ++k) boxes[mesh.faceObject[f]].extend(mesh.uvs[mesh.triangles[f][k]]);
+  a.emissionTextures.clear();
+  std::fill(a.emissionTextureOf.begin(), a.emissionTextureOf.end(), -1);
+  for (int o = 0; o < a.objectCount(); ++o) {
+    if (!a.isEmissive(o) || boxes[o].isEmpty()) continue;
+    // One texel of margin so bilinear lookups at chart borders stay inside the window.
+    const int x0 = std::max(0, static_cast<int>(std::floor(boxes[o].min().x() * resolution)) - 1);
+    const int y0 = std::max(0, static_cast<int>(std::floor(boxes[o].min().y() * resolution)) - 1);
+    const int x1 = std::min(resolution, static_cast<int>(std::ceil(boxes[o].max().x() * resolution)) + 1);
+    const int y1 = std::min(resolution, static_cast<int>(std::ceil(boxes[o].max().y() * resolution)) + 1);
+    Texture t(resolution, resolution, x0, y0, x1 - x0, y1 - y0);
+    for (int y = 0; y < t.height; ++y)
+      for (int x = 0; x < t.width; ++x) {
+        const float u = (x + 0.5f) / t.width, v = (y + 0.5f) / t.height;
+        const Color c = a.emission[o] * pattern(u, v);
+        for (int c3 = 0; c3 < 3; ++c3) t.rgb[3 * (static_cast<size_t>(y) * t.width + x) + c3] = c[c3];
+      }
+    a.emissionTextureOf[o] = static_cast<int>(a.emissionTextures.size());
+    a.emissionTextures.push_back(std::move(t));
+  }
+}
+
+}  // namespace relume

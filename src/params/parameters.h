@@ -5,6 +5,7 @@
 #include <tbb/enumerable_thread_specific.h>
 
 #include <array>
+#include <functional>
 #include <atomic>
 #include <string>
 #include <vector>
@@ -71,4 +72,12 @@ class Gradients {
   tbb::enumerable_thread_specific<std::vector<double>> objectLocal_;
 };
 
+}  // namespace relume
+
+namespace relume {
+// Gives every emitter object (isEmissive) an emission texture over the bounding window of its
+// charts at `resolution`, initialised to its constant emission times `pattern(u, v)` (1 = flat).
+// Non-emitters get none: only what the scene needs is allocated. Requires a uv mesh.
+void allocateEmissionTextures(Appearance& a, const TriangleMesh& mesh, int resolution,
+                              const std::function<float(float, float)>& pattern);
 }  // namespace relume

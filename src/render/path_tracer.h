@@ -4,6 +4,8 @@
 // AppearanceScope names, while every sampling decision (lobe choice, directions, pdfs, MIS
 // weights, light choice, Russian roulette) uses `scope.sampling` only: sampling is detached.
 #pragma once
+#include <type_traits>
+
 #include "core/rng.h"
 #include "core/warp.h"
 #include "render/bsdf.h"
@@ -42,6 +44,9 @@ inline Color emittedRadiance(const Appearance& a, const SurfaceHit& hit, const V
 
 // Observer interface (all no-ops here). depth = index of the vertex the event happens at.
 struct NullPathObserver {
+  // A differentiating observer needs events for terms whose value is 0 but whose derivative is
+  // not (a surface with zero emission, a zero BSDF, a path whose throughput became 0).
+  static constexpr bool kDifferentiating = false;
   // A ray was traced (statistics; the profiler replays them through Embree alone).
   void traced(const Vec3& origin, const Vec3& dir, float tmax, bool shadow) {}
   // A scattering or terminal vertex was reached with throughput beta (before its own terms).
@@ -74,7 +79,7 @@ Color tracePath(const Scene& scene, const LightSampler& lights, const Appearance
 
     // Emission reached by the camera ray or by BSDF sampling from the previous vertex.
     const Color le = emittedRadiance(scope.emission(depth - 1), *hit, dir);
-    if (le.maxCoeff() > 0.0f) {
+    if ((le != 0.0f).any() || (std::decay_t<Observer>::kDifferentiating && frontFacing)) {
       float mis = 1.0f;
       if (depth > 0) {
         const float pdfLight = lights.pdfArea(hit->object) * hit->t * hit->t / std::abs(hit->ng.dot(dir));
@@ -102,7 +107,7 @@ Color tracePath(const Scene& scene, const LightSampler& lights, const Appearance
         const Color leLight = scope.emission(depth).emissionAt(ls->hit.object, ls->hit.uv);
         const BsdfEval sampled = evalBsdf(sampleParams, wo, wi, kBsdfValue | kBsdfPdf);
         const Color f = frozen ? evalBsdf(evalParams, wo, wi).f : sampled.f;
-        if (leLight.maxCoeff() > 0.0f && f.maxCoeff() > 0.0f) {
+        if ((leLight != 0.0f).any() && (f.maxCoeff() > 0.0f || std::decay_t<Observer>::kDifferentiating)) {
           const Vec3 o = Scene::offsetOrigin(*hit, toLight);
           const float tmax = (ls->hit.p - o).norm() - rayEpsilon(ls->hit.p);
           obs.traced(o, toLight, tmax, true);
@@ -132,7 +137,7 @@ Color tracePath(const Scene& scene, const LightSampler& lights, const Appearance
     }
     obs.scatter(depth, bs->wi, f, bs->wi.z(), bs->pdf, survival);
     beta *= f * (bs->wi.z() / (bs->pdf * survival));
-    if (beta.maxCoeff() <= 0.0f) break;
+    if (beta.maxCoeff() <= 0.0f && !std::decay_t<Observer>::kDifferentiating) break;
     dir = frame.toWorld(bs->wi);
     origin = Scene::offsetOrigin(*hit, dir);
     prevPdf = bs->pdf;

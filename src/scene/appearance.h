@@ -12,7 +12,8 @@ namespace relume {
 
 enum class DiffuseModel { Disney, Lambert };
 
-inline constexpr float kRoughnessMin = 0.03f;  // keeps the optimiser out of the alpha clamp
+// alpha = r^2 is clamped at 1e-3 (r = 0.0316), where its gradient is 0: r_min sits just above.
+inline constexpr float kRoughnessMin = 0.035f;
 
 struct Appearance {
   DiffuseModel diffuse = DiffuseModel::Disney;

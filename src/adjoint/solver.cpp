@@ -1,0 +1,290 @@
+#include "adjoint/solver.h"
+
+#include <tbb/combinable.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include "core/error.h"
+#include "core/system.h"
+
+namespace relume {
+
+GradientMode parseGradientMode(const std::string& s) {
+  if (s == "direct") return GradientMode::Direct;
+  if (s == "full") return GradientMode::Full;
+  fail("--gradients must be direct or full, not '{}'", s);
+}
+EmitterGradients parseEmitterGradients(const std::string& s) {
+  if (s == "strict") return EmitterGradients::Strict;
+  if (s == "all-depth") return EmitterGradients::AllDepth;
+  fail("--emitter-gradients must be strict or all-depth, not '{}'", s);
+}
+Pairing parsePairing(const std::string& s) {
+  if (s == "decorrelated") return Pairing::Decorrelated;
+  if (s == "crossfit") return Pairing::Crossfit;
+  if (s == "reuse") return Pairing::Reuse;
+  fail("--pairing must be decorrelated, crossfit or reuse, not '{}'", s);
+}
+const char* pairingName(Pairing p) {
+  switch (p) {
+    case Pairing::Decorrelated: return "decorrelated";
+    case Pairing::Crossfit: return "crossfit";
+    case Pairing::Reuse: return "reuse";
+  }
+  return "";
+}
+
+bool ParamMask::active(ParamKind k) const {
+  switch (k) {
+    case ParamKind::Albedo: return albedo;
+    case ParamKind::Roughness: return roughness;
+    case ParamKind::Specular: return specular;
+    case ParamKind::Emission: return emission;
+    case ParamKind::EmissionTexture: return emissionTexture;
+  }
+  return false;
+}
+
+uint64_t primalSeed(const AdjointSettings& s, uint64_t iteration, size_t ray) {
+  return hashTuple({s.seed, iteration, ray, 0x5031});
+}
+uint64_t adjointSeed(const AdjointSettings& s, uint64_t iteration, size_t ray) {
+  return hashTuple({s.seed, iteration, ray, 0x5032});
+}
+
+namespace {
+
+// Fixed-size record of one path vertex x_k: everything the backward sweep needs.
+struct VertexRecord {
+  int object;
+  Vec2 uv;
+  Vec3 wo;
+  BsdfParams params;
+  Color beta;            // throughput from the camera to x_k (detached)
+  Color emitted;         // mis * Le at x_k, reached from x_{k-1}
+  float emitMis;
+  bool frontFacing;
+  bool hasNee;
+  Vec3 neeWi;
+  Color neeF, neeLe;
+  float neeCos, neeScale;  // scale = mis / pdf_light
+  int lightObject;
+  Vec2 lightUv;
+  bool hasScatter;
+  Vec3 wi;
+  Color f;
+  float cos, pdf, survival;
+};
+
+struct AdjointRecorder : NullPathObserver {
+  static constexpr bool kDifferentiating = true;
+  const Appearance* appearance = nullptr;
+  VertexRecord* records = nullptr;
+  int count = 0;
+
+  void vertex(int depth, const SurfaceHit& hit, const ShadingFrame&, const Vec3& wo, const Color& beta) {
+    VertexRecord& r = records[depth];
+    r.object = hit.object;
+    r.uv = hit.uv;
+    r.wo = wo;
+    r.params = bsdfParamsAt(*appearance, hit);
+    r.beta = beta;
+    r.emitted = Color::Zero();
+    r.emitMis = 0.0f;
+    r.frontFacing = false;
+    r.hasNee = r.hasScatter = false;
+    count = depth + 1;
+  }
+  void emission(int depth, const SurfaceHit&, float mis, const Color& le) {
+    VertexRecord& r = records[depth];
+    r.emitted = mis * le;
+    r.emitMis = mis;
+    r.frontFacing = true;
+  }
+  void nee(int depth, const Vec3& wi, const Color& f, float cosI, float scale, const Color& le, const SurfaceHit& light) {
+    VertexRecord& r = records[depth];
+    r.hasNee = true;
+    r.neeWi = wi, r.neeF = f, r.neeLe = le, r.neeCos = cosI, r.neeScale = scale;
+    r.lightObject = light.object;
+    r.lightUv = light.uv;
+  }
+  void scatter(int depth, const Vec3& wi, const Color& f, float cosI, float pdf, float survival) {
+    VertexRecord& r = records[depth];
+    r.hasScatter = true;
+    r.wi = wi, r.f = f, r.cos = cosI, r.pdf = pdf, r.survival = survival;
+  }
+};
+
+class Scatterer {
+ public:
+  Scatterer(const Appearance& a, const AdjointSettings& s, Gradients& g) : a_(a), s_(s), g_(g), local_(g.objectLocal()) {}
+
+  void bsdf(const VertexRecord& r, const BsdfEval& d, const Color& w) {
+    // w: per-channel weight of df (delta * beta * the term's radiance factor).
+    if (s_.mask.albedo && a_.usesTexture(r.object)) {
+      const Color g = d.dAlbedo * w;
+      const TexelFootprint fp = a_.albedo.footprint(r.uv);
+      for (int k = 0; k < 4; ++k)
+        if (fp.weight[k] != 0.0f) g_.addAlbedo(fp.index[k], fp.weight[k] * g);
+    }
+    if (s_.mask.roughness) local_[g_.roughnessSlot(r.object)] += (d.dRoughness * w).sum();
+    if (s_.mask.specular) local_[g_.specularSlot(r.object)] += d.dSpecular * w.sum();
+  }
+  void emission(int object, const Vec2& uv, const Color& g) {
+    if (const Texture* t = a_.emissionTexture(object)) {
+      if (!s_.mask.emissionTexture) return;
+      const TexelFootprint fp = t->footprint(uv);
+      for (int k = 0; k < 4; ++k)
+        if (fp.weight[k] != 0.0f) g_.addEmissionTexel(a_.emissionTextureOf[object], fp.index[k], fp.weight[k] * g);
+    } else if (s_.mask.emission) {
+      for (int c = 0; c < 3; ++c) local_[g_.emissionSlot(object, c)] += g[c];
+    }
+  }
+
+ private:
+  const Appearance& a_;
+  const AdjointSettings& s_;
+  Gradients& g_;
+  std::vector<double>& local_;
+};
+
+// Backward sweep over one cached path, scattering delta x derivative.
+void sweep(const VertexRecord* records, int count, const Color& delta, const AdjointSettings& settings, Scatterer& out) {
+  Color arriving = Color::Zero();  // radiance arriving at x_k along its BSDF sample (suffix sum)
+  for (int k = count - 1; k >= 0; --k) {
+    const VertexRecord& r = records[k];
+    const Color after = r.hasScatter ? arriving : Color::Zero();
+    const Color throughput = r.hasScatter ? Color(r.f * (r.cos / (r.pdf * r.survival))) : Color::Zero();
+    const Color neeRadiance = r.hasNee ? Color(r.neeF * (r.neeCos * r.neeScale) * r.neeLe) : Color::Zero();
+    const Color db = delta * r.beta;
+    if (settings.bsdfGradientAt(k)) {
+      if (r.hasNee)
+        out.bsdf(r, evalBsdf(r.params, r.wo, r.neeWi, kBsdfDerivatives), db * (r.neeCos * r.neeScale) * r.neeLe);
+      if (r.hasScatter && after.maxCoeff() > 0.0f)
+        out.bsdf(r, evalBsdf(r.params, r.wo, r.wi, kBsdfDerivatives), db * (r.cos / (r.pdf * r.survival)) * after);
+    }
+    if (r.frontFacing && settings.emissionGradientFrom(k - 1)) out.emission(r.object, r.uv, db * r.emitMis);
+    if (r.hasNee && settings.emissionGradientFrom(k))
+      out.emission(r.lightObject, r.lightUv, db * r.neeF * (r.neeCos * r.neeScale));
+    arriving = r.emitted + neeRadiance + throughput * after;
+  }
+}
+
+// Per-thread record buffers, bounded by the max depth: constant memory per ray.
+class RecordBuffers {
+ public:
+  explicit RecordBuffers(int maxDepth) : buffers_([n = static_cast<size_t>(maxDepth + 1)] { return std::vector<VertexRecord>(2 * n); }), n_(maxDepth + 1) {}
+  VertexRecord* get(int which) { return buffers_.local().data() + which * n_; }
+
+ private:
+  tbb::enumerable_thread_specific<std::vector<VertexRecord>> buffers_;
+  size_t n_;
+};
+
+Color safeRadiance(const Color& c) { return isFinite(c) ? c : Color::Zero(); }
+
+}  // namespace
+
+size_t adjointRecordBytes() { return sizeof(VertexRecord); }
+
+std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
+                              const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration) {
+  std::vector<Color> estimate(rays.size());
+  const AppearanceScope scope = AppearanceScope::uniform(appearance);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
+    for (size_t j = range.begin(); j < range.end(); ++j) {
+      Pcg32 rng(primalSeed(settings, iteration, j));
+      estimate[j] = safeRadiance(tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rng));
+    }
+  });
+  return estimate;
+}
+
+void adjointPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
+                 const std::vector<BatchRay>& rays, const std::vector<Color>& delta, const AdjointSettings& settings,
+                 uint64_t iteration, Gradients& grads) {
+  const AppearanceScope scope = AppearanceScope::uniform(appearance);
+  RecordBuffers buffers(settings.path.maxDepth);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
+    Scatterer out(appearance, settings, grads);
+    AdjointRecorder rec;
+    rec.appearance = &appearance;
+    rec.records = buffers.get(0);
+    for (size_t j = range.begin(); j < range.end(); ++j) {
+      if (delta[j].isZero()) continue;
+      Pcg32 rng(adjointSeed(settings, iteration, j));
+      rec.count = 0;
+      const Color L = tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rng, rec);
+      if (isFinite(L)) sweep(rec.records, rec.count, delta[j], settings, out);
+    }
+  });
+  grads.combine();
+}
+
+GradientResult computeGradients(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
+                                const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration,
+                                Gradients& grads) {
+  GradientResult result;
+  if (rays.empty()) return result;
+  const float invN = 1.0f / static_cast<float>(rays.size());
+  auto lossOf = [&](size_t j, const Color& est) { return rays[j].weight * rayLoss(est, rays[j].reference, rays[j].clip); };
+  auto deltaOf = [&](size_t j, const Color& est) {
+    return rayLossGradient(est, rays[j].reference, rays[j].clip, rays[j].weight * invN);
+  };
+
+  if (settings.pairing == Pairing::Decorrelated) {
+    Timer t;
+    const std::vector<Color> estimate = primalPass(scene, appearance, lights, rays, settings, iteration);
+    result.times.primal = t.seconds();
+    Timer tl;
+    std::vector<Color> delta(rays.size());
+    double loss = 0;
+    for (size_t j = 0; j < rays.size(); ++j) {
+      loss += lossOf(j, estimate[j]);
+      delta[j] = deltaOf(j, estimate[j]);
+    }
+    result.loss = loss * invN;
+    result.times.loss = tl.seconds();
+    Timer ta;
+    adjointPass(scene, appearance, lights, rays, delta, settings, iteration, grads);
+    result.times.adjoint = ta.seconds();
+    return result;
+  }
+
+  // crossfit / reuse: one pass that traces with caching and sweeps at once.
+  const AppearanceScope scope = AppearanceScope::uniform(appearance);
+  const bool crossfit = settings.pairing == Pairing::Crossfit;
+  RecordBuffers buffers(settings.path.maxDepth);
+  tbb::combinable<double> loss([] { return 0.0; });
+  Timer t;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
+    Scatterer out(appearance, settings, grads);
+    AdjointRecorder recA, recB;
+    recA.appearance = recB.appearance = &appearance;
+    recA.records = buffers.get(0);
+    recB.records = buffers.get(1);
+    for (size_t j = range.begin(); j < range.end(); ++j) {
+      Pcg32 rngA(primalSeed(settings, iteration, j));
+      recA.count = 0;
+      const Color a = safeRadiance(tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rngA, recA));
+      if (!crossfit) {
+        loss.local() += lossOf(j, a);
+        sweep(recA.records, recA.count, deltaOf(j, a), settings, out);
+        continue;
+      }
+      Pcg32 rngB(adjointSeed(settings, iteration, j));
+      recB.count = 0;
+      const Color b = safeRadiance(tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rngB, recB));
+      loss.local() += 0.5 * (lossOf(j, a) + lossOf(j, b));
+      // Each sample's delta drives the other's path: a product of independent estimates.
+      sweep(recB.records, recB.count, 0.5f * deltaOf(j, a), settings, out);
+      sweep(recA.records, recA.count, 0.5f * deltaOf(j, b), settings, out);
+    }
+  });
+  grads.combine();
+  result.times.adjoint = t.seconds();
+  result.loss = loss.combine(std::plus<>()) * invN;
+  return result;
+}
+
+}  // namespace relume

@@ -1,0 +1,82 @@
+// Two-pass radiance-cached adjoint solver. Pass 1 (primal, seed s1) estimates each ray's radiance
+// and keeps only delta_j = dLoss/dI_hat_j. Pass 2 (adjoint, seed s2) traces each path once,
+// caching a fixed-size record per vertex in a per-thread buffer bounded by the max depth, then
+// sweeps it backwards: the radiance arriving at every vertex is accumulated as a suffix (never
+// subtracted from a total), and delta_j x derivative is scattered onto the parameters.
+// Memory: O(batch) for delta + O(threads x max depth) for records.
+#pragma once
+#include <vector>
+
+#include "adjoint/loss.h"
+#include "params/parameters.h"
+#include "render/path_tracer.h"
+
+namespace relume {
+
+enum class GradientMode { Direct, Full };         // Direct: parameters at the first vertex only
+enum class EmitterGradients { Strict, AllDepth }; // with Direct: emitters reached from x0 only, or any
+enum class Pairing { Decorrelated, Crossfit, Reuse };
+
+GradientMode parseGradientMode(const std::string& s);
+EmitterGradients parseEmitterGradients(const std::string& s);
+Pairing parsePairing(const std::string& s);
+const char* pairingName(Pairing p);
+
+struct BatchRay {
+  Vec3 origin, dir;
+  Color reference;
+  ClipThresholds clip;
+  float weight = 1.0f;  // optional per-ray Jacobian weight (ablation); 1 = omitted, as in the paper
+};
+
+struct ParamMask {
+  bool albedo = true, roughness = true, specular = true, emission = true, emissionTexture = true;
+  bool active(ParamKind k) const;
+};
+
+struct AdjointSettings {
+  GradientMode mode = GradientMode::Direct;
+  EmitterGradients emitters = EmitterGradients::Strict;
+  Pairing pairing = Pairing::Decorrelated;
+  PathSettings path;
+  ParamMask mask;
+  uint64_t seed = 0;
+  // Which terms a mode differentiates, as an AppearanceScope would perturb them.
+  bool bsdfGradientAt(int depth) const { return mode == GradientMode::Full || depth == 0; }
+  bool emissionGradientFrom(int fromVertex) const {
+    return mode == GradientMode::Full || emitters == EmitterGradients::AllDepth || fromVertex <= 0;
+  }
+};
+
+struct PassTimes {
+  double primal = 0, loss = 0, adjoint = 0;
+};
+
+struct GradientResult {
+  double loss = 0;  // estimate of the batch loss (mean over rays)
+  PassTimes times;
+};
+
+// Seeds of the two independent samples of ray j in iteration `iteration`.
+uint64_t primalSeed(const AdjointSettings& s, uint64_t iteration, size_t ray);
+uint64_t adjointSeed(const AdjointSettings& s, uint64_t iteration, size_t ray);
+
+// Primal pass only: radiance estimates with seed s1.
+std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
+                              const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration);
+
+// Adjoint pass only: scatters sum_j delta_j . dI_hat_j/dtheta (paths traced with seed s2) into `grads`.
+void adjointPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
+                 const std::vector<BatchRay>& rays, const std::vector<Color>& delta, const AdjointSettings& settings,
+                 uint64_t iteration, Gradients& grads);
+
+// One iteration's gradient of the batch loss under settings.pairing. `grads` is accumulated into
+// (clear it first) and combined on return.
+GradientResult computeGradients(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
+                                const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration,
+                                Gradients& grads);
+
+// Bytes of one cached vertex record (reported by the profiler).
+size_t adjointRecordBytes();
+
+}  // namespace relume

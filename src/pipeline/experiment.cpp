@@ -1,0 +1,58 @@
+#include "pipeline/experiment.h"
+
+#include <tbb/parallel_for.h>
+
+namespace relume {
+
+std::vector<BatchRay> raysFromCameras(const Scene& scene, const Appearance& truth, const std::vector<Camera>& cameras,
+                                      const ExperimentOptions& o) {
+  const LightSampler lights(scene, truth);
+  const AppearanceScope scope = AppearanceScope::uniform(truth);
+  PathSettings path;
+  path.maxDepth = o.maxDepth;
+  std::vector<BatchRay> rays(o.rays);
+  tbb::parallel_for(0, o.rays, [&](int j) {
+    Pcg32 rng(hashTuple({o.seed, static_cast<uint64_t>(j), 0x7261}));
+    const Camera& cam = cameras[rng.nextU32() % cameras.size()];
+    BatchRay& r = rays[j];
+    r.origin = cam.position;
+    r.dir = cam.rayDirection(Vec2(rng.next1D() * cam.width, rng.next1D() * cam.height)).value_or(cam.rotation.col(2));
+    Color sum = Color::Zero();
+    for (int s = 0; s < o.referenceSpp; ++s) {
+      Pcg32 pr(hashTuple({o.seed, static_cast<uint64_t>(j), static_cast<uint64_t>(s), 0x7265}));
+      sum += tracePath(scene, lights, scope, path, r.origin, r.dir, pr);
+    }
+    r.reference = sum / static_cast<float>(o.referenceSpp);
+    r.clip.high = o.clipHigh;
+  });
+  return rays;
+}
+
+Appearance perturbAppearance(const Appearance& a, uint64_t seed) {
+  Appearance p = a;
+  Pcg32 rng(seed);
+  for (float& v : p.albedo.rgb) v = 0.7f * v + 0.1f;
+  for (Color& c : p.albedoConstant) c = 0.7f * c + 0.1f;
+  for (float& r : p.roughness) r = std::clamp(r + 0.3f * (rng.next1D() - 0.5f), 0.1f, 0.95f);
+  for (float& s : p.specular) s = std::clamp(s + 0.4f * (rng.next1D() - 0.5f), 0.05f, 0.95f);
+  for (Color& e : p.emission) e *= 0.8f;
+  for (Texture& t : p.emissionTextures)
+    for (float& v : t.rgb) v *= 0.8f;
+  return p;
+}
+
+GradientExperiment makeGradientExperiment(SynthSceneKind kind, const ExperimentOptions& o) {
+  SynthScene synth = makeSynthScene(kind, o.atlasResolution);
+  GradientExperiment e{std::move(synth.scene), Appearance(), {}};
+  Appearance& truth = e.truth.appearance;
+  for (Color& c : truth.emission) c *= o.emissionScale;
+  if (o.emissionTextures)
+    allocateEmissionTextures(truth, e.truth.mesh, o.atlasResolution,
+                             [](float u, float v) { return 0.6f + 0.8f * u * v; });
+  const Scene scene(e.truth.mesh);
+  e.rays = raysFromCameras(scene, truth, synthCameraPath(kind, 8, 160, 120, 0.25), o);
+  e.current = perturbAppearance(truth, o.seed);
+  return e;
+}
+
+}  // namespace relume

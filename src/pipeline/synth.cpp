@@ -82,7 +82,8 @@ class SceneBuilder {
       const double mid = std::sqrt(lo * hi);
       (pack(mid, resolution, gutter) ? lo : hi) = mid;
     }
-    pack(lo, resolution, gutter);
+    if (!pack(lo, resolution, gutter))
+      fail("atlas resolution {} is too small for {} charts with {}-texel gutters", resolution, patches_.size(), gutter);
     SceneDescription out;
     TriangleMesh& m = out.mesh;
     m.objectCount = static_cast<int>(names_.size());

@@ -11,15 +11,18 @@ float pow5(float x) { return (x * x) * (x * x) * x; }
 
 struct Ggx {
   float alpha;
-  float D(float cosH) const {
-    const float a2 = alpha * alpha;
-    const float t = 1.0f + (a2 - 1.0f) * cosH * cosH;
+  // D and dD/dalpha of a local half vector. t = sin^2 + alpha^2 cos^2 is formed from the
+  // tangential components, not as 1 + (alpha^2 - 1) cos^2: at alpha ~ 1e-3 that cancels
+  // catastrophically in float and makes D jitter as alpha changes.
+  float D(const Vec3& h) const {
+    const float a2 = alpha * alpha, c2 = h.z() * h.z();
+    const float t = h.x() * h.x() + h.y() * h.y() + a2 * c2;
     return a2 / (kPi * t * t);
   }
-  float dD(float cosH) const {  // dD/dalpha
-    const float a2 = alpha * alpha, c2 = cosH * cosH;
-    const float t = 1.0f + (a2 - 1.0f) * c2;
-    return 2.0f * alpha * (1.0f - c2 * (1.0f + a2)) / (kPi * t * t * t);
+  float dD(const Vec3& h) const {
+    const float a2 = alpha * alpha, c2 = h.z() * h.z(), s2 = h.x() * h.x() + h.y() * h.y();
+    const float t = s2 + a2 * c2;
+    return 2.0f * alpha * (s2 - a2 * c2) / (kPi * t * t * t);
   }
   // Smith Lambda and its alpha derivative; tan^2 from the cosine.
   float lambda(float mu) const {
@@ -62,9 +65,8 @@ BsdfEval evalBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi, unsigned 
   if (muO <= kMinCos || muI <= kMinCos) return e;
   const Vec3 h = (wo + wi).normalized();
   const float cosD = std::clamp(wi.dot(h), 0.0f, 1.0f);
-  const float cosH = std::clamp(h.z(), 0.0f, 1.0f);
   const Ggx g{ggxAlpha(p.roughness)};
-  const float D = g.D(cosH);
+  const float D = h.z() > 0.0f ? g.D(h) : 0.0f;
   const float lo = g.lambda(muO);
   if (query & kBsdfPdf) {
     // Mixture of the cosine lobe and GGX visible normals: pdf(wi) = G1(wo) D(h) / (4 mu_o).
@@ -95,7 +97,7 @@ BsdfEval evalBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi, unsigned 
     float dSpecDr = 0.0f;
     if (p.roughness * p.roughness > kAlphaMin) {  // the alpha clamp has zero derivative
       const float dG = -G * G * (g.dLambda(muI) + g.dLambda(muO));
-      dSpecDr = F * (g.dD(cosH) * G + D * dG) / denom * (2.0f * p.roughness);
+      dSpecDr = F * (g.dD(h) * G + D * dG) / denom * (2.0f * p.roughness);
     }
     e.dRoughness = p.albedo * dDiffuseDr + Color::Constant(dSpecDr);
   }

@@ -1,0 +1,148 @@
+// Gradcheck for every parameter kind, both gradient modes and every pairing, plus the extremes.
+//
+// Tolerances. Level 1 (per sample, frozen sampling) is deterministic: the only error sources are
+// the O(h^2) truncation of the central difference (measured ~3e-5 relative at h = 1e-3 for one
+// BSDF evaluation) and float rounding of the radiance estimates (~6e-8 relative, divided by h);
+// we accept 2e-3 relative plus 20x that rounding floor. Level 2 compares means over 24
+// independent batches of 128 rays with common random numbers for +h/-h: the paired difference
+// (adjoint - FD) has zero mean for an unbiased estimator, so we accept |mean| < 4 standard
+// errors (a false alarm rate of 6e-5 per parameter). `reuse` is biased by design: its whole-loss
+// rows are reported, not judged.
+#include <gtest/gtest.h>
+
+#include "adjoint/gradcheck.h"
+#include "pipeline/experiment.h"
+
+using namespace relume;
+
+namespace {
+
+struct Case {
+  SynthSceneKind scene;
+  GradientMode mode;
+  Pairing pairing;
+  EmitterGradients emitters = EmitterGradients::Strict;
+};
+
+GradcheckReport check(const GradientExperiment& e, const std::vector<ParamKind>& kinds, GradientMode mode, Pairing pairing,
+                      EmitterGradients emitters = EmitterGradients::Strict, int batches = 24, float eps = 1e-3f) {
+  GradcheckOptions o;
+  o.eps = eps;
+  o.kinds = kinds;
+  o.settings.mode = mode;
+  o.settings.pairing = pairing;
+  o.settings.emitters = emitters;
+  o.batches = batches;
+  o.paramsPerKind = 2;
+  const Scene scene(e.truth.mesh);
+  return runGradcheck(scene, e.current, e.rays, o);
+}
+
+void expectPass(const GradcheckReport& r, const std::string& what) {
+  EXPECT_TRUE(r.pass()) << what << "\n" << r.table();
+  EXPECT_FALSE(r.rows.empty());
+}
+
+GradientExperiment experiment(SynthSceneKind kind, bool emissionTextures, int rays = 128) {
+  ExperimentOptions o;
+  o.rays = rays;
+  o.atlasResolution = kind == SynthSceneKind::Room ? 128 : 32;  // the room has ~90 charts
+  o.emissionTextures = emissionTextures;
+  return makeGradientExperiment(kind, o);
+}
+
+const std::vector<ParamKind> kConstantKinds = {ParamKind::Albedo, ParamKind::Roughness, ParamKind::Specular,
+                                               ParamKind::Emission};
+
+}  // namespace
+
+class GradcheckModes : public ::testing::TestWithParam<std::tuple<GradientMode, Pairing>> {};
+
+TEST_P(GradcheckModes, EveryParameterKindOnCornell) {
+  const auto [mode, pairing] = GetParam();
+  const std::string name = std::string(mode == GradientMode::Direct ? "direct/" : "full/") + pairingName(pairing);
+  expectPass(check(experiment(SynthSceneKind::Cornell, false), kConstantKinds, mode, pairing), name + " constant emission");
+  expectPass(check(experiment(SynthSceneKind::Cornell, true), {ParamKind::EmissionTexture}, mode, pairing),
+             name + " emission texture");
+}
+
+INSTANTIATE_TEST_SUITE_P(AllModes, GradcheckModes,
+                         ::testing::Combine(::testing::Values(GradientMode::Direct, GradientMode::Full),
+                                            ::testing::Values(Pairing::Decorrelated, Pairing::Crossfit, Pairing::Reuse)),
+                         [](const auto& info) {
+                           return std::string(std::get<0>(info.param) == GradientMode::Direct ? "direct_" : "full_") +
+                                  pairingName(std::get<1>(info.param));
+                         });
+
+TEST(Gradcheck, RoomAllDepthEmitterGradients) {
+  const GradientExperiment e = experiment(SynthSceneKind::Room, false);
+  expectPass(check(e, {ParamKind::Emission, ParamKind::Albedo}, GradientMode::Direct, Pairing::Decorrelated,
+                   EmitterGradients::AllDepth),
+             "room all-depth");
+}
+
+TEST(Gradcheck, RoughnessAtDomainMinimum) {
+  GradientExperiment e = experiment(SynthSceneKind::Cornell, false);
+  std::fill(e.current.roughness.begin(), e.current.roughness.end(), kRoughnessMin);
+  expectPass(check(e, {ParamKind::Roughness, ParamKind::Specular}, GradientMode::Full, Pairing::Decorrelated, EmitterGradients::Strict, 32, 1e-4f),
+             "roughness at r_min");
+}
+
+TEST(Gradcheck, VeryBrightEmitters) {
+  ExperimentOptions o;
+  o.rays = 128;
+  o.atlasResolution = 32;
+  o.emissionScale = 1e4f;
+  const GradientExperiment e = makeGradientExperiment(SynthSceneKind::Cornell, o);
+  expectPass(check(e, {ParamKind::Emission, ParamKind::Albedo}, GradientMode::Full, Pairing::Decorrelated), "emission 1e4");
+}
+
+TEST(Gradcheck, ClippedReferencesUseOneSidedLoss) {
+  ExperimentOptions o;
+  o.rays = 128;
+  o.atlasResolution = 32;
+  GradientExperiment e = makeGradientExperiment(SynthSceneKind::Cornell, o);
+  // Saturate a third of the references well above the estimates' range: where the estimate is
+  // below the clip the loss still pulls it up; above, it is free.
+  for (size_t j = 0; j < e.rays.size(); j += 3) {
+    e.rays[j].clip.high = 0.05f;
+    e.rays[j].reference = e.rays[j].reference.max(0.5f);
+  }
+  expectPass(check(e, kConstantKinds, GradientMode::Direct, Pairing::Decorrelated), "clipped");
+}
+
+TEST(Gradcheck, GrazingRays) {
+  GradientExperiment e = experiment(SynthSceneKind::Cornell, false);
+  // Aim every ray at the floor at 84-89 degrees from its normal.
+  for (size_t j = 0; j < e.rays.size(); ++j) {
+    const float angle = (84.0f + 5.0f * (j % 16) / 16.0f) * kPi / 180.0f;
+    const Vec3 target(0.2f + 1.6f * ((j * 37) % 64) / 64.0f, 0.0f, 1.2f + 0.3f * ((j * 11) % 16) / 16.0f);
+    const Vec3 dir(0.0f, -std::cos(angle), -std::sin(angle));
+    e.rays[j].dir = dir;
+    e.rays[j].origin = target - 0.05f / std::cos(angle) * dir;
+  }
+  expectPass(check(e, {ParamKind::Albedo, ParamKind::Roughness, ParamKind::Specular}, GradientMode::Direct,
+                   Pairing::Decorrelated), "grazing");
+}
+
+TEST(Gradcheck, DetectsAWrongGradient) {
+  // The check must be able to fail: corrupt the adjoint by checking against a different mode.
+  const GradientExperiment e = experiment(SynthSceneKind::Cornell, false, 256);
+  GradcheckOptions o;
+  o.kinds = {ParamKind::Specular, ParamKind::Roughness};
+  o.settings.mode = GradientMode::Full;
+  o.level2 = false;
+  const Scene scene(e.truth.mesh);
+  // Finite differences of `full` compared with `direct` adjoints: indirect terms are missing.
+  GradcheckReport full = runGradcheck(scene, e.current, e.rays, o);
+  ASSERT_TRUE(full.pass()) << full.table();
+  const LightSampler lights(scene, e.current);
+  Gradients g(e.current);
+  AdjointSettings direct = o.settings;
+  direct.mode = GradientMode::Direct;
+  computeGradients(scene, e.current, lights, e.rays, direct, 0, g);
+  int differing = 0;
+  for (const GradcheckRow& r : full.rows)
+    differing += std::abs(g.value(r.param) - r.finiteDifference) > 1e-2 * std::abs(r.finiteDifference);
+  EXPECT_GT(differing, 0);
+}

@@ -7,32 +7,37 @@ namespace {
 
 constexpr float kMinCos = 1e-6f;
 
-float pow5(float x) { return (x * x) * (x * x) * x; }
+template <typename T> T pow5(T x) { return (x * x) * (x * x) * x; }
 
-struct Ggx {
-  float alpha;
+// GGX terms, templated so the same code runs in double for the derivative tests.
+template <typename T> struct GgxT {
+  T alpha;
+  using V = Eigen::Matrix<T, 3, 1>;
   // D and dD/dalpha of a local half vector. t = sin^2 + alpha^2 cos^2 is formed from the
   // tangential components, not as 1 + (alpha^2 - 1) cos^2: at alpha ~ 1e-3 that cancels
   // catastrophically in float and makes D jitter as alpha changes.
-  float D(const Vec3& h) const {
-    const float a2 = alpha * alpha, c2 = h.z() * h.z();
-    const float t = h.x() * h.x() + h.y() * h.y() + a2 * c2;
-    return a2 / (kPi * t * t);
+  T D(const V& h) const {
+    const T a2 = alpha * alpha, c2 = h.z() * h.z();
+    const T t = h.x() * h.x() + h.y() * h.y() + a2 * c2;
+    return a2 / (T(kPi) * t * t);
   }
-  float dD(const Vec3& h) const {
-    const float a2 = alpha * alpha, c2 = h.z() * h.z(), s2 = h.x() * h.x() + h.y() * h.y();
-    const float t = s2 + a2 * c2;
-    return 2.0f * alpha * (s2 - a2 * c2) / (kPi * t * t * t);
+  T dD(const V& h) const {
+    const T a2 = alpha * alpha, c2 = h.z() * h.z(), s2 = h.x() * h.x() + h.y() * h.y();
+    const T t = s2 + a2 * c2;
+    return T(2) * alpha * (s2 - a2 * c2) / (T(kPi) * t * t * t);
   }
   // Smith Lambda and its alpha derivative; tan^2 from the cosine.
-  float lambda(float mu) const {
-    const float tan2 = std::max(0.0f, 1.0f - mu * mu) / (mu * mu);
-    return 0.5f * (std::sqrt(1.0f + alpha * alpha * tan2) - 1.0f);
+  T lambda(T mu) const {
+    const T tan2 = std::max(T(0), T(1) - mu * mu) / (mu * mu);
+    return T(0.5) * (std::sqrt(T(1) + alpha * alpha * tan2) - T(1));
   }
-  float dLambda(float mu) const {
-    const float tan2 = std::max(0.0f, 1.0f - mu * mu) / (mu * mu);
-    return 0.5f * alpha * tan2 / std::sqrt(1.0f + alpha * alpha * tan2);
+  T dLambda(T mu) const {
+    const T tan2 = std::max(T(0), T(1) - mu * mu) / (mu * mu);
+    return T(0.5) * alpha * tan2 / std::sqrt(T(1) + alpha * alpha * tan2);
   }
+};
+
+struct Ggx : GgxT<float> {
   float G1(float mu) const { return 1.0f / (1.0f + lambda(mu)); }
   // Visible-normal density of wo (Heitz 2018): pdf of wi = G1(wo) D(h) / (4 mu_o).
   Vec3 sampleVisibleNormal(const Vec3& wo, const Vec2& u) const {
@@ -49,6 +54,43 @@ struct Ggx {
   }
 };
 
+// Value of f and its parameter derivatives, shared by the float renderer and the double reference.
+template <typename T>
+BsdfEvalDouble::Of<T> evalValue(const Eigen::Array<T, 3, 1>& albedo, T roughness, T specular, DiffuseModel diffuse,
+                                const Eigen::Matrix<T, 3, 1>& wo, const Eigen::Matrix<T, 3, 1>& wi,
+                                const Eigen::Matrix<T, 3, 1>& h, const GgxT<T>& g, T D, T lo, bool derivatives) {
+  BsdfEvalDouble::Of<T> e;
+  const T muO = wo.z(), muI = wi.z();
+  const T cosD = std::clamp(T(wi.dot(h)), T(0), T(1));
+  T diffuseFactor = T(kInvPi), dDiffuseDr = T(0);
+  if (diffuse == DiffuseModel::Disney) {
+    const T fd90 = T(0.5) + T(2) * roughness * cosD * cosD;
+    const T a = pow5(T(1) - muI), b = pow5(T(1) - muO);
+    const T gi = T(1) + (fd90 - T(1)) * a, go = T(1) + (fd90 - T(1)) * b;
+    diffuseFactor = T(kInvPi) * gi * go;
+    dDiffuseDr = T(kInvPi) * (a * go + b * gi) * T(2) * cosD * cosD;
+  }
+  const T w = pow5(T(1) - cosD);
+  const T f0 = T(0.08) * specular;
+  const T F = f0 + (specular - f0) * w;
+  const T li = g.lambda(muI);
+  const T G = T(1) / (T(1) + li + lo);
+  const T denom = T(4) * muI * muO;
+  const T specNoF = D * G / denom;
+  e.f = albedo * diffuseFactor + F * specNoF;
+  if (derivatives) {
+    e.dAlbedo = diffuseFactor;
+    e.dSpecular = (T(0.08) + T(0.92) * w) * specNoF;
+    T dSpecDr = T(0);
+    if (roughness * roughness > T(kAlphaMin)) {  // the alpha clamp has zero derivative
+      const T dG = -G * G * (g.dLambda(muI) + g.dLambda(muO));
+      dSpecDr = F * (g.dD(h) * G + D * dG) / denom * (T(2) * roughness);
+    }
+    e.dRoughness = albedo * dDiffuseDr + dSpecDr;
+  }
+  return e;
+}
+
 }  // namespace
 
 float specularLobeProbability(const BsdfParams& p, const Vec3& wo) {
@@ -64,8 +106,7 @@ BsdfEval evalBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi, unsigned 
   const float muO = wo.z(), muI = wi.z();
   if (muO <= kMinCos || muI <= kMinCos) return e;
   const Vec3 h = (wo + wi).normalized();
-  const float cosD = std::clamp(wi.dot(h), 0.0f, 1.0f);
-  const Ggx g{ggxAlpha(p.roughness)};
+  const Ggx g{{ggxAlpha(p.roughness)}};
   const float D = h.z() > 0.0f ? g.D(h) : 0.0f;
   const float lo = g.lambda(muO);
   if (query & kBsdfPdf) {
@@ -74,35 +115,21 @@ BsdfEval evalBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi, unsigned 
     e.pdf = (1.0f - ps) * muI * kInvPi + ps * D / ((1.0f + lo) * 4.0f * muO);
   }
   if (!(query & (kBsdfValue | kBsdfDerivatives))) return e;
-
-  float diffuseFactor = kInvPi, dDiffuseDr = 0.0f;
-  if (p.diffuse == DiffuseModel::Disney) {
-    const float fd90 = 0.5f + 2.0f * p.roughness * cosD * cosD;
-    const float a = pow5(1.0f - muI), b = pow5(1.0f - muO);
-    const float gi = 1.0f + (fd90 - 1.0f) * a, go = 1.0f + (fd90 - 1.0f) * b;
-    diffuseFactor = kInvPi * gi * go;
-    dDiffuseDr = kInvPi * (a * go + b * gi) * 2.0f * cosD * cosD;
-  }
-  const float w = pow5(1.0f - cosD);
-  const float f0 = 0.08f * p.specular;
-  const float F = f0 + (p.specular - f0) * w;
-  const float li = g.lambda(muI);
-  const float G = 1.0f / (1.0f + li + lo);
-  const float denom = 4.0f * muI * muO;
-  const float specNoF = D * G / denom;
-  e.f = p.albedo * diffuseFactor + Color::Constant(F * specNoF);
-  if (query & kBsdfDerivatives) {
-    e.dAlbedo = diffuseFactor;
-    e.dSpecular = (0.08f + 0.92f * w) * specNoF;
-    float dSpecDr = 0.0f;
-    if (p.roughness * p.roughness > kAlphaMin) {  // the alpha clamp has zero derivative
-      const float dG = -G * G * (g.dLambda(muI) + g.dLambda(muO));
-      dSpecDr = F * (g.dD(h) * G + D * dG) / denom * (2.0f * p.roughness);
-    }
-    e.dRoughness = p.albedo * dDiffuseDr + Color::Constant(dSpecDr);
-  }
+  const auto v = evalValue<float>(p.albedo, p.roughness, p.specular, p.diffuse, wo, wi, h, g, D, lo, query & kBsdfDerivatives);
+  e.f = v.f;
+  e.dAlbedo = v.dAlbedo;
+  e.dRoughness = v.dRoughness;
+  e.dSpecular = v.dSpecular;
   if (!isFinite(e.f) || !std::isfinite(e.pdf)) e = BsdfEval{};
   return e;
+}
+
+BsdfEvalDouble evalBsdfDouble(const Eigen::Array3d& albedo, double roughness, double specular, DiffuseModel diffuse,
+                              const Eigen::Vector3d& wo, const Eigen::Vector3d& wi) {
+  if (wo.z() <= kMinCos || wi.z() <= kMinCos) return {};
+  const Eigen::Vector3d h = (wo + wi).normalized();
+  const GgxT<double> g{std::max(roughness * roughness, double(kAlphaMin))};
+  return evalValue<double>(albedo, roughness, specular, diffuse, wo, wi, h, g, g.D(h), g.lambda(wo.z()), true);
 }
 
 std::optional<BsdfSample> sampleBsdf(const BsdfParams& p, const Vec3& wo, float uLobe, const Vec2& u2) {
@@ -110,7 +137,7 @@ std::optional<BsdfSample> sampleBsdf(const BsdfParams& p, const Vec3& wo, float 
   const float ps = specularLobeProbability(p, wo);
   Vec3 wi;
   if (uLobe < ps) {
-    const Vec3 m = Ggx{ggxAlpha(p.roughness)}.sampleVisibleNormal(wo, u2);
+    const Vec3 m = Ggx{{ggxAlpha(p.roughness)}}.sampleVisibleNormal(wo, u2);
     wi = 2.0f * wo.dot(m) * m - wo;
   } else {
     wi = squareToCosineHemisphere(u2);

@@ -33,6 +33,21 @@ struct BsdfEval {
   float dSpecular = 0;                       // achromatic
 };
 
+// Double-precision evaluation of the same value and derivatives (tests check the analytic
+// derivatives against finite differences of this).
+struct BsdfEvalDouble {
+  template <typename T> struct Of {
+    Eigen::Array<T, 3, 1> f = Eigen::Array<T, 3, 1>::Zero(), dRoughness = Eigen::Array<T, 3, 1>::Zero();
+    T dAlbedo = 0, dSpecular = 0;
+  };
+  Eigen::Array3d f = Eigen::Array3d::Zero(), dRoughness = Eigen::Array3d::Zero();
+  double dAlbedo = 0, dSpecular = 0;
+  BsdfEvalDouble() = default;
+  BsdfEvalDouble(const Of<double>& o) : f(o.f), dRoughness(o.dRoughness), dAlbedo(o.dAlbedo), dSpecular(o.dSpecular) {}
+};
+BsdfEvalDouble evalBsdfDouble(const Eigen::Array3d& albedo, double roughness, double specular, DiffuseModel diffuse,
+                              const Eigen::Vector3d& wo, const Eigen::Vector3d& wi);
+
 struct BsdfSample {
   Vec3 wi;
   float pdf = 0;       // solid angle, of the whole mixture

@@ -115,6 +115,82 @@ int runGradcheck(const GradcheckArgs& a) {
   return report.pass() ? 0 : 1;
 }
 
+struct ProfileArgs {
+  std::string synth = "room", what = "render,adjoint";
+  int width = 320, height = 240, spp = 4, maxDepth = 8, rays = 65536, repeats = 3, batches = 32, studyRays = 4096;
+  int scatterRes = 4096;
+};
+
+int runProfile(const ProfileArgs& a) {
+  const SynthSceneKind kind = parseSynthScene(a.synth);
+  auto wants = [&](const char* w) { return a.what.find(w) != std::string::npos; };
+  if (wants("render")) {
+    const SynthScene s = makeSynthScene(kind, 1024);
+    const Camera cam = synthCameraPath(kind, 8, a.width, a.height, 0.0)[2];
+    const RenderProfile p = profileRender(s.scene, cam, a.spp, a.maxDepth);
+    const double rays = static_cast<double>(p.closestRays + p.shadowRays);
+    fmt::print("primal render  {}x{} spp {} depth {} threads {} triangles {}\n", p.width, p.height, p.spp, p.maxDepth,
+               p.threads, s.scene.mesh.triangles.size());
+    fmt::print("  render       {:8.3f} s  {:7.3f} Mpaths/s  {:6.2f} Mrays/s ({:.1f} rays/path: {} closest, {} shadow)\n",
+               p.renderSeconds, p.paths / p.renderSeconds * 1e-6, rays / p.renderSeconds * 1e-6, rays / p.paths,
+               p.closestRays, p.shadowRays);
+    fmt::print("  trace only   {:8.3f} s  {:6.2f} Mrays/s\n", p.traceOnlySeconds, rays / p.traceOnlySeconds * 1e-6);
+    fmt::print("  efficiency   {:8.3f} (trace-only time / render time)\n", p.efficiency());
+  }
+  if (wants("adjoint") || wants("pairing")) {
+    ExperimentOptions eo;
+    eo.rays = wants("adjoint") ? a.rays : a.studyRays;
+    eo.maxDepth = a.maxDepth;
+    eo.atlasResolution = 1024;
+    const GradientExperiment e = makeGradientExperiment(kind, eo);
+    if (wants("adjoint")) {
+      const AdjointProfile p = profileAdjoint(e.truth, e.current, e.rays, a.maxDepth, a.repeats);
+      const double iterDirect = p.primal + p.loss + p.adjointDirect, iterFull = p.primal + p.loss + p.adjointFull;
+      fmt::print("adjoint iteration  {} rays, depth {}, threads {} (best of {})\n", p.rays, p.maxDepth, p.threads, a.repeats);
+      fmt::print("  primal               {:8.3f} s  ({:.3f} Mpaths/s, {:.0f} ns/path)\n", p.primal,
+                 p.rays / p.primal * 1e-6, p.primal / p.rays * 1e9);
+      fmt::print("  loss                 {:8.4f} s\n", p.loss);
+      fmt::print("  adjoint (direct)     {:8.3f} s   iteration/primal = {:.2f}x\n", p.adjointDirect, iterDirect / p.primal);
+      fmt::print("  adjoint (full)       {:8.3f} s   iteration/primal = {:.2f}x\n", p.adjointFull, iterFull / p.primal);
+      fmt::print("  crossfit (1 pass)    {:8.3f} s   iteration/primal = {:.2f}x\n", p.crossfit, p.crossfit / p.primal);
+      fmt::print("  reuse (1 pass)       {:8.3f} s   iteration/primal = {:.2f}x\n", p.reuse, p.reuse / p.primal);
+      fmt::print("  per-ray state {} B (delta), vertex record {} B x (depth+1) per thread\n", sizeof(Color), p.recordBytes);
+    }
+    if (wants("pairing")) {
+      const auto stats = studyPairings(e.truth, e.current, e.rays, a.batches, 4 * a.batches);
+      fmt::print("pairing study  {} rays x {} batches, reference = {} crossfit batches (unbiased)\n", e.rays.size(),
+                 a.batches, 4 * a.batches);
+      fmt::print("  {:<13} {:>10} {:>12} {:>12}\n", "pairing", "s/iter", "rel bias", "rel std");
+      for (const PairingStat& st : stats)
+        fmt::print("  {:<13} {:>10.4f} {:>12.4f} {:>12.4f}\n", pairingName(st.pairing), st.seconds, st.relBias, st.relStd);
+    }
+  }
+  if (wants("scatter")) {
+    const size_t splats = 16u << 20;
+    fmt::print("gradient scatter  {} random bilinear RGB splats into {}^2, {} threads\n", splats, a.scatterRes, threadCount());
+    for (const ScatterStat& st : studyScatter(a.scatterRes, splats))
+      fmt::print("  {:<22} {:8.2f} Msplats/s\n", st.strategy, st.msplatsPerSecond);
+  }
+  return 0;
+}
+
+void registerProfile(CLI::App& app, CommandTable& table) {
+  auto a = std::make_shared<ProfileArgs>();
+  CLI::App* c = app.add_subcommand("profile", "measure speed: renderer, adjoint passes, pairings, gradient scatter");
+  c->add_option("--what", a->what, "comma list of render, adjoint, pairing, scatter")->capture_default_str();
+  c->add_option("--synth", a->synth, "room, cornell or furnace")->capture_default_str();
+  c->add_option("--width", a->width)->capture_default_str();
+  c->add_option("--height", a->height)->capture_default_str();
+  c->add_option("--spp", a->spp)->capture_default_str();
+  c->add_option("--max-depth", a->maxDepth)->capture_default_str();
+  c->add_option("--rays", a->rays, "adjoint batch size")->capture_default_str();
+  c->add_option("--repeats", a->repeats)->capture_default_str();
+  c->add_option("--batches", a->batches, "pairing study batches")->capture_default_str();
+  c->add_option("--study-rays", a->studyRays, "pairing study batch size")->capture_default_str();
+  c->add_option("--scatter-res", a->scatterRes)->capture_default_str();
+  table[c] = [=] { return runProfile(*a); };
+}
+
 void registerGradcheck(CLI::App& app, CommandTable& table) {
   auto a = std::make_shared<GradcheckArgs>();
   CLI::App* c = app.add_subcommand("gradcheck", "adjoint gradients vs central finite differences (common random numbers)");
@@ -202,29 +278,7 @@ CommandTable registerCommands(CLI::App& app) {
     spdlog::info("next: relume gradcheck --synth room  (adjoint gradients vs finite differences)");
     return 0;
   };
-  auto prof = std::make_shared<std::array<int, 4>>(std::array<int, 4>{320, 240, 4, 8});
-  auto profScene = std::make_shared<std::string>("room");
-  CLI::App* profile = app.add_subcommand("profile", "measure the renderer: paths/s, rays/s, Embree-only efficiency");
-  profile->add_option("--synth", *profScene, "room, cornell or furnace")->capture_default_str();
-  profile->add_option("--width", (*prof)[0])->capture_default_str();
-  profile->add_option("--height", (*prof)[1])->capture_default_str();
-  profile->add_option("--spp", (*prof)[2])->capture_default_str();
-  profile->add_option("--max-depth", (*prof)[3])->capture_default_str();
-  table[profile] = [=] {
-    const SynthSceneKind kind = parseSynthScene(*profScene);
-    const SynthScene s = makeSynthScene(kind, 1024);
-    const Camera cam = synthCameraPath(kind, 8, (*prof)[0], (*prof)[1], 0.0)[2];
-    const RenderProfile p = profileRender(s.scene, cam, (*prof)[2], (*prof)[3]);
-    const double rays = static_cast<double>(p.closestRays + p.shadowRays);
-    fmt::print("primal render  {}x{} spp {} depth {} threads {} triangles {}\n", p.width, p.height, p.spp, p.maxDepth,
-               p.threads, s.scene.mesh.triangles.size());
-    fmt::print("  render       {:8.3f} s  {:7.3f} Mpaths/s  {:6.2f} Mrays/s ({:.1f} rays/path: {} closest, {} shadow)\n",
-               p.renderSeconds, p.paths / p.renderSeconds * 1e-6, rays / p.renderSeconds * 1e-6, rays / p.paths,
-               p.closestRays, p.shadowRays);
-    fmt::print("  trace only   {:8.3f} s  {:6.2f} Mrays/s\n", p.traceOnlySeconds, rays / p.traceOnlySeconds * 1e-6);
-    fmt::print("  efficiency   {:8.3f} (trace-only time / render time)\n", p.efficiency());
-    return 0;
-  };
+  registerProfile(app, table);
   registerGradcheck(app, table);
   return table;
 }

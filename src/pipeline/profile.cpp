@@ -67,3 +67,131 @@ RenderProfile profileRender(const SceneDescription& desc, const Camera& camera, 
 }
 
 }  // namespace relume
+
+namespace relume {
+
+AdjointProfile profileAdjoint(const SceneDescription& desc, const Appearance& current, const std::vector<BatchRay>& rays,
+                              int maxDepth, int repeats) {
+  Scene scene(desc.mesh);
+  const LightSampler lights(scene, current);
+  AdjointProfile p;
+  p.rays = rays.size();
+  p.maxDepth = maxDepth;
+  p.threads = threadCount();
+  p.recordBytes = adjointRecordBytes();
+  AdjointSettings s;
+  s.path.maxDepth = maxDepth;
+  Gradients g(current);
+  auto best = [](double& slot, double v) { slot = slot == 0 ? v : std::min(slot, v); };
+  for (int r = 0; r < repeats; ++r) {
+    s.mode = GradientMode::Direct;
+    s.pairing = Pairing::Decorrelated;
+    g.clear();
+    const GradientResult direct = computeGradients(scene, current, lights, rays, s, r, g);
+    best(p.primal, direct.times.primal);
+    best(p.loss, direct.times.loss);
+    best(p.adjointDirect, direct.times.adjoint);
+    s.mode = GradientMode::Full;
+    g.clear();
+    best(p.adjointFull, computeGradients(scene, current, lights, rays, s, r, g).times.adjoint);
+    s.mode = GradientMode::Direct;
+    for (Pairing pairing : {Pairing::Crossfit, Pairing::Reuse}) {
+      s.pairing = pairing;
+      g.clear();
+      best(pairing == Pairing::Crossfit ? p.crossfit : p.reuse, computeGradients(scene, current, lights, rays, s, r, g).times.adjoint);
+    }
+  }
+  return p;
+}
+
+std::vector<PairingStat> studyPairings(const SceneDescription& desc, const Appearance& current,
+                                       const std::vector<BatchRay>& rays, int batches, int referenceBatches) {
+  Scene scene(desc.mesh);
+  const LightSampler lights(scene, current);
+  std::vector<ParamRef> params;
+  for (int o = 0; o < current.objectCount(); ++o) {
+    params.push_back({ParamKind::Roughness, o});
+    params.push_back({ParamKind::Specular, o});
+    if (current.isEmissive(o)) params.push_back({ParamKind::Emission, o, 0, 1});
+  }
+  auto run = [&](Pairing pairing, int n, uint64_t firstIteration, std::vector<std::vector<double>>* samples) {
+    AdjointSettings s;
+    s.pairing = pairing;
+    Gradients g(current);
+    Timer t;
+    std::vector<double> mean(params.size(), 0.0);
+    for (int b = 0; b < n; ++b) {
+      g.clear();
+      computeGradients(scene, current, lights, rays, s, firstIteration + b, g);
+      for (size_t i = 0; i < params.size(); ++i) {
+        mean[i] += g.value(params[i]) / n;
+        if (samples) (*samples)[i].push_back(g.value(params[i]));
+      }
+    }
+    return std::pair{mean, t.seconds() / n};
+  };
+  const auto [reference, refTime] = run(Pairing::Crossfit, referenceBatches, 1'000'000, nullptr);
+  std::vector<PairingStat> out;
+  for (Pairing pairing : {Pairing::Decorrelated, Pairing::Crossfit, Pairing::Reuse}) {
+    std::vector<std::vector<double>> samples(params.size());
+    const auto [mean, seconds] = run(pairing, batches, 0, &samples);
+    PairingStat st{pairing, seconds};
+    int counted = 0;
+    for (size_t i = 0; i < params.size(); ++i) {
+      const double ref = std::abs(reference[i]);
+      if (ref < 1e-12) continue;
+      double var = 0;
+      for (double v : samples[i]) var += (v - mean[i]) * (v - mean[i]);
+      var /= std::max(1, batches - 1);
+      st.relBias += sqr((mean[i] - reference[i]) / ref);
+      st.relStd += var / (ref * ref);
+      ++counted;
+    }
+    st.relBias = std::sqrt(st.relBias / std::max(1, counted));
+    st.relStd = std::sqrt(st.relStd / std::max(1, counted));
+    out.push_back(st);
+  }
+  return out;
+}
+
+std::vector<ScatterStat> studyScatter(int resolution, size_t splats) {
+  Texture tex(resolution, resolution);
+  std::vector<float> target(tex.rgb.size(), 0.0f);
+  auto footprintOf = [&](size_t i) {
+    Pcg32 rng(i);
+    return tex.footprint(Vec2(rng.next1D(), rng.next1D()));
+  };
+  std::vector<ScatterStat> out;
+  {
+    Timer t;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, splats, 4096), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i < r.end(); ++i) {
+        const TexelFootprint fp = footprintOf(i);
+        for (int k = 0; k < 4; ++k)
+          for (int c = 0; c < 3; ++c)
+            std::atomic_ref<float>(target[3 * fp.index[k] + c]).fetch_add(fp.weight[k], std::memory_order_relaxed);
+      }
+    });
+    out.push_back({"atomic_ref<float>", splats / t.seconds() * 1e-6});
+  }
+  {
+    Timer t;
+    tbb::enumerable_thread_specific<std::vector<float>> local([&] { return std::vector<float>(target.size(), 0.0f); });
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, splats, 4096), [&](const tbb::blocked_range<size_t>& r) {
+      std::vector<float>& buf = local.local();
+      for (size_t i = r.begin(); i < r.end(); ++i) {
+        const TexelFootprint fp = footprintOf(i);
+        for (int k = 0; k < 4; ++k)
+          for (int c = 0; c < 3; ++c) buf[3 * fp.index[k] + c] += fp.weight[k];
+      }
+    });
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, target.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
+      for (const std::vector<float>& buf : local)
+        for (size_t i = r.begin(); i < r.end(); ++i) target[i] += buf[i];
+    });
+    out.push_back({"per-thread + reduce", splats / t.seconds() * 1e-6});
+  }
+  return out;
+}
+
+}  // namespace relume

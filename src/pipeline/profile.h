@@ -1,5 +1,6 @@
 // Measured cost of the renderer and (later) of an optimisation iteration, by phase.
 #pragma once
+#include "adjoint/solver.h"
 #include "pipeline/synth.h"
 #include "render/path_tracer.h"
 
@@ -14,5 +15,38 @@ struct RenderProfile {
 
 // Renders one view, then replays exactly the same rays through Embree alone.
 RenderProfile profileRender(const SceneDescription& scene, const Camera& camera, int spp, int maxDepth);
+
+}  // namespace relume
+
+namespace relume {
+
+struct AdjointProfile {
+  size_t rays = 0;
+  int maxDepth = 0, threads = 0;
+  double primal = 0, loss = 0, adjointDirect = 0, adjointFull = 0, crossfit = 0, reuse = 0;
+  size_t recordBytes = 0;
+};
+// Times each pass of one iteration on a batch (best of `repeats`).
+AdjointProfile profileAdjoint(const SceneDescription& scene, const Appearance& current, const std::vector<BatchRay>& rays,
+                              int maxDepth, int repeats);
+
+struct PairingStat {
+  Pairing pairing;
+  double seconds = 0;      // per iteration
+  double relBias = 0;      // |mean - reference| / |reference|, RMS over parameters
+  double relStd = 0;       // per-iteration std / |reference|, RMS over parameters
+};
+// Bias and variance of each pairing's gradient against a high-sample reference (mean of many
+// crossfit batches, which is unbiased), over the per-object parameters.
+std::vector<PairingStat> studyPairings(const SceneDescription& scene, const Appearance& current,
+                                       const std::vector<BatchRay>& rays, int batches, int referenceBatches);
+
+struct ScatterStat {
+  const char* strategy;
+  double msplatsPerSecond;
+};
+// Random bilinear RGB splats into a resolution^2 texture from all threads: atomics vs
+// per-thread buffers + reduction (the reduction is part of every iteration's cost).
+std::vector<ScatterStat> studyScatter(int resolution, size_t splats);
 
 }  // namespace relume

@@ -160,16 +160,19 @@ int runProfile(const ProfileArgs& a) {
       const auto stats = studyPairings(e.truth, e.current, e.rays, a.batches, 4 * a.batches);
       fmt::print("pairing study  {} rays x {} batches, reference = {} crossfit batches (unbiased)\n", e.rays.size(),
                  a.batches, 4 * a.batches);
-      fmt::print("  {:<13} {:>10} {:>12} {:>12}\n", "pairing", "s/iter", "rel bias", "rel std");
+      fmt::print("  {:<13} {:>10} {:>12} {:>12} {:>12}\n", "pairing", "s/iter", "rel bias", "bias (se)", "rel std/iter");
       for (const PairingStat& st : stats)
-        fmt::print("  {:<13} {:>10.4f} {:>12.4f} {:>12.4f}\n", pairingName(st.pairing), st.seconds, st.relBias, st.relStd);
+        fmt::print("  {:<13} {:>10.4f} {:>12.4f} {:>12.2f} {:>12.4f}\n", pairingName(st.pairing), st.seconds, st.relBias,
+                   st.biasZ, st.relStd);
     }
   }
   if (wants("scatter")) {
-    const size_t splats = 16u << 20;
-    fmt::print("gradient scatter  {} random bilinear RGB splats into {}^2, {} threads\n", splats, a.scatterRes, threadCount());
-    for (const ScatterStat& st : studyScatter(a.scatterRes, splats))
-      fmt::print("  {:<22} {:8.2f} Msplats/s\n", st.strategy, st.msplatsPerSecond);
+    fmt::print("gradient scatter  random bilinear RGB splats into {}^2, {} threads (time per iteration)\n", a.scatterRes,
+               threadCount());
+    for (size_t splats : {size_t{1} << 17, size_t{1} << 20, size_t{1} << 24})
+      for (const ScatterStat& st : studyScatter(a.scatterRes, splats))
+        fmt::print("  {:>9} splats  {:<22} {:8.4f} s  {:7.2f} Msplats/s\n", st.splats, st.strategy, st.seconds,
+                   st.splats / st.seconds * 1e-6);
   }
   return 0;
 }
@@ -270,6 +273,7 @@ CommandTable registerCommands(CLI::App& app) {
     r.cameras = (out / "capture" / "transforms_test.json").string();
     r.out = (out / "novel_views").string();
     r.aovs = "albedo,normal,depth,object";
+    r.spp = 32;
     runRender(r);
     spdlog::info("demo finished in {:.0f}s", t.seconds());
     spdlog::info("capture (input format): {}", (out / "capture").string());

@@ -130,7 +130,8 @@ std::vector<PairingStat> studyPairings(const SceneDescription& desc, const Appea
     }
     return std::pair{mean, t.seconds() / n};
   };
-  const auto [reference, refTime] = run(Pairing::Crossfit, referenceBatches, 1'000'000, nullptr);
+  std::vector<std::vector<double>> refSamples(params.size());
+  const auto [reference, refTime] = run(Pairing::Crossfit, referenceBatches, 1'000'000, &refSamples);
   std::vector<PairingStat> out;
   for (Pairing pairing : {Pairing::Decorrelated, Pairing::Crossfit, Pairing::Reuse}) {
     std::vector<std::vector<double>> samples(params.size());
@@ -143,12 +144,17 @@ std::vector<PairingStat> studyPairings(const SceneDescription& desc, const Appea
       double var = 0;
       for (double v : samples[i]) var += (v - mean[i]) * (v - mean[i]);
       var /= std::max(1, batches - 1);
+      double refVar = 0;
+      for (double v : refSamples[i]) refVar += (v - reference[i]) * (v - reference[i]);
+      refVar /= std::max(1, referenceBatches - 1);
+      st.biasZ += sqr(mean[i] - reference[i]) / (var / batches + refVar / referenceBatches + 1e-300);
       st.relBias += sqr((mean[i] - reference[i]) / ref);
       st.relStd += var / (ref * ref);
       ++counted;
     }
     st.relBias = std::sqrt(st.relBias / std::max(1, counted));
     st.relStd = std::sqrt(st.relStd / std::max(1, counted));
+    st.biasZ = std::sqrt(st.biasZ / std::max(1, counted));
     out.push_back(st);
   }
   return out;
@@ -172,7 +178,7 @@ std::vector<ScatterStat> studyScatter(int resolution, size_t splats) {
             std::atomic_ref<float>(target[3 * fp.index[k] + c]).fetch_add(fp.weight[k], std::memory_order_relaxed);
       }
     });
-    out.push_back({"atomic_ref<float>", splats / t.seconds() * 1e-6});
+    out.push_back({"atomic_ref<float>", splats, t.seconds()});
   }
   {
     Timer t;
@@ -189,7 +195,7 @@ std::vector<ScatterStat> studyScatter(int resolution, size_t splats) {
       for (const std::vector<float>& buf : local)
         for (size_t i = r.begin(); i < r.end(); ++i) target[i] += buf[i];
     });
-    out.push_back({"per-thread + reduce", splats / t.seconds() * 1e-6});
+    out.push_back({"per-thread + reduce", splats, t.seconds()});
   }
   return out;
 }

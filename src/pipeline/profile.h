@@ -35,6 +35,7 @@ struct PairingStat {
   double seconds = 0;      // per iteration
   double relBias = 0;      // |mean - reference| / |reference|, RMS over parameters
   double relStd = 0;       // per-iteration std / |reference|, RMS over parameters
+  double biasZ = 0;        // |mean - reference| in standard errors, RMS over parameters (~1 if unbiased)
 };
 // Bias and variance of each pairing's gradient against a high-sample reference (mean of many
 // crossfit batches, which is unbiased), over the per-object parameters.
@@ -43,7 +44,8 @@ std::vector<PairingStat> studyPairings(const SceneDescription& scene, const Appe
 
 struct ScatterStat {
   const char* strategy;
-  double msplatsPerSecond;
+  size_t splats;
+  double seconds;  // including zeroing/reduction, i.e. per iteration
 };
 // Random bilinear RGB splats into a resolution^2 texture from all threads: atomics vs
 // per-thread buffers + reduction (the reduction is part of every iteration's cost).

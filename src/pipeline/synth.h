@@ -28,7 +28,7 @@ struct SynthCaptureOptions {
   std::filesystem::path out;
   int frames = 24, testFrames = 4;
   int width = 256, height = 192;
-  int spp = 32;
+  int spp = 16;
   int maxDepth = 8;
   uint64_t seed = 1;
   bool withUv = false;

@@ -108,3 +108,21 @@ TEST(Transforms, NanPixelsAreMaskedAndCounted) {
   f.camera.width = 5;
   EXPECT_THROW(loadFrameImage(f), Error);
 }
+
+#include "capture/objects.h"
+
+TEST(ObjectNames, BothFormsAndErrors) {
+  const fs::path a = writeFile("objects_a.json", R"({"objects": [{"id": 2, "name": "sofa"}]})");
+  EXPECT_EQ(readObjectNames(a).at(2), "sofa");
+  const fs::path b = writeFile("objects_b.json", R"({"0": "floor", "7": "lamp"})");
+  EXPECT_EQ(readObjectNames(b).at(7), "lamp");
+  for (const std::string& bad : {R"({"x": "floor"})", R"({"objects": [{"id": -1, "name": "a"}]})", R"({"1": 3})", "[1,2]"}) {
+    const fs::path p = writeFile("objects_bad.json", bad);
+    try {
+      readObjectNames(p);
+      ADD_FAILURE() << "accepted " << bad;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(p.string()), std::string::npos);
+    }
+  }
+}

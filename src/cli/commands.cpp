@@ -166,6 +166,14 @@ int runProfile(const ProfileArgs& a) {
                    st.biasZ, st.relStd);
     }
   }
+  if (wants("leaks")) {
+    const SynthScene s = makeSynthScene(SynthSceneKind::Room, 1024);
+    const Eigen::AlignedBox3f interior(Vec3(0.05f, 0.05f, 0.05f), Vec3(4.95f, 2.65f, 3.95f));
+    fmt::print("edge leaks  random rays from inside the closed room ({} triangles)\n", s.scene.mesh.triangles.size());
+    for (const LeakStat& st : studyLeaks(s.scene.mesh, interior, size_t{1} << 24))
+      fmt::print("  {:<8} {} rays, {} escaped, {:.2f} Mrays/s\n", st.robust ? "robust" : "default", st.rays, st.misses,
+                 st.mraysPerSecond);
+  }
   if (wants("scatter")) {
     fmt::print("gradient scatter  random bilinear RGB splats into {}^2, {} threads (time per iteration)\n", a.scatterRes,
                threadCount());
@@ -180,7 +188,7 @@ int runProfile(const ProfileArgs& a) {
 void registerProfile(CLI::App& app, CommandTable& table) {
   auto a = std::make_shared<ProfileArgs>();
   CLI::App* c = app.add_subcommand("profile", "measure speed: renderer, adjoint passes, pairings, gradient scatter");
-  c->add_option("--what", a->what, "comma list of render, adjoint, pairing, scatter")->capture_default_str();
+  c->add_option("--what", a->what, "comma list of render, adjoint, pairing, scatter, leaks")->capture_default_str();
   c->add_option("--synth", a->synth, "room, cornell or furnace")->capture_default_str();
   c->add_option("--width", a->width)->capture_default_str();
   c->add_option("--height", a->height)->capture_default_str();

@@ -1,9 +1,11 @@
 #include "pipeline/profile.h"
 
+#include <tbb/combinable.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include "core/system.h"
+#include "core/warp.h"
 #include "render/film.h"
 
 namespace relume {
@@ -196,6 +198,30 @@ std::vector<ScatterStat> studyScatter(int resolution, size_t splats) {
         for (size_t i = r.begin(); i < r.end(); ++i) target[i] += buf[i];
     });
     out.push_back({"per-thread + reduce", splats, t.seconds()});
+  }
+  return out;
+}
+
+}  // namespace relume
+
+namespace relume {
+
+std::vector<LeakStat> studyLeaks(const TriangleMesh& mesh, const Eigen::AlignedBox3f& interior, size_t rays) {
+  std::vector<LeakStat> out;
+  for (bool robust : {false, true}) {
+    SceneOptions so;
+    so.robust = robust;
+    const Scene scene(mesh, so);
+    tbb::combinable<size_t> misses([] { return size_t{0}; });
+    Timer t;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, rays, 8192), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i < r.end(); ++i) {
+        Pcg32 rng(hashTuple({i, 0x6c65}));
+        const Vec3 o = interior.min() + interior.sizes().cwiseProduct(Vec3(rng.next1D(), rng.next1D(), rng.next1D()));
+        misses.local() += !std::isfinite(scene.hitDistance(o, squareToUniformSphere(Vec2(rng.next1D(), rng.next1D()))));
+      }
+    });
+    out.push_back({robust, rays, misses.combine(std::plus<>()), rays / t.seconds() * 1e-6});
   }
   return out;
 }

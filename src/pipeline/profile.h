@@ -52,3 +52,14 @@ struct ScatterStat {
 std::vector<ScatterStat> studyScatter(int resolution, size_t splats);
 
 }  // namespace relume
+
+namespace relume {
+struct LeakStat {
+  bool robust;
+  size_t rays, misses;
+  double mraysPerSecond;
+};
+// Random rays from inside a closed scene's bounding box interior: every miss is a leak through a
+// shared edge. Compares Embree's default and robust intersection.
+std::vector<LeakStat> studyLeaks(const TriangleMesh& closedMesh, const Eigen::AlignedBox3f& interior, size_t rays);
+}  // namespace relume

@@ -125,6 +125,19 @@ TEST(Gradcheck, GrazingRays) {
                    Pairing::Decorrelated), "grazing");
 }
 
+TEST(Gradcheck, RussianRouletteIsADetachedDecision) {
+  const GradientExperiment e = experiment(SynthSceneKind::Cornell, false);
+  GradcheckOptions o;
+  o.kinds = kConstantKinds;
+  o.settings.mode = GradientMode::Full;
+  o.settings.path.russianRoulette = true;
+  o.settings.path.rouletteDepth = 1;
+  o.paramsPerKind = 2;
+  o.batches = 24;
+  const Scene scene(e.truth.mesh);
+  expectPass(runGradcheck(scene, e.current, e.rays, o), "russian roulette");
+}
+
 TEST(Gradcheck, DetectsAWrongGradient) {
   // The check must be able to fail: corrupt the adjoint by checking against a different mode.
   const GradientExperiment e = experiment(SynthSceneKind::Cornell, false, 256);

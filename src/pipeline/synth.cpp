@@ -171,8 +171,8 @@ float hash01(uint64_t a, uint64_t b) { return static_cast<float>(mix64(hashTuple
 
 constexpr float kRoomX = 5.0f, kRoomY = 2.7f, kRoomZ = 4.0f;
 
-SceneDescription buildRoom(int resolution) {
-  SceneBuilder b(0.085f);  // ~35k triangles: the density of a coarse room scan
+SceneDescription buildRoom(int resolution, float cellSize = 0.085f) {  // ~35k triangles, a coarse scan
+  SceneBuilder b(cellSize);
   // Wooden planks: 0.2 m wide, random tone per plank, darker seams.
   const AlbedoPattern planks = [](float s, float t) -> Color {
     const int plank = static_cast<int>(s / 0.2f);
@@ -268,6 +268,20 @@ SynthScene makeSynthScene(SynthSceneKind kind, int atlasResolution) {
     case SynthSceneKind::Furnace: return {kind, buildFurnace(atlasResolution)};
   }
   fail("bad synthetic scene kind");
+}
+
+TriangleMesh makeScanLikeRoom(size_t targetTriangles, float noiseMetres) {
+  // Triangle count scales with 1/cell^2; 0.085 m cells give ~35k.
+  const float cell = 0.085f * std::sqrt(32000.0f / static_cast<float>(std::max<size_t>(targetTriangles, 1000)));
+  TriangleMesh m = buildRoom(2048, cell).mesh;
+  for (Vec3& p : m.positions) {
+    const Eigen::Vector3i q = (p / 1e-4f).array().round().cast<int>();  // coincident vertices move together
+    const uint64_t h = hashTuple({static_cast<uint64_t>(q.x()), static_cast<uint64_t>(q.y()), static_cast<uint64_t>(q.z())});
+    Pcg32 rng(h);
+    p += noiseMetres * Vec3(2 * rng.next1D() - 1, 2 * rng.next1D() - 1, 2 * rng.next1D() - 1);
+  }
+  m.uvs.clear();
+  return buildMesh(m.toData(), "scan-like room");
 }
 
 std::vector<Camera> synthCameraPath(SynthSceneKind kind, int frames, int width, int height, double phase) {

@@ -19,6 +19,11 @@ struct SynthScene {
 // Builds the scene in memory. atlasResolution sets the ground-truth albedo texture size.
 SynthScene makeSynthScene(SynthSceneKind kind, int atlasResolution = 1024);
 
+// The room tessellated to about `targetTriangles` with every vertex displaced by up to
+// `noiseMetres` (a function of its position, so shared vertices stay shared): a stand-in for a
+// scanned mesh. No uv.
+TriangleMesh makeScanLikeRoom(size_t targetTriangles, float noiseMetres);
+
 // A smooth hand-held-like walk that sees every wall, the floor and the lights. `phase` in [0,1)
 // shifts the walk, so test views differ from training views.
 std::vector<Camera> synthCameraPath(SynthSceneKind kind, int frames, int width, int height, double phase);

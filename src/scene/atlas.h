@@ -1,0 +1,41 @@
+// UV atlas: keeps a mesh's own uvs when they are valid (inside [0,1], no two triangles
+// overlapping), otherwise charts the mesh (per object, by normal cone and connectivity),
+// parameterises each chart (planar projection when near-planar, least-squares conformal maps
+// otherwise), scales every chart to one world-space texel density and packs them with a gutter.
+// Same mesh in, same atlas out.
+#pragma once
+#include <string>
+
+#include "scene/mesh.h"
+
+namespace relume {
+
+struct AtlasOptions {
+  int resolution = 4096;       // finest texture resolution the gutter is measured at
+  int gutterTexels = 2;        // empty texels around every chart at `resolution`
+  float coneDegrees = 60.0f;   // faces join a chart while their normal is within this of the seed's
+  float planarDegrees = 20.0f; // charts whose area-weighted mean normal deviation is below this
+                               // use planar projection, others least-squares conformal maps
+  bool keepValidUv = true;
+};
+
+struct AtlasReport {
+  bool keptInputUv = false;
+  size_t charts = 0, lscmCharts = 0, splitCharts = 0;
+  double packingEfficiency = 0;  // charted uv area / atlas area
+  double texelsPerMetre = 0;     // at AtlasOptions::resolution
+  // Stretch: sqrt(uv area / 3D area), normalised by the atlas density; 1 = no distortion.
+  double stretchP05 = 0, stretchMedian = 0, stretchP95 = 0;
+  double seconds = 0;
+  std::string summary() const;
+};
+
+// Returns the mesh with a per-vertex uv atlas (vertices are split along chart seams).
+TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& options, AtlasReport* report = nullptr);
+
+// Exact test: pairs of triangles whose uv interiors overlap (touching edges/corners do not count).
+size_t countUvOverlaps(const TriangleMesh& mesh, size_t stopAfter = 1);
+// True if every uv is inside [0,1] and no two triangles overlap.
+bool hasValidUvAtlas(const TriangleMesh& mesh);
+
+}  // namespace relume

@@ -404,7 +404,7 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
   std::sort(charts.begin(), charts.end(), [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
   r.charts = charts.size();
 
-  // Largest density (texels per metre at the finest resolution) at which everything packs.
+  // Largest density (texels per metre at the gutter resolution) at which everything packs.
   const int pad = (o.gutterTexels + 1) / 2;  // per side: at least `gutterTexels` between charts
   std::vector<Eigen::AlignedBox2d> extent(charts.size());
   for (size_t i = 0; i < charts.size(); ++i)
@@ -419,20 +419,20 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
   };
   double totalArea = 0;
   for (float a : mesh.faceArea) totalArea += a;
-  double lo = 0, hi = std::sqrt(static_cast<double>(o.resolution) * o.resolution / std::max(totalArea, 1e-12)) * 1.01;
+  double lo = 0, hi = std::sqrt(static_cast<double>(o.gutterResolution) * o.gutterResolution / std::max(totalArea, 1e-12)) * 1.01;
   for (int it = 0; it < 40; ++it) {
     const double mid = 0.5 * (lo + hi);
-    (skylinePack(sizesAt(mid), o.resolution, placement) ? lo : hi) = mid;
+    (skylinePack(sizesAt(mid), o.gutterResolution, placement) ? lo : hi) = mid;
   }
-  if (!(lo > 0) || !skylinePack(sizesAt(lo), o.resolution, placement))
-    fail("uv atlas: {} charts do not fit a {}^2 atlas with {}-texel gutters", charts.size(), o.resolution, o.gutterTexels);
+  if (!(lo > 0) || !skylinePack(sizesAt(lo), o.gutterResolution, placement))
+    fail("uv atlas: {} charts do not fit a {}^2 atlas with {}-texel gutters", charts.size(), o.gutterResolution, o.gutterTexels);
   r.texelsPerMetre = lo;
 
   TriangleMesh out = mesh;
   out.positions.clear();
   out.normals.clear();
   out.uvs.clear();
-  const double R = o.resolution;
+  const double R = o.gutterResolution;
   std::vector<double> stretch;
   double uvArea = 0;
   for (size_t i = 0; i < charts.size(); ++i) {

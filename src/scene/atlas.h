@@ -11,8 +11,11 @@
 namespace relume {
 
 struct AtlasOptions {
-  int resolution = 4096;       // finest texture resolution the gutter is measured at
-  int gutterTexels = 2;        // empty texels around every chart at `resolution`
+  // Charts are packed on this resolution's texel grid with at least `gutterTexels` empty texels
+  // between them, so every finer power-of-two resolution keeps a gutter at least as wide and a
+  // one-texel dilation ring per chart never collides with a neighbour at any stage.
+  int gutterResolution = 1024;
+  int gutterTexels = 2;
   float coneDegrees = 60.0f;   // faces join a chart while their normal is within this of the seed's
   float planarDegrees = 20.0f; // charts whose area-weighted mean normal deviation is below this
                                // use planar projection, others least-squares conformal maps
@@ -23,7 +26,7 @@ struct AtlasReport {
   bool keptInputUv = false;
   size_t charts = 0, lscmCharts = 0, splitCharts = 0;
   double packingEfficiency = 0;  // charted uv area / atlas area
-  double texelsPerMetre = 0;     // at AtlasOptions::resolution
+  double texelsPerMetre = 0;     // at AtlasOptions::gutterResolution
   // Stretch: sqrt(uv area / 3D area), normalised by the atlas density; 1 = no distortion.
   double stretchP05 = 0, stretchMedian = 0, stretchP95 = 0;
   double seconds = 0;

@@ -45,7 +45,6 @@ TEST(Atlas, RoomWithoutUvIsChartedPackedAndDeterministic) {
   TriangleMesh mesh = makeSynthScene(SynthSceneKind::Room, 256).scene.mesh;
   mesh.uvs.clear();
   AtlasOptions o;
-  o.resolution = 2048;
   AtlasReport r;
   const TriangleMesh a = buildAtlas(mesh, o, &r);
   expectSound(mesh, a);
@@ -61,7 +60,6 @@ TEST(Atlas, NoisyScanLikeMeshOf500kTriangles) {
   const TriangleMesh mesh = makeScanLikeRoom(500000, 0.004f);
   ASSERT_GE(mesh.triangles.size(), 450000u);
   AtlasOptions o;
-  o.resolution = 4096;
   AtlasReport r;
   const TriangleMesh a = buildAtlas(mesh, o, &r);
   std::printf("%zu triangles: %s\n", mesh.triangles.size(), r.summary().c_str());

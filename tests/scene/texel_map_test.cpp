@@ -1,0 +1,73 @@
+#include <gtest/gtest.h>
+
+#include "core/rng.h"
+#include "core/system.h"
+#include "core/warp.h"
+#include "pipeline/synth.h"
+#include "scene/atlas.h"
+#include "scene/texel_map.h"
+
+using namespace relume;
+
+namespace {
+TriangleMesh roomAtlas() {
+  TriangleMesh mesh = makeSynthScene(SynthSceneKind::Room, 256).scene.mesh;
+  mesh.uvs.clear();
+  return buildAtlas(mesh, {});
+}
+}  // namespace
+
+TEST(TexelMap, CoveredTexelPointsMapBackIntoTheirTexel) {
+  const TriangleMesh mesh = roomAtlas();
+  const TexelMap map(mesh, 1024);
+  ASSERT_GT(map.coveredCount(), 100000u);
+  size_t checked = 0;
+  for (size_t i = 0; i < map.texelCount(); i += 7) {
+    if (!map.covered(i)) continue;
+    const auto& t = mesh.triangles[map.triangle(i)];
+    const Vec3 bc = map.barycentrics(mesh, i);
+    const Vec2 uv = bc[0] * mesh.uvs[t[0]] + bc[1] * mesh.uvs[t[1]] + bc[2] * mesh.uvs[t[2]];
+    const size_t back = static_cast<size_t>(uv.y() * 1024) * 1024 + static_cast<size_t>(uv.x() * 1024);
+    ASSERT_EQ(back, i);
+    // And the 3D point lies on that triangle's plane, inside it.
+    const Vec3 p = map.point(mesh, i);
+    EXPECT_LT(std::abs((p - mesh.positions[t[0]]).dot(mesh.faceNormal(map.triangle(i)))), 1e-4f);
+    EXPECT_GE(bc.minCoeff(), -1e-5f);
+    ++checked;
+  }
+  EXPECT_GT(checked, 10000u);
+}
+
+TEST(TexelMap, PointsOnTheSurfaceLandOnValidTexelsOfTheirOwnChart) {
+  const TriangleMesh mesh = roomAtlas();
+  for (int res : {1024, 2048}) {
+    const TexelMap map(mesh, res);
+    Pcg32 rng(5);
+    for (int i = 0; i < 20000; ++i) {
+      const uint32_t f = rng.nextU32() % mesh.triangles.size();
+      const Vec2 b = squareToTriangle(Vec2(rng.next1D(), rng.next1D()));
+      const auto& t = mesh.triangles[f];
+      const Vec2 uv = (1 - b.x() - b.y()) * mesh.uvs[t[0]] + b.x() * mesh.uvs[t[1]] + b.y() * mesh.uvs[t[2]];
+      // Every texel of the bilinear footprint is valid and belongs to the same object: no bleed.
+      const float x = uv.x() * res - 0.5f, y = uv.y() * res - 0.5f;
+      for (int dy = 0; dy <= 1; ++dy)
+        for (int dx = 0; dx <= 1; ++dx) {
+          const int tx = std::clamp(static_cast<int>(std::floor(x)) + dx, 0, res - 1);
+          const int ty = std::clamp(static_cast<int>(std::floor(y)) + dy, 0, res - 1);
+          const size_t texel = static_cast<size_t>(ty) * res + tx;
+          ASSERT_TRUE(map.valid(texel)) << "res " << res;
+          ASSERT_EQ(mesh.faceObject[map.triangle(texel)], mesh.faceObject[f]) << "res " << res;
+        }
+    }
+  }
+}
+
+TEST(TexelMap, BuildTimeAndSizeAt4096) {
+  const TriangleMesh mesh = roomAtlas();
+  Timer t;
+  const TexelMap map(mesh, 4096);
+  const double seconds = t.seconds();
+  EXPECT_EQ(map.bytes(), 4096u * 4096u * 4u);
+  EXPECT_LT(seconds, 60.0);
+  std::printf("4096^2 texel map: %.2fs, %zu covered texels, %zu bytes\n", seconds, map.coveredCount(), map.bytes());
+}

@@ -2,11 +2,14 @@
 
 #include <spdlog/spdlog.h>
 
+#include <sstream>
+
 #include "capture/transforms.h"
 #include "core/error.h"
 #include "core/system.h"
 #include "adjoint/gradcheck.h"
 #include "pipeline/experiment.h"
+#include "pipeline/prepare.h"
 #include "pipeline/profile.h"
 #include "pipeline/synth.h"
 #include "render/film.h"
@@ -113,6 +116,46 @@ int runGradcheck(const GradcheckArgs& a) {
   }
   fmt::print("{} in {:.1f}s\n", report.pass() ? "PASS" : "FAIL", t.seconds());
   return report.pass() ? 0 : 1;
+}
+
+void registerPrepare(CLI::App& app, CommandTable& table) {
+  auto o = std::make_shared<PrepareOptions>();
+  auto capture = std::make_shared<std::string>();
+  auto work = std::make_shared<std::string>();
+  auto res = std::make_shared<std::string>("1024,2048,4096");
+  auto init = std::make_shared<std::string>("median");
+  CLI::App* c = app.add_subcommand("prepare", "build the texture-space data of a capture: atlas, frame cache, visibility, init");
+  c->add_option("capture", *capture, "capture folder (mesh.ply|obj, transforms.json, images)")->required()->check(CLI::ExistingDirectory);
+  c->add_option("--out", *work, "work folder")->required();
+  c->add_option("--res", *res, "texture resolutions, coarse to fine (the first is the init resolution)")->capture_default_str();
+  c->add_option("--init", *init, "median or mean of the observations")->capture_default_str();
+  c->add_option("--max-overexposed", o->maxOverexposed, "drop frames with more saturated pixels than this")->capture_default_str();
+  c->add_option("--max-underexposed", o->maxUnderexposed)->capture_default_str();
+  c->add_option("--max-speed", o->maxSpeed, "metres between neighbouring frames")->capture_default_str();
+  c->add_option("--max-angular-speed", o->maxAngularSpeed, "degrees between neighbouring frames")->capture_default_str();
+  c->add_option("--tile", o->tileTexels, "visibility tile size in texels at the init resolution")->capture_default_str();
+  c->add_option("--gutter-res", o->atlas.gutterResolution, "resolution at which charts keep a 2-texel gutter")->capture_default_str();
+  c->add_flag("--force", o->force, "redo every phase");
+  table[c] = [=] {
+    o->resolutions.clear();
+    std::stringstream ss(*res);
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+      try {
+        o->resolutions.push_back(std::stoi(item));
+      } catch (const std::exception&) {
+        fail("--res: '{}' is not a resolution", item);
+      }
+    }
+    if (o->resolutions.empty()) fail("--res needs at least one resolution");
+    if (*init == "median") o->init = InitStatistic::Median;
+    else if (*init == "mean") o->init = InitStatistic::Mean;
+    else fail("--init must be median or mean, not '{}'", *init);
+    const PrepareSummary s = prepareCapture(*capture, *work, *o);
+    spdlog::info("prepared {}: {} triangles, {}/{} frames kept, {:.2f}% of texels never observed, {:.1f}s", *work, s.triangles,
+                 s.keptFrames, s.frames, 100 * s.fractionUnobserved, s.seconds);
+    return 0;
+  };
 }
 
 struct ProfileArgs {
@@ -291,6 +334,7 @@ CommandTable registerCommands(CLI::App& app) {
     return 0;
   };
   registerProfile(app, table);
+  registerPrepare(app, table);
   registerGradcheck(app, table);
   return table;
 }

@@ -1,0 +1,140 @@
+#include "capture/frame_store.h"
+
+#include <Imath/half.h>
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cstring>
+#include <fstream>
+
+#include "core/error.h"
+#include "io/atomic_file.h"
+
+namespace relume {
+namespace {
+
+constexpr char kMagic[8] = {'R', 'L', 'M', 'F', 'R', 'A', 'M', 'E'};
+constexpr uint32_t kVersion = 1;
+
+struct Header {
+  char magic[8];
+  uint32_t version;
+  uint32_t frames;
+};
+
+struct DiskEntry {
+  uint64_t offset;
+  FrameStats stats;
+};
+
+}  // namespace
+
+std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const std::vector<Frame>& frames,
+                                        const std::function<void()>& progress) {
+  std::vector<DiskEntry> entries(frames.size());
+  writeAtomically(path, [&](const std::filesystem::path& tmp) {
+    std::ofstream out(tmp, std::ios::binary);
+    Header h{};
+    std::memcpy(h.magic, kMagic, 8);
+    h.version = kVersion;
+    h.frames = static_cast<uint32_t>(frames.size());
+    out.write(reinterpret_cast<const char*>(&h), sizeof(h));
+    out.write(reinterpret_cast<const char*>(entries.data()), static_cast<std::streamsize>(entries.size() * sizeof(DiskEntry)));
+    uint64_t offset = sizeof(Header) + entries.size() * sizeof(DiskEntry);
+    std::vector<Imath::half> halfs;
+    for (size_t i = 0; i < frames.size(); ++i) {
+      ImageReadStats rs;
+      const Image img = loadFrameImage(frames[i], &rs);
+      DiskEntry& e = entries[i];
+      e.offset = offset;
+      e.stats.width = static_cast<uint32_t>(img.width);
+      e.stats.height = static_cast<uint32_t>(img.height);
+      size_t over = 0, under = 0;
+      for (size_t p = 0; p < img.rgb.size() / 3; ++p) {
+        const float* c = &img.rgb[3 * p];
+        if (c[0] < 0) continue;  // masked
+        over += std::max({c[0], c[1], c[2]}) >= frames[i].clipHigh;
+        under += std::max({c[0], c[1], c[2]}) <= frames[i].clipLow;
+      }
+      const double n = std::max<double>(1, img.rgb.size() / 3);
+      e.stats.overexposed = static_cast<float>(over / n);
+      e.stats.underexposed = static_cast<float>(under / n);
+      e.stats.masked = static_cast<float>(rs.nonFinitePixels / n);
+      halfs.resize(img.rgb.size());
+      for (size_t k = 0; k < img.rgb.size(); ++k) halfs[k] = Imath::half(std::min(img.rgb[k], 65504.0f));
+      out.write(reinterpret_cast<const char*>(halfs.data()), static_cast<std::streamsize>(halfs.size() * sizeof(Imath::half)));
+      offset += halfs.size() * sizeof(Imath::half);
+      if (progress) progress();
+    }
+    out.seekp(sizeof(Header));
+    out.write(reinterpret_cast<const char*>(entries.data()), static_cast<std::streamsize>(entries.size() * sizeof(DiskEntry)));
+    if (!out) fail("{}: cannot write frame cache", path.string());
+  });
+  std::vector<FrameStats> stats;
+  for (const DiskEntry& e : entries) stats.push_back(e.stats);
+  return stats;
+}
+
+FrameStore::FrameStore(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  const int fd = ::open(file.c_str(), O_RDONLY);
+  if (fd < 0) fail("{}: cannot open frame cache", file);
+  struct stat st {};
+  if (fstat(fd, &st) != 0 || st.st_size < static_cast<off_t>(sizeof(Header))) {
+    ::close(fd);
+    fail("{}: frame cache is truncated", file);
+  }
+  size_ = static_cast<size_t>(st.st_size);
+  void* p = mmap(nullptr, size_, PROT_READ, MAP_SHARED, fd, 0);
+  ::close(fd);
+  if (p == MAP_FAILED) fail("{}: cannot map frame cache", file);
+  data_ = static_cast<const uint8_t*>(p);
+  Header h;
+  std::memcpy(&h, data_, sizeof(h));
+  auto bad = [&](const std::string& why) {
+    munmap(const_cast<uint8_t*>(data_), size_);
+    data_ = nullptr;
+    fail("{}: {}", file, why);
+  };
+  if (std::memcmp(h.magic, kMagic, 8) != 0 || h.version != kVersion) bad("not a relume frame cache (or another version)");
+  if (sizeof(Header) + static_cast<uint64_t>(h.frames) * sizeof(DiskEntry) > size_) bad("frame cache index is truncated");
+  index_.resize(h.frames);
+  for (uint32_t i = 0; i < h.frames; ++i) {
+    DiskEntry e;
+    std::memcpy(&e, data_ + sizeof(Header) + i * sizeof(DiskEntry), sizeof(e));
+    const uint64_t bytes = static_cast<uint64_t>(e.stats.width) * e.stats.height * 3 * sizeof(Imath::half);
+    if (e.offset + bytes > size_ || e.stats.width > 65536 || e.stats.height > 65536) bad(fmt::format("frame {} lies outside the file", i));
+    index_[i] = {e.offset, e.stats};
+  }
+}
+
+FrameStore::~FrameStore() {
+  if (data_) munmap(const_cast<uint8_t*>(data_), size_);
+}
+
+Color FrameStore::pixel(size_t frame, int x, int y) const {
+  const Entry& e = index_[frame];
+  Imath::half h[3];
+  std::memcpy(h, data_ + e.offset + (static_cast<size_t>(y) * e.stats.width + x) * 3 * sizeof(Imath::half), sizeof(h));
+  return {float(h[0]), float(h[1]), float(h[2])};
+}
+
+std::optional<Color> FrameStore::bilinear(size_t frame, const Vec2& px) const {
+  const Entry& e = index_[frame];
+  const float x = px.x() - 0.5f, y = px.y() - 0.5f;
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  if (x0 < 0 || y0 < 0 || x0 + 1 >= static_cast<int>(e.stats.width) || y0 + 1 >= static_cast<int>(e.stats.height)) return std::nullopt;
+  const float dx = x - x0, dy = y - y0;
+  Color sum = Color::Zero();
+  const float w[4] = {(1 - dx) * (1 - dy), dx * (1 - dy), (1 - dx) * dy, dx * dy};
+  for (int k = 0; k < 4; ++k) {
+    const Color c = pixel(frame, x0 + (k & 1), y0 + (k >> 1));
+    if (c.minCoeff() < 0) return std::nullopt;
+    sum += w[k] * c;
+  }
+  return sum;
+}
+
+}  // namespace relume

@@ -1,0 +1,53 @@
+// All frames of a capture converted once to one half-float file, memory-mapped for reading: any
+// pixel is available with no decoding, and resident memory does not grow with the frame count.
+// Layout: header, an index entry per frame, then RGB half pixels (row 0 at the top; masked
+// pixels are stored as -1).
+#pragma once
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <vector>
+
+#include "capture/transforms.h"
+
+namespace relume {
+
+struct FrameStats {
+  uint32_t width = 0, height = 0;
+  float overexposed = 0;   // fraction of pixels with a channel at or above the frame's clip_high
+  float underexposed = 0;  // fraction of pixels with every channel at or below clip_low
+  float masked = 0;        // fraction of NaN/Inf pixels
+};
+
+// Converts every frame (images read through loadFrameImage: exposure applied, NaN masked).
+// `progress` is called once per frame. Atomic: the file appears complete or not at all.
+std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const std::vector<Frame>& frames,
+                                        const std::function<void()>& progress = {});
+
+class FrameStore {
+ public:
+  explicit FrameStore(const std::filesystem::path& path);  // throws relume::Error on a bad file
+  ~FrameStore();
+  FrameStore(const FrameStore&) = delete;
+  FrameStore& operator=(const FrameStore&) = delete;
+
+  size_t frameCount() const { return index_.size(); }
+  const FrameStats& stats(size_t frame) const { return index_[frame].stats; }
+  Color pixel(size_t frame, int x, int y) const;  // negative = masked
+  // Bilinear at continuous pixel coordinates (pixel centres at +0.5); nullopt if outside the
+  // image or if any of the four pixels is masked.
+  std::optional<Color> bilinear(size_t frame, const Vec2& pixel) const;
+  size_t fileBytes() const { return size_; }
+
+ private:
+  struct Entry {
+    uint64_t offset;
+    FrameStats stats;
+  };
+  std::vector<Entry> index_;
+  const uint8_t* data_ = nullptr;
+  size_t size_ = 0;
+};
+
+}  // namespace relume

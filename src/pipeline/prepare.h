@@ -1,0 +1,53 @@
+// `relume prepare CAPTURE --out WORK`: everything the optimiser needs to sample the unknowns in
+// texture space, built once per capture. Phases (each skipped when its inputs are unchanged):
+//   atlas       atlas_mesh.ply (uv atlas; texel maps are rebuilt from it in < 1 s per stage)
+//   frames      frames.bin (half-float, mmap-able) + frame filtering (exposure, motion)
+//   visibility  visibility.bin: per 32x32-texel tile of the init resolution, the frames that see it
+//   init        albedo_init.exr (per-texel streaming median of observed radiance),
+//               coverage.exr / coverage.png (observations per texel)
+// and prepare.json with counts, timings, peak RSS and every dropped frame with its reason.
+#pragma once
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "scene/atlas.h"
+
+namespace relume {
+
+enum class InitStatistic { Median, Mean };
+
+struct PrepareOptions {
+  std::vector<int> resolutions = {1024, 2048, 4096};  // the first is the init resolution
+  float maxOverexposed = 0.3f;      // drop frames with more than this fraction of saturated pixels
+  float maxUnderexposed = 0.6f;     // ... or of pixels at or below clip_low
+  float maxSpeed = 1.0f;            // metres between neighbouring frames (motion blur proxy; photo
+                                    // sets are sparse, so the defaults only catch real jumps)
+  float maxAngularSpeed = 45.0f;    // degrees between neighbouring frames
+  int tileTexels = 32;              // visibility tile size at the init resolution
+  int samplesPerTile = 6;           // surface points tested per tile and frame
+  InitStatistic init = InitStatistic::Median;
+  bool force = false;               // redo every phase
+  AtlasOptions atlas;
+};
+
+struct PrepareSummary {
+  size_t frames = 0, keptFrames = 0, triangles = 0;
+  double fractionUnobserved = 0;  // valid texels at the init resolution never observed
+  double seconds = 0;
+};
+
+PrepareSummary prepareCapture(const std::filesystem::path& capture, const std::filesystem::path& work,
+                              const PrepareOptions& options);
+
+// Visibility index (CSR): frames that can see each tile.
+struct VisibilityIndex {
+  int resolution = 0, tileTexels = 0, tilesPerSide = 0;
+  std::vector<uint32_t> offsets;  // tiles + 1
+  std::vector<uint32_t> frames;
+  void write(const std::filesystem::path& path) const;
+  static VisibilityIndex read(const std::filesystem::path& path);
+  size_t bytes() const { return (offsets.size() + frames.size()) * sizeof(uint32_t); }
+};
+
+}  // namespace relume

@@ -277,7 +277,7 @@ CommandTable registerCommands(CLI::App& app) {
   auto synthScene = std::make_shared<std::string>("room");
   auto outDir = std::make_shared<std::string>();
   CLI::App* synth = app.add_subcommand("synth", "write a synthetic capture with known ground truth");
-  synth->add_option("--scene", *synthScene, "room, cornell or furnace")->capture_default_str();
+  synth->add_option("--scene", *synthScene, "room, cornell, furnace or scan")->capture_default_str();
   synth->add_option("--out", *outDir, "output capture folder")->required();
   synth->add_option("--frames", synthArgs->frames, "training frames")->capture_default_str();
   synth->add_option("--test-frames", synthArgs->testFrames, "held-out frames")->capture_default_str();
@@ -288,6 +288,7 @@ CommandTable registerCommands(CLI::App& app) {
   synth->add_option("--seed", synthArgs->seed)->capture_default_str();
   synth->add_option("--atlas-res", synthArgs->atlasResolution, "ground-truth albedo atlas resolution")->capture_default_str();
   synth->add_flag("--with-uv", synthArgs->withUv, "keep uv coordinates in the capture's mesh.ply");
+  synth->add_option("--triangles", synthArgs->scanTriangles, "size of the `scan` mesh")->capture_default_str();
   table[synth] = [=] {
     synthArgs->kind = parseSynthScene(*synthScene);
     synthArgs->out = *outDir;

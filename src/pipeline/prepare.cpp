@@ -315,7 +315,16 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
     vis.write(work / "visibility.bin");
     size_t seen = 0;
     for (const auto& f : perTile) seen += !f.empty();
+    std::vector<char> frameSees(cap.frames.size(), 0);
+    for (uint32_t f : vis.frames) frameSees[f] = 1;
+    Json blind = Json::array();
+    for (size_t k : kept)
+      if (!frameSees[k]) {
+        spdlog::warn("frame {} ({}) sees no surface of the mesh: skipped", k, cap.frames[k].image.filename().string());
+        blind.push_back(k);
+      }
     return Json{{"tiles", tiles}, {"tiles_seen", seen}, {"entries", vis.frames.size()}, {"bytes", vis.bytes()},
+                {"frames_seeing_nothing", blind},
                 {"mean_frames_per_seen_tile", seen ? double(vis.frames.size()) / seen : 0.0}};
   });
 

@@ -13,7 +13,8 @@ SynthSceneKind parseSynthScene(const std::string& name) {
   if (name == "room") return SynthSceneKind::Room;
   if (name == "cornell") return SynthSceneKind::Cornell;
   if (name == "furnace") return SynthSceneKind::Furnace;
-  fail("unknown synthetic scene '{}' (room, cornell, furnace)", name);
+  if (name == "scan") return SynthSceneKind::Scan;
+  fail("unknown synthetic scene '{}' (room, cornell, furnace, scan)", name);
 }
 
 namespace {
@@ -261,9 +262,26 @@ SceneDescription buildFurnace(int resolution) {
 
 }  // namespace
 
-SynthScene makeSynthScene(SynthSceneKind kind, int atlasResolution) {
+SynthScene makeSynthScene(SynthSceneKind kind, int atlasResolution, size_t scanTriangles) {
   switch (kind) {
     case SynthSceneKind::Room: return {kind, buildRoom(atlasResolution)};
+    case SynthSceneKind::Scan: {
+      // Same objects and materials as the room; each object's albedo is its texture's mean.
+      SceneDescription room = buildRoom(atlasResolution);
+      Appearance& a = room.appearance;
+      std::vector<Eigen::Array4d> mean(a.objectCount(), Eigen::Array4d::Zero());
+      for (size_t f = 0; f < room.mesh.triangles.size(); ++f) {
+        const auto& t = room.mesh.triangles[f];
+        const Color c = a.albedo.lookup(Vec2((room.mesh.uvs[t[0]] + room.mesh.uvs[t[1]] + room.mesh.uvs[t[2]]) / 3.0f));
+        mean[room.mesh.faceObject[f]] += Eigen::Array4d(c[0], c[1], c[2], 1.0) * room.mesh.faceArea[f];
+      }
+      for (int o = 0; o < a.objectCount(); ++o)
+        a.albedoConstant[o] = mean[o][3] > 0 ? Color((mean[o].head<3>() / mean[o][3]).cast<float>()) : Color::Constant(0.5f);
+      std::fill(a.albedoFromTexture.begin(), a.albedoFromTexture.end(), 0);
+      a.albedo = Texture();
+      room.mesh = makeScanLikeRoom(scanTriangles, 0.004f);
+      return {kind, std::move(room)};
+    }
     case SynthSceneKind::Cornell: return {kind, buildCornell(atlasResolution)};
     case SynthSceneKind::Furnace: return {kind, buildFurnace(atlasResolution)};
   }
@@ -297,7 +315,7 @@ std::vector<Camera> synthCameraPath(SynthSceneKind kind, int frames, int width, 
     } else if (kind == SynthSceneKind::Cornell) {
       pos = Vec3(1.0f + 0.3f * std::cos(a), 1.0f + 0.15f * std::sin(2 * a), 1.85f);
       look = Vec3(0.25f * std::sin(a), 0.15f * std::sin(3 * a + 0.5f), -1.0f);
-    } else {
+    } else {  // room and scan
       // Loop around the room centre looking across it at a target that sweeps the far walls,
       // from the floor up to the ceiling lights.
       pos = Vec3(2.5f + 1.3f * std::cos(a) + 0.03f * std::sin(7 * a), 1.45f + 0.08f * std::sin(5 * a),
@@ -323,7 +341,7 @@ std::vector<Camera> synthCameraPath(SynthSceneKind kind, int frames, int width, 
 }
 
 int writeSynthCapture(const SynthCaptureOptions& o) {
-  const SynthScene synth = makeSynthScene(o.kind, o.atlasResolution);
+  const SynthScene synth = makeSynthScene(o.kind, o.atlasResolution, o.scanTriangles);
   const SceneDescription& gt = synth.scene;
   std::filesystem::create_directories(o.out / "gt");
   saveSceneFile(o.out / "gt" / "scene.json", gt);

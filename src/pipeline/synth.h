@@ -8,7 +8,9 @@
 
 namespace relume {
 
-enum class SynthSceneKind { Room, Cornell, Furnace };
+// Scan: the room as a noisy, densely tessellated mesh without uv (a stand-in for a real scan;
+// per-object albedo constants), for scale tests of `prepare`.
+enum class SynthSceneKind { Room, Cornell, Furnace, Scan };
 SynthSceneKind parseSynthScene(const std::string& name);  // throws relume::Error
 
 struct SynthScene {
@@ -16,8 +18,9 @@ struct SynthScene {
   SceneDescription scene;  // mesh with a uv atlas; appearance with the true parameters
 };
 
-// Builds the scene in memory. atlasResolution sets the ground-truth albedo texture size.
-SynthScene makeSynthScene(SynthSceneKind kind, int atlasResolution = 1024);
+// Builds the scene in memory. atlasResolution sets the ground-truth albedo texture size;
+// scanTriangles the size of the Scan mesh.
+SynthScene makeSynthScene(SynthSceneKind kind, int atlasResolution = 1024, size_t scanTriangles = 1000000);
 
 // The room tessellated to about `targetTriangles` with every vertex displaced by up to
 // `noiseMetres` (a function of its position, so shared vertices stay shared): a stand-in for a
@@ -38,6 +41,7 @@ struct SynthCaptureOptions {
   uint64_t seed = 1;
   bool withUv = false;
   int atlasResolution = 1024;
+  size_t scanTriangles = 1000000;
 };
 
 // Writes mesh.ply, transforms.json, transforms_test.json, images/, test/, gt/ (scene.json,

@@ -17,15 +17,24 @@ TEST(Loss, OneSidedAtClipThresholds) {
   EXPECT_TRUE(rayLossGradient(Color(0.3f, 0.3f, 0.3f), Color(0.1f, 0.3f, 0.5f), {}, 0.5f).isApprox(Color(0.2f, 0.0f, -0.2f)));
 }
 
-TEST(AdjointPass, TinyDeltasAreNotDroppedAndGradientIsLinear) {
-  // Deltas are O(1/N): with a 2^20-ray batch they are ~1e-6 and must still be scattered.
-  ExperimentOptions o;
-  o.rays = 64;
-  o.atlasResolution = 32;
-  const GradientExperiment e = makeGradientExperiment(SynthSceneKind::Cornell, o);
-  const Scene scene(e.truth.mesh);
-  const LightSampler lights(scene, e.current);
+namespace {
+class AdjointPassTest : public ::testing::Test {
+ protected:
+  static ExperimentOptions options() {
+    ExperimentOptions o;
+    o.rays = 64;
+    o.atlasResolution = 32;
+    return o;
+  }
+  GradientExperiment e = makeGradientExperiment(SynthSceneKind::Cornell, options());
+  Scene scene{e.truth.mesh};
+  LightSampler lights{scene, e.current};
   AdjointSettings s;
+};
+}  // namespace
+
+TEST_F(AdjointPassTest, TinyDeltasAreNotDroppedAndGradientIsLinear) {
+  // Deltas are O(1/N): with a 2^20-ray batch they are ~1e-6 and must still be scattered.
   auto gradientFor = [&](float scale) {
     Gradients g(e.current);
     adjointPass(scene, e.current, lights, e.rays, std::vector<Color>(e.rays.size(), Color::Constant(scale)), s, 0, g);
@@ -40,14 +49,7 @@ TEST(AdjointPass, TinyDeltasAreNotDroppedAndGradientIsLinear) {
   EXPECT_GT(norm, 0.0);
 }
 
-TEST(AdjointPass, FrozenGroupsGetNoGradient) {
-  ExperimentOptions o;
-  o.rays = 64;
-  o.atlasResolution = 32;
-  const GradientExperiment e = makeGradientExperiment(SynthSceneKind::Cornell, o);
-  const Scene scene(e.truth.mesh);
-  const LightSampler lights(scene, e.current);
-  AdjointSettings s;
+TEST_F(AdjointPassTest, FrozenGroupsGetNoGradient) {
   s.mask.roughness = false;
   s.mask.albedo = false;
   Gradients g(e.current);

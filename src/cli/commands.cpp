@@ -316,10 +316,13 @@ CommandTable registerCommands(CLI::App& app) {
   demo->add_option("--out", *demoOut, "output folder")->capture_default_str();
   table[demo] = [=] {
     const std::filesystem::path out(*demoOut);
+    Timer t;
     SynthCaptureOptions o;
     o.out = out / "capture";
-    Timer t;
     writeSynthCapture(o);
+    PrepareOptions po;
+    po.resolutions = {1024, 2048};
+    const PrepareSummary ps = prepareCapture(o.out, out / "work", po);
     RenderArgs r;
     r.scene = (out / "capture" / "gt" / "scene.json").string();
     r.cameras = (out / "capture" / "transforms_test.json").string();
@@ -328,10 +331,14 @@ CommandTable registerCommands(CLI::App& app) {
     r.spp = 32;
     runRender(r);
     spdlog::info("demo finished in {:.0f}s", t.seconds());
-    spdlog::info("capture (input format): {}", (out / "capture").string());
-    spdlog::info("ground truth scene:     {}", r.scene);
-    spdlog::info("novel views + AOVs:     {}", r.out);
-    spdlog::info("next: relume gradcheck --synth room  (adjoint gradients vs finite differences)");
+    spdlog::info("capture (input format):     {}", o.out.string());
+    spdlog::info("ground truth scene:         {}", r.scene);
+    spdlog::info("texture space (prepare):    {}  ({} frames kept of {}, {:.1f}% of texels never observed;",
+                 (out / "work").string(), ps.keptFrames, ps.frames, 100 * ps.fractionUnobserved);
+    spdlog::info("                            see albedo_init.png, coverage.png, prepare.json)");
+    spdlog::info("novel views + AOVs:         {}", r.out);
+    spdlog::info("next: relume gradcheck --synth room   (adjoint gradients vs finite differences)");
+    spdlog::info("      relume profile --what render,adjoint");
     return 0;
   };
   registerProfile(app, table);

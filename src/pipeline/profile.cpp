@@ -31,7 +31,12 @@ RenderProfile profileRender(const SceneDescription& desc, const Camera& camera, 
   ro.spp = spp;
   ro.path.maxDepth = maxDepth;
   renderImage(scene, desc.appearance, lights, camera, ro);  // warm-up (page faults, BVH in cache)
-  const RenderResult r = renderImage(scene, desc.appearance, lights, camera, ro);
+  // Best of 5: this VM's timings vary by tens of percent between runs.
+  RenderResult r = renderImage(scene, desc.appearance, lights, camera, ro);
+  for (int rep = 1; rep < 5; ++rep) {
+    RenderResult again = renderImage(scene, desc.appearance, lights, camera, ro);
+    if (again.stats.seconds < r.stats.seconds) r = std::move(again);
+  }
 
   // Record the same paths' rays (same seeds), then time Embree alone on them.
   tbb::enumerable_thread_specific<std::vector<RecordedRay>> recorded;
@@ -53,18 +58,21 @@ RenderProfile profileRender(const SceneDescription& desc, const Camera& camera, 
   p.renderSeconds = r.stats.seconds;
   p.paths = r.stats.paths;
   for (const RecordedRay& ray : rays) (ray.shadow ? p.shadowRays : p.closestRays)++;
-  Timer t;
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 4096), [&](const tbb::blocked_range<size_t>& range) {
-    size_t hits = 0;
-    for (size_t i = range.begin(); i < range.end(); ++i) {
-      const RecordedRay& ray = rays[i];
-      if (ray.shadow) hits += scene.occluded(ray.origin, ray.dir, ray.tmax);
-      else hits += std::isfinite(scene.hitDistance(ray.origin, ray.dir, ray.tmax));
-    }
-    volatile size_t sink = hits;  // keep the traversal from being optimised away
-    (void)sink;
-  });
-  p.traceOnlySeconds = t.seconds();
+  p.traceOnlySeconds = INFINITY;
+  for (int rep = 0; rep < 5; ++rep) {
+    Timer t;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 4096), [&](const tbb::blocked_range<size_t>& range) {
+      size_t hits = 0;
+      for (size_t i = range.begin(); i < range.end(); ++i) {
+        const RecordedRay& ray = rays[i];
+        if (ray.shadow) hits += scene.occluded(ray.origin, ray.dir, ray.tmax);
+        else hits += std::isfinite(scene.hitDistance(ray.origin, ray.dir, ray.tmax));
+      }
+      volatile size_t sink = hits;  // keep the traversal from being optimised away
+      (void)sink;
+    });
+    p.traceOnlySeconds = std::min(p.traceOnlySeconds, t.seconds());
+  }
   return p;
 }
 

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <numeric>
 #include <sstream>
 
 #include "capture/transforms.h"
@@ -209,6 +210,21 @@ int runProfile(const ProfileArgs& a) {
                    st.biasZ, st.relStd);
     }
   }
+  if (wants("visibility")) {
+    const TriangleMesh mesh = buildAtlas(makeScanLikeRoom(1000000, 0.004f), {});
+    const Scene scene(mesh);
+    const TexelMap map(mesh, 1024);
+    fmt::print("visibility index  scan-like room, {} triangles, 1024^2 texels in 32^2 tiles\n", mesh.triangles.size());
+    for (int n : {2000, 10000}) {
+      std::vector<Frame> frames;
+      for (const Camera& c : synthCameraPath(SynthSceneKind::Scan, n, 320, 240, 0.0)) frames.push_back({c, {}});
+      std::vector<size_t> use(frames.size());
+      std::iota(use.begin(), use.end(), size_t{0});
+      Timer t;
+      const VisibilityIndex vis = buildVisibilityIndex(scene, map, frames, use, 32, 6);
+      fmt::print("  {:>6} frames  {:6.2f} s  {} entries  {:.2f} MB\n", n, t.seconds(), vis.frames.size(), vis.bytes() / 1e6);
+    }
+  }
   if (wants("leaks")) {
     const SynthScene s = makeSynthScene(SynthSceneKind::Room, 1024);
     const Eigen::AlignedBox3f interior(Vec3(0.05f, 0.05f, 0.05f), Vec3(4.95f, 2.65f, 3.95f));
@@ -231,7 +247,7 @@ int runProfile(const ProfileArgs& a) {
 void registerProfile(CLI::App& app, CommandTable& table) {
   auto a = std::make_shared<ProfileArgs>();
   CLI::App* c = app.add_subcommand("profile", "measure speed: renderer, adjoint passes, pairings, gradient scatter");
-  c->add_option("--what", a->what, "comma list of render, adjoint, pairing, scatter, leaks")->capture_default_str();
+  c->add_option("--what", a->what, "comma list of render, adjoint, pairing, scatter, leaks, visibility")->capture_default_str();
   c->add_option("--synth", a->synth, "room, cornell or furnace")->capture_default_str();
   c->add_option("--width", a->width)->capture_default_str();
   c->add_option("--height", a->height)->capture_default_str();

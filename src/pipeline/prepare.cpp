@@ -148,6 +148,46 @@ Image falseColour(const std::vector<uint32_t>& counts, int res) {
 
 }  // namespace
 
+VisibilityIndex buildVisibilityIndex(const Scene& scene, const TexelMap& map, const std::vector<Frame>& frames,
+                                     const std::vector<size_t>& use, int tileTexels, int samplesPerTile) {
+  const TriangleMesh& mesh = scene.mesh();
+  const int res = map.resolution();
+  VisibilityIndex vis;
+  vis.resolution = res, vis.tileTexels = tileTexels, vis.tilesPerSide = res / tileTexels;
+  const size_t tiles = static_cast<size_t>(vis.tilesPerSide) * vis.tilesPerSide;
+  std::vector<std::vector<uint32_t>> perTile(tiles);
+  Progress progress("visibility", tiles);
+  tbb::parallel_for(size_t{0}, tiles, [&](size_t tile) {
+    const int tx = static_cast<int>(tile % vis.tilesPerSide), ty = static_cast<int>(tile / vis.tilesPerSide);
+    std::vector<size_t> texels;
+    for (int y = ty * tileTexels; y < (ty + 1) * tileTexels; ++y)
+      for (int x = tx * tileTexels; x < (tx + 1) * tileTexels; ++x)
+        if (map.valid(static_cast<size_t>(y) * res + x)) texels.push_back(static_cast<size_t>(y) * res + x);
+    if (!texels.empty()) {
+      // Evenly spread test points over the tile's valid texels (deterministic).
+      std::vector<std::pair<Vec3, Vec3>> samples;
+      const int n = std::min<int>(samplesPerTile, static_cast<int>(texels.size()));
+      for (int s = 0; s < n; ++s) {
+        const size_t texel = texels[(texels.size() * (2 * s + 1)) / (2 * n)];
+        samples.push_back({map.point(mesh, texel), mesh.faceNormal(map.triangle(texel))});
+      }
+      for (size_t k : use)
+        for (const auto& [p, nrm] : samples)
+          if (observe(scene, frames[k].camera, p, nrm)) {
+            perTile[tile].push_back(static_cast<uint32_t>(k));
+            break;
+          }
+    }
+    progress.advance();
+  });
+  vis.offsets.push_back(0);
+  for (const auto& f : perTile) {
+    vis.frames.insert(vis.frames.end(), f.begin(), f.end());
+    vis.offsets.push_back(static_cast<uint32_t>(vis.frames.size()));
+  }
+  return vis;
+}
+
 void VisibilityIndex::write(const fs::path& path) const {
   std::string bytes = "RLMVIS01";
   auto put = [&](const void* p, size_t n) { bytes.append(static_cast<const char*>(p), n); };
@@ -279,39 +319,10 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   const std::string visPrint = fingerprintOf({}, fmt::format("vis {} {} {} {} {}", atlasPrint, framesPrint, initRes, o.tileTexels,
                                                              o.samplesPerTile));
   runPhase("visibility", visPrint, {work / "visibility.bin"}, [&] {
-    VisibilityIndex vis;
-    vis.resolution = initRes, vis.tileTexels = o.tileTexels, vis.tilesPerSide = tilesPerSide;
-    const size_t tiles = static_cast<size_t>(tilesPerSide) * tilesPerSide;
+    const VisibilityIndex vis = buildVisibilityIndex(scene, initMap, cap.frames, kept, o.tileTexels, o.samplesPerTile);
+    const size_t tiles = vis.offsets.size() - 1;
     std::vector<std::vector<uint32_t>> perTile(tiles);
-    Progress progress("visibility", tiles);
-    tbb::parallel_for(size_t{0}, tiles, [&](size_t tile) {
-      const int tx = static_cast<int>(tile % tilesPerSide), ty = static_cast<int>(tile / tilesPerSide);
-      std::vector<size_t> texels;
-      for (int y = ty * o.tileTexels; y < (ty + 1) * o.tileTexels; ++y)
-        for (int x = tx * o.tileTexels; x < (tx + 1) * o.tileTexels; ++x)
-          if (initMap.valid(static_cast<size_t>(y) * initRes + x)) texels.push_back(static_cast<size_t>(y) * initRes + x);
-      if (!texels.empty()) {
-        // Evenly spread samples over the tile's valid texels (deterministic).
-        std::vector<std::pair<Vec3, Vec3>> samples;
-        const int n = std::min<int>(o.samplesPerTile, static_cast<int>(texels.size()));
-        for (int s = 0; s < n; ++s) {
-          const size_t texel = texels[(texels.size() * (2 * s + 1)) / (2 * n)];
-          samples.push_back({initMap.point(mesh, texel), mesh.faceNormal(initMap.triangle(texel))});
-        }
-        for (size_t k : kept)
-          for (const auto& [p, nrm] : samples)
-            if (observe(scene, cap.frames[k].camera, p, nrm)) {
-              perTile[tile].push_back(static_cast<uint32_t>(k));
-              break;
-            }
-      }
-      progress.advance();
-    });
-    vis.offsets.push_back(0);
-    for (const auto& f : perTile) {
-      vis.frames.insert(vis.frames.end(), f.begin(), f.end());
-      vis.offsets.push_back(static_cast<uint32_t>(vis.frames.size()));
-    }
+    for (size_t t = 0; t < tiles; ++t) perTile[t].assign(vis.frames.begin() + vis.offsets[t], vis.frames.begin() + vis.offsets[t + 1]);
     vis.write(work / "visibility.bin");
     size_t seen = 0;
     for (const auto& f : perTile) seen += !f.empty();

@@ -11,7 +11,10 @@
 #include <string>
 #include <vector>
 
+#include "capture/transforms.h"
 #include "scene/atlas.h"
+#include "scene/scene.h"
+#include "scene/texel_map.h"
 
 namespace relume {
 
@@ -50,4 +53,10 @@ struct VisibilityIndex {
   size_t bytes() const { return (offsets.size() + frames.size()) * sizeof(uint32_t); }
 };
 
+}  // namespace relume
+
+namespace relume {
+// Frames (of `use`) that see each tile of `map`: frustum, facing, one occlusion ray per test point.
+VisibilityIndex buildVisibilityIndex(const Scene& scene, const TexelMap& map, const std::vector<Frame>& frames,
+                                     const std::vector<size_t>& use, int tileTexels, int samplesPerTile);
 }  // namespace relume

@@ -307,7 +307,11 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
         ++reasons[reason.substr(0, reason.find(' '))];
       }
     }
+    Json masked = Json::object();  // frames with NaN/Inf pixels (masked, never used)
+    for (size_t i = 0; i < stats.size(); ++i)
+      if (stats[i].masked > 0) masked[std::to_string(i)] = stats[i].masked;
     return Json{{"frames", cap.frames.size()}, {"kept", kept}, {"dropped", dropped}, {"dropped_by_reason", reasons},
+                {"masked_pixel_fraction", masked},
                 {"bytes", fs::file_size(work / "frames.bin")}};
   });
   const std::vector<size_t> kept = phases["frames"]["kept"].get<std::vector<size_t>>();

@@ -213,6 +213,12 @@ int runProfile(const ProfileArgs& a) {
   if (wants("visibility")) {
     const TriangleMesh mesh = buildAtlas(makeScanLikeRoom(1000000, 0.004f), {});
     const Scene scene(mesh);
+    for (int res : {1024, 4096}) {
+      Timer t;
+      const TexelMap m(mesh, res);
+      fmt::print("texel map {}^2  {:.2f} s  {:.0f} MiB ({} bytes/texel)\n", res, t.seconds(), m.bytes() / 1048576.0,
+                 m.bytes() / m.texelCount());
+    }
     const TexelMap map(mesh, 1024);
     fmt::print("visibility index  scan-like room, {} triangles, 1024^2 texels in 32^2 tiles\n", mesh.triangles.size());
     for (int n : {2000, 10000}) {
@@ -247,7 +253,7 @@ int runProfile(const ProfileArgs& a) {
 void registerProfile(CLI::App& app, CommandTable& table) {
   auto a = std::make_shared<ProfileArgs>();
   CLI::App* c = app.add_subcommand("profile", "measure speed: renderer, adjoint passes, pairings, gradient scatter");
-  c->add_option("--what", a->what, "comma list of render, adjoint, pairing, scatter, leaks, visibility")->capture_default_str();
+  c->add_option("--what", a->what, "comma list of render, adjoint, pairing, scatter, leaks, visibility (+ texel maps)")->capture_default_str();
   c->add_option("--synth", a->synth, "room, cornell or furnace")->capture_default_str();
   c->add_option("--width", a->width)->capture_default_str();
   c->add_option("--height", a->height)->capture_default_str();

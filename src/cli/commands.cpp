@@ -6,6 +6,8 @@
 #include <sstream>
 
 #include "capture/transforms.h"
+#include "io/atomic_file.h"
+#include "io/json.h"
 #include "core/error.h"
 #include "core/system.h"
 #include "adjoint/gradcheck.h"
@@ -25,7 +27,7 @@ struct RenderArgs {
   bool roulette = false;
 };
 
-int runRender(const RenderArgs& a) {
+RenderStats runRender(const RenderArgs& a) {
   const SceneDescription desc = loadSceneFile(a.scene);
   const Capture cap = readTransforms(a.cameras);
   Scene scene(desc.mesh);
@@ -49,7 +51,7 @@ int runRender(const RenderArgs& a) {
   }
   spdlog::info("rendered {} views to {} in {:.1f}s: {:.3f} Mpaths/s, {:.2f} Mrays/s", cap.frames.size(), out.string(),
                total.seconds, total.paths / total.seconds * 1e-6, total.rays / total.seconds * 1e-6);
-  return 0;
+  return total;
 }
 
 struct GradcheckArgs {
@@ -290,6 +292,35 @@ void registerGradcheck(CLI::App& app, CommandTable& table) {
   table[c] = [=] { return runGradcheck(*a); };
 }
 
+// A one-page summary with pictures and numbers, for a newcomer to open after `relume demo`.
+void writeDemoReport(const std::filesystem::path& out, const PrepareSummary& ps, const RenderStats& rs, double seconds) {
+  const Json prep = readJson(out / "work" / "prepare.json");
+  const Json& atlas = prep["phases"]["atlas"];
+  std::string md = "# relume demo\n\n";
+  md += fmt::format("Synthetic room ({} triangles, {} objects), {} training frames; finished in {:.0f} s, peak RSS {:.0f} MiB.\n\n",
+                    ps.triangles, atlas.value("objects", 0), ps.frames, seconds, peakRssMiB());
+  md += "## Texture space (`relume prepare`)\n\n| quantity | value |\n| --- | --- |\n";
+  md += fmt::format("| uv charts | {} ({} least-squares conformal) |\n", atlas.value("charts", 0), atlas.value("lscm_charts", 0));
+  md += fmt::format("| packing efficiency | {:.3f} |\n", atlas.value("packing_efficiency", 0.0));
+  md += fmt::format("| frames kept | {} of {} |\n", ps.keptFrames, ps.frames);
+  md += fmt::format("| texels never observed | {:.1f}% |\n", 100 * ps.fractionUnobserved);
+  for (const char* phase : {"atlas", "frames", "visibility", "init"})
+    md += fmt::format("| {} phase | {:.2f} s |\n", phase, prep["phases"][phase].value("seconds", 0.0));
+  md += "\nInitial albedo (per-texel median of observed radiance) and coverage (black: never seen, red: most):\n\n";
+  md += "![albedo_init](work/albedo_init.png) ![coverage](work/coverage.png)\n\n";
+  md += "## Novel views of the ground truth (`relume render`)\n\n";
+  md += fmt::format("{:.3f} Mpaths/s, {:.2f} Mrays/s on {} threads.\n\n", rs.paths / rs.seconds * 1e-6,
+                    rs.rays / rs.seconds * 1e-6, threadCount());
+  std::vector<std::string> views;
+  for (const auto& entry : std::filesystem::directory_iterator(out / "novel_views"))
+    if (entry.path().extension() == ".png") views.push_back(entry.path().filename().string());
+  std::sort(views.begin(), views.end());
+  for (const std::string& name : views) md += fmt::format("![{}](novel_views/{}) ", name, name);
+  md += "\n\n## Next\n\n- `relume gradcheck --synth room`: adjoint gradients against finite differences\n"
+        "- `relume profile --what render,adjoint`: speed by phase\n";
+  writeTextAtomically(out / "report.md", md);
+}
+
 }  // namespace
 
 CommandTable registerCommands(CLI::App& app) {
@@ -331,7 +362,10 @@ CommandTable registerCommands(CLI::App& app) {
   render->add_option("--seed", renderArgs->seed)->capture_default_str();
   render->add_flag("--russian-roulette", renderArgs->roulette);
   render->add_option("--aov", renderArgs->aovs, "comma list of albedo,normal,depth,object");
-  table[render] = [=] { return runRender(*renderArgs); };
+  table[render] = [=] {
+    runRender(*renderArgs);
+    return 0;
+  };
 
   auto demoOut = std::make_shared<std::string>("out/demo");
   CLI::App* demo = app.add_subcommand("demo", "end to end on the built-in synthetic room");
@@ -351,8 +385,10 @@ CommandTable registerCommands(CLI::App& app) {
     r.out = (out / "novel_views").string();
     r.aovs = "albedo,normal,depth,object";
     r.spp = 32;
-    runRender(r);
+    const RenderStats rs = runRender(r);
+    writeDemoReport(out, ps, rs, t.seconds());
     spdlog::info("demo finished in {:.0f}s", t.seconds());
+    spdlog::info("report:                     {}", (out / "report.md").string());
     spdlog::info("capture (input format):     {}", o.out.string());
     spdlog::info("ground truth scene:         {}", r.scene);
     spdlog::info("texture space (prepare):    {}  ({} frames kept of {}, {:.1f}% of texels never observed;",

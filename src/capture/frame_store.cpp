@@ -16,7 +16,7 @@ namespace relume {
 namespace {
 
 constexpr char kMagic[8] = {'R', 'L', 'M', 'F', 'R', 'A', 'M', 'E'};
-constexpr uint32_t kVersion = 1;
+constexpr uint32_t kVersion = 2;
 
 struct Header {
   char magic[8];
@@ -31,8 +31,29 @@ struct DiskEntry {
 
 }  // namespace
 
-std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const std::vector<Frame>& frames,
+namespace {
+// k x k box filter; a block containing a masked pixel is masked.
+Image boxDownscale(const Image& img, int k) {
+  Image out(img.width / k, img.height / k);
+  for (int y = 0; y < out.height; ++y)
+    for (int x = 0; x < out.width; ++x) {
+      Color sum = Color::Zero();
+      bool masked = false;
+      for (int dy = 0; dy < k; ++dy)
+        for (int dx = 0; dx < k; ++dx) {
+          const Color c = img.at(x * k + dx, y * k + dy);
+          masked = masked || c.minCoeff() < 0;
+          sum += c;
+        }
+      out.set(x, y, masked ? Color::Constant(kMaskedPixel) : Color(sum / static_cast<float>(k * k)));
+    }
+  return out;
+}
+}  // namespace
+
+std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const std::vector<Frame>& frames, int downscale,
                                         const std::function<void()>& progress) {
+  if (downscale < 1 || downscale > 64) fail("{}: downscale must be 1..64, not {}", path.string(), downscale);
   std::vector<DiskEntry> entries(frames.size());
   writeAtomically(path, [&](const std::filesystem::path& tmp) {
     std::ofstream out(tmp, std::ios::binary);
@@ -46,24 +67,27 @@ std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const
     std::vector<Imath::half> halfs;
     for (size_t i = 0; i < frames.size(); ++i) {
       ImageReadStats rs;
-      const Image img = loadFrameImage(frames[i], &rs);
+      const Image full = loadFrameImage(frames[i], &rs);
       DiskEntry& e = entries[i];
       e.offset = offset;
-      e.stats.width = static_cast<uint32_t>(img.width);
-      e.stats.height = static_cast<uint32_t>(img.height);
+      e.stats.downscale = static_cast<uint32_t>(downscale);
       size_t over = 0, under = 0;
-      for (size_t p = 0; p < img.rgb.size() / 3; ++p) {
-        const float* c = &img.rgb[3 * p];
+      for (size_t p = 0; p < full.rgb.size() / 3; ++p) {
+        const float* c = &full.rgb[3 * p];
         if (c[0] < 0) continue;  // masked
         over += std::max({c[0], c[1], c[2]}) >= frames[i].clipHigh;
         under += std::max({c[0], c[1], c[2]}) <= frames[i].clipLow;
       }
-      const double n = std::max<double>(1, img.rgb.size() / 3);
+      const double n = std::max<double>(1, full.rgb.size() / 3);
       e.stats.overexposed = static_cast<float>(over / n);
       e.stats.underexposed = static_cast<float>(under / n);
       e.stats.masked = static_cast<float>(rs.nonFinitePixels / n);
-      halfs.resize(img.rgb.size());
-      for (size_t k = 0; k < img.rgb.size(); ++k) halfs[k] = Imath::half(std::min(img.rgb[k], 65504.0f));
+      const Image stored = downscale > 1 ? boxDownscale(full, downscale) : Image();
+      const Image& px = downscale > 1 ? stored : full;
+      e.stats.width = static_cast<uint32_t>(px.width);
+      e.stats.height = static_cast<uint32_t>(px.height);
+      halfs.resize(px.rgb.size());
+      for (size_t k = 0; k < px.rgb.size(); ++k) halfs[k] = Imath::half(std::min(px.rgb[k], 65504.0f));
       out.write(reinterpret_cast<const char*>(halfs.data()), static_cast<std::streamsize>(halfs.size() * sizeof(Imath::half)));
       offset += halfs.size() * sizeof(Imath::half);
       if (progress) progress();
@@ -105,7 +129,8 @@ FrameStore::FrameStore(const std::filesystem::path& path) {
     DiskEntry e;
     std::memcpy(&e, data_ + sizeof(Header) + i * sizeof(DiskEntry), sizeof(e));
     const uint64_t bytes = static_cast<uint64_t>(e.stats.width) * e.stats.height * 3 * sizeof(Imath::half);
-    if (e.offset + bytes > size_ || e.stats.width > 65536 || e.stats.height > 65536) bad(fmt::format("frame {} lies outside the file", i));
+    if (e.offset + bytes > size_ || e.stats.width > 65536 || e.stats.height > 65536 || e.stats.downscale < 1)
+      bad(fmt::format("frame {} lies outside the file", i));
     index_[i] = {e.offset, e.stats};
   }
 }
@@ -123,7 +148,8 @@ Color FrameStore::pixel(size_t frame, int x, int y) const {
 
 std::optional<Color> FrameStore::bilinear(size_t frame, const Vec2& px) const {
   const Entry& e = index_[frame];
-  const float x = px.x() - 0.5f, y = px.y() - 0.5f;
+  const float inv = 1.0f / static_cast<float>(e.stats.downscale);
+  const float x = px.x() * inv - 0.5f, y = px.y() * inv - 0.5f;
   const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
   if (x0 < 0 || y0 < 0 || x0 + 1 >= static_cast<int>(e.stats.width) || y0 + 1 >= static_cast<int>(e.stats.height)) return std::nullopt;
   const float dx = x - x0, dy = y - y0;

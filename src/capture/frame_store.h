@@ -14,16 +14,19 @@
 namespace relume {
 
 struct FrameStats {
-  uint32_t width = 0, height = 0;
+  uint32_t width = 0, height = 0;  // as stored (after downscaling)
+  uint32_t downscale = 1;
   float overexposed = 0;   // fraction of pixels with a channel at or above the frame's clip_high
   float underexposed = 0;  // fraction of pixels with every channel at or below clip_low
   float masked = 0;        // fraction of NaN/Inf pixels
 };
 
-// Converts every frame (images read through loadFrameImage: exposure applied, NaN masked).
-// `progress` is called once per frame. Atomic: the file appears complete or not at all.
+// Converts every frame (images read through loadFrameImage: exposure applied, NaN masked),
+// optionally box-filtered by an integer `downscale` (a block with a masked pixel is masked).
+// Exposure statistics are taken at full resolution. `progress` is called once per frame.
+// Atomic: the file appears complete or not at all.
 std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const std::vector<Frame>& frames,
-                                        const std::function<void()>& progress = {});
+                                        int downscale = 1, const std::function<void()>& progress = {});
 
 class FrameStore {
  public:
@@ -35,8 +38,8 @@ class FrameStore {
   size_t frameCount() const { return index_.size(); }
   const FrameStats& stats(size_t frame) const { return index_[frame].stats; }
   Color pixel(size_t frame, int x, int y) const;  // negative = masked
-  // Bilinear at continuous pixel coordinates (pixel centres at +0.5); nullopt if outside the
-  // image or if any of the four pixels is masked.
+  // Bilinear at continuous pixel coordinates of the ORIGINAL image (pixel centres at +0.5; the
+  // downscale is applied here); nullopt if outside the image or any of the four pixels is masked.
   std::optional<Color> bilinear(size_t frame, const Vec2& pixel) const;
   size_t fileBytes() const { return size_; }
 

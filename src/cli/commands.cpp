@@ -138,6 +138,7 @@ void registerPrepare(CLI::App& app, CommandTable& table) {
   c->add_option("--max-angular-speed", o->maxAngularSpeed, "degrees between neighbouring frames")->capture_default_str();
   c->add_option("--tile", o->tileTexels, "visibility tile size in texels at the init resolution")->capture_default_str();
   c->add_option("--gutter-res", o->atlas.gutterResolution, "resolution at which charts keep a 2-texel gutter")->capture_default_str();
+  c->add_option("--downscale", o->downscale, "box-filter frames by this integer factor in the cache")->capture_default_str();
   c->add_flag("--force", o->force, "redo every phase");
   table[c] = [=] {
     o->resolutions.clear();

@@ -275,11 +275,11 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   // Frames: convert, then filter.
   std::vector<fs::path> imagePaths{transformsPath};
   for (const Frame& f : cap.frames) imagePaths.push_back(f.image);
-  const std::string framesPrint = fingerprintOf(imagePaths, fmt::format("frames {} {} {} {}", o.maxOverexposed, o.maxUnderexposed,
-                                                                         o.maxSpeed, o.maxAngularSpeed));
+  const std::string framesPrint = fingerprintOf(imagePaths, fmt::format("frames {} {} {} {} {}", o.maxOverexposed, o.maxUnderexposed,
+                                                                         o.maxSpeed, o.maxAngularSpeed, o.downscale));
   runPhase("frames", framesPrint, {work / "frames.bin"}, [&] {
     Progress progress("frame cache", cap.frames.size());
-    const std::vector<FrameStats> stats = writeFrameStore(work / "frames.bin", cap.frames, [&] { progress.advance(); });
+    const std::vector<FrameStats> stats = writeFrameStore(work / "frames.bin", cap.frames, o.downscale, [&] { progress.advance(); });
     Json kept = Json::array(), dropped = Json::array();
     std::map<std::string, int> reasons;
     for (size_t i = 0; i < cap.frames.size(); ++i) {

@@ -29,6 +29,7 @@ struct PrepareOptions {
   float maxAngularSpeed = 45.0f;    // degrees between neighbouring frames
   int tileTexels = 32;              // visibility tile size at the init resolution
   int samplesPerTile = 6;           // surface points tested per tile and frame
+  int downscale = 1;                // box-filter frames by this factor in the cache (disk: 6 B/pixel)
   InitStatistic init = InitStatistic::Median;
   bool force = false;               // redo every phase
   AtlasOptions atlas;

@@ -77,8 +77,12 @@ TEST(Prepare, MedianSuppressesAMinorityHighlightMeanDoesNot) {
   prepareCapture(cap, cap / "work_median", o);
   o.init = InitStatistic::Mean;
   prepareCapture(cap, cap / "work_mean", o);
+  o.init = InitStatistic::Median;
+  o.downscale = 2;
+  prepareCapture(cap, cap / "work_half", o);
   const float median = centreValue(cap / "work_median"), mean = centreValue(cap / "work_mean");
   EXPECT_NEAR(median, 0.3f, 0.3f * 0.05f);
+  EXPECT_NEAR(centreValue(cap / "work_half"), 0.3f, 0.3f * 0.05f);  // same answer from a downscaled cache
   EXPECT_GT(mean, 3.0f);  // (7 x 0.3 + 2 x 20) / 9 = 4.7
   const Json report = readJson(cap / "work_median" / "prepare.json");
   EXPECT_EQ(report["phases"]["init"]["statistic"], "median");
@@ -135,6 +139,18 @@ TEST(FrameStore, RoundTripMaskingAndCorruptFiles) {
   EXPECT_FALSE(store.bilinear(0, Vec2(5.5f, 2.5f)));
   EXPECT_TRUE(store.bilinear(0, Vec2(2.0f, 2.0f)));
   EXPECT_FALSE(store.bilinear(0, Vec2(0.2f, 2.0f)));  // outside the pixel centres
+  // Downscaled by 2: block means, addressed with the original pixel coordinates.
+  Image flat(8, 4);
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 8; ++x) flat.set(x, y, Color::Constant(static_cast<float>(x)));
+  writeExr(dir / "b.exr", flat);
+  f.image = dir / "b.exr";
+  writeFrameStore(dir / "half.bin", {f}, 2);
+  const FrameStore half(dir / "half.bin");
+  EXPECT_EQ(half.stats(0).width, 4u);
+  EXPECT_NEAR(half.pixel(0, 1, 0)[0], 2.5f, 1e-3f);                    // mean of columns 2 and 3
+  EXPECT_NEAR((*half.bilinear(0, Vec2(4.0f, 2.0f)))[0], 3.5f, 1e-3f);  // original x = 4 -> halfway between blocks 1 and 2
+  EXPECT_THROW(writeFrameStore(dir / "bad_scale.bin", {f}, 0), Error);
   std::string bytes(64, 'x');
   writeTextAtomically(dir / "bad.bin", bytes);
   EXPECT_THROW(FrameStore(dir / "bad.bin"), Error);

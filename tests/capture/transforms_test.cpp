@@ -116,7 +116,7 @@ TEST(ObjectNames, BothFormsAndErrors) {
   EXPECT_EQ(readObjectNames(a).at(2), "sofa");
   const fs::path b = writeFile("objects_b.json", R"({"0": "floor", "7": "lamp"})");
   EXPECT_EQ(readObjectNames(b).at(7), "lamp");
-  for (const std::string& bad : {R"({"x": "floor"})", R"({"objects": [{"id": -1, "name": "a"}]})", R"({"1": 3})", "[1,2]"}) {
+  for (const char* bad : {R"({"x": "floor"})", R"({"objects": [{"id": -1, "name": "a"}]})", R"({"1": 3})", "[1,2]"}) {
     const fs::path p = writeFile("objects_bad.json", bad);
     try {
       readObjectNames(p);

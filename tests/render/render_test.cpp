@@ -42,7 +42,9 @@ TEST(Render, WhiteFurnace) {
       const Color L = meanRadiance(scene, a, Vec3(0.1f, 0.2f, -0.1f), Vec3(0.3f, 0.5f, 0.8f).normalized(), 20000, depth, &se);
       const double expected = (1 - std::pow(albedo, depth + 1)) / (1 - albedo);
       EXPECT_NEAR(L[0], expected, 4 * se + 1e-4) << "albedo " << albedo << " depth " << depth;
-      if (depth == 64) EXPECT_NEAR(L[0], 1 / (1 - albedo), 4 * se + 1e-4);
+      if (depth == 64) {
+        EXPECT_NEAR(L[0], 1 / (1 - albedo), 4 * se + 1e-4);
+      }
     }
   }
 }

@@ -7,7 +7,7 @@
 
 namespace relume {
 
-std::map<int, std::string> readObjectNames(const std::filesystem::path& path) {
+static std::map<int, std::string> parseObjectNames(const std::filesystem::path& path) {
   const Json j = readJson(path);
   const std::string file = path.string();
   std::map<int, std::string> names;
@@ -31,6 +31,10 @@ std::map<int, std::string> readObjectNames(const std::filesystem::path& path) {
     names[id] = value.get<std::string>();
   }
   return names;
+}
+
+std::map<int, std::string> readObjectNames(const std::filesystem::path& path) {
+  return withJsonErrors(path, [&] { return parseObjectNames(path); });
 }
 
 }  // namespace relume

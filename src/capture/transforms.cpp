@@ -36,7 +36,7 @@ template <typename T> T need(const std::optional<T>& v, const char* key, const s
 
 }  // namespace
 
-Capture readTransforms(const std::filesystem::path& path) {
+static Capture parseTransforms(const std::filesystem::path& path) {
   const Json root = readJson(path);
   const std::string file = path.string();
   if (!root.is_object()) fail("{}: top level must be an object", file);
@@ -132,6 +132,10 @@ Image loadFrameImage(const Frame& frame, ImageReadStats* stats) {
   for (size_t i : local.nonFiniteIndex) img.rgb[3 * i] = img.rgb[3 * i + 1] = img.rgb[3 * i + 2] = kMaskedPixel;
   if (stats) *stats = local;
   return img;
+}
+
+Capture readTransforms(const std::filesystem::path& path) {
+  return withJsonErrors(path, [&] { return parseTransforms(path); });
 }
 
 }  // namespace relume

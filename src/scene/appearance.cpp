@@ -52,7 +52,7 @@ Image textureImage(const Texture& t) {
 
 }  // namespace
 
-SceneDescription loadSceneFile(const std::filesystem::path& path) {
+static SceneDescription parseSceneFile(const std::filesystem::path& path) {
   const std::string file = path.string();
   const Json j = readJson(path);
   if (!j.is_object() || !j.contains("mesh") || !j["mesh"].is_string()) fail("{}: missing 'mesh' path", file);
@@ -130,6 +130,10 @@ void saveSceneFile(const std::filesystem::path& path, const SceneDescription& s)
   }
   j["objects"] = objects;
   writeJson(path, j);
+}
+
+SceneDescription loadSceneFile(const std::filesystem::path& path) {
+  return withJsonErrors(path, [&] { return parseSceneFile(path); });
 }
 
 }  // namespace relume

@@ -77,6 +77,7 @@ TEST(Transforms, MalformedInputsGiveOneLineErrors) {
       {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"file_path": "a", "transform_matrix": [[2,0,0,0],[0,1,0,0],[0,0,1,0]]}]})", "not orthonormal"},
       {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0]]}]})", "missing 'file_path'"},
       {R"({"fl_x": 10, "w": 10, "h": 10, "exposure": 0, "frames": [{)" + frame + "}]}", "exposure must be positive"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "camera_model": 3, "frames": [{)" + frame + "}]}", "'camera_model' must be a string"},
   };
   for (size_t i = 0; i < cases.size(); ++i) {
     const fs::path p = writeFile("bad" + std::to_string(i) + ".json", cases[i].first);

@@ -185,10 +185,13 @@ TEST(SceneFile, RejectsBadFields) {
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": [-1, 0, 0]}]})", "emission must be >= 0"},
       {R"({"mesh": "scene_mesh.ply", "albedo_texture": "a.exr"})", "has no valid uv"},
       {R"({"mesh": "missing.ply"})", "cannot open"},
+      {R"({"mesh": "scene_mesh.ply", "diffuse": 3})", "type must be string"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "name": 7}]})", "type must be string"},
   };
   for (size_t i = 0; i < cases.size(); ++i) {
     const fs::path p = writeBytes("scene" + std::to_string(i) + ".json", cases[i].first);
     const std::string err = errorOf([&] { loadSceneFile(p); });
     EXPECT_NE(err.find(cases[i].second), std::string::npos) << i << ": " << err;
+    EXPECT_NE(err.find(tmpDir().string()), std::string::npos) << "must name the file: " << err;
   }
 }

@@ -41,7 +41,6 @@ class FrameStore {
   // Bilinear at continuous pixel coordinates of the ORIGINAL image (pixel centres at +0.5; the
   // downscale is applied here); nullopt if outside the image or any of the four pixels is masked.
   std::optional<Color> bilinear(size_t frame, const Vec2& pixel) const;
-  size_t fileBytes() const { return size_; }
 
  private:
   struct Entry {

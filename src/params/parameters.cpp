@@ -90,13 +90,6 @@ double Gradients::value(const ParamRef& p) const {
   return 0.0;
 }
 
-void Gradients::scale(double s) {
-  for (float& v : albedo) v = static_cast<float>(v * s);
-  for (auto& t : emissionTexture)
-    for (float& v : t) v = static_cast<float>(v * s);
-  for (double& v : objects) v *= s;
-}
-
 }  // namespace relume
 
 namespace relume {

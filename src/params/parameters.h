@@ -60,7 +60,6 @@ class Gradients {
   // Folds the thread-local accumulators into `objects` (call once after each pass).
   void combine();
   double value(const ParamRef& p) const;
-  void scale(double s);
 
   std::vector<float> albedo;                      // texels * 3
   std::vector<std::vector<float>> emissionTexture;

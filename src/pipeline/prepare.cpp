@@ -260,7 +260,9 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
     const TriangleMesh atlas = buildAtlas(mesh, o.atlas, &ar);
     writePly(work / "atlas_mesh.ply", atlas.toData());
     spdlog::info("atlas: {}", ar.summary());
+    // Names from objects.json, else from the mesh file (OBJ groups).
     Json names = Json::object();
+    for (size_t id = 0; id < mesh.objectNames.size(); ++id) names[std::to_string(id)] = mesh.objectNames[id];
     if (fs::exists(capture / "objects.json"))
       for (const auto& [id, name] : readObjectNames(capture / "objects.json")) names[std::to_string(id)] = name;
     return Json{{"triangles", atlas.triangles.size()}, {"objects", atlas.objectCount}, {"dropped_degenerate", mesh.droppedDegenerate},

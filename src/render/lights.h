@@ -21,7 +21,6 @@ class LightSampler {
   std::optional<LightSample> sample(float uObject, float uTriangle, const Vec2& uPoint) const;
   // Area density of sampling a point on `object` (0 if it is not an emitter here).
   float pdfArea(int object) const { return object < static_cast<int>(pdfArea_.size()) ? pdfArea_[object] : 0.0f; }
-  size_t emitterCount() const { return objects_.size(); }
 
  private:
   struct EmitterObject {

@@ -28,6 +28,7 @@ TriangleMesh buildMesh(MeshData data, const std::string& source) {
   if (!data.uvs.empty() && data.uvs.size() != nv) fail("{}: {} uvs for {} vertices", source, data.uvs.size(), nv);
   if (!data.faceObject.empty() && data.faceObject.size() != data.triangles.size())
     fail("{}: {} object ids for {} faces", source, data.faceObject.size(), data.triangles.size());
+  m.objectNames = std::move(data.objectNames);
   m.positions = std::move(data.positions);
   m.normals = std::move(data.normals);
   m.uvs = std::move(data.uvs);

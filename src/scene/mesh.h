@@ -12,6 +12,7 @@ struct TriangleMesh {
   std::vector<Vec2> uvs;      // per vertex, may be empty
   std::vector<Eigen::Vector3i> triangles;
   std::vector<int32_t> faceObject;  // always one per triangle
+  std::vector<std::string> objectNames;  // from the file (OBJ groups), may be empty
   std::vector<float> faceArea;
   int objectCount = 1;
   size_t droppedDegenerate = 0;

@@ -20,12 +20,8 @@ Scene::Scene(TriangleMesh mesh, SceneOptions options) : mesh_(std::move(mesh)) {
   rtcSetSceneFlags(scene_, options.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);
   RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
   vertexBuffer_.resize(mesh_.positions.size() * 3 + 1);
-  Eigen::AlignedBox3f box;
-  for (size_t i = 0; i < mesh_.positions.size(); ++i) {
+  for (size_t i = 0; i < mesh_.positions.size(); ++i)
     for (int k = 0; k < 3; ++k) vertexBuffer_[3 * i + k] = mesh_.positions[i][k];
-    box.extend(mesh_.positions[i]);
-  }
-  radius_ = 0.5f * box.diagonal().norm();
   faces_.resize(mesh_.triangles.size());
   for (size_t f = 0; f < faces_.size(); ++f) {
     FaceRecord& r = faces_[f];

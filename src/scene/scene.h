@@ -38,7 +38,6 @@ class Scene {
   SurfaceHit surfacePoint(uint32_t prim, float b1, float b2) const;  // barycentrics of vertices 1 and 2
   // Origin nudged off the surface towards `dir`, scaled to the coordinate magnitude.
   static Vec3 offsetOrigin(const SurfaceHit& hit, const Vec3& dir);
-  float sceneRadius() const { return radius_; }
 
  private:
   TriangleMesh mesh_;
@@ -54,7 +53,6 @@ class Scene {
   std::vector<FaceRecord> faces_;  // xyz + padding so Embree can read 16 bytes at the end
   RTCDevice device_ = nullptr;
   RTCScene scene_ = nullptr;
-  float radius_ = 1.0f;
 };
 
 inline float rayEpsilon(const Vec3& p) { return 1e-4f * (1.0f + p.cwiseAbs().maxCoeff()); }

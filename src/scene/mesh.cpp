@@ -18,6 +18,7 @@ MeshData TriangleMesh::toData() const {
   d.uvs = uvs;
   d.triangles = triangles;
   d.faceObject = faceObject;
+  d.objectNames = objectNames;
   return d;
 }
 

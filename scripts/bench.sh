@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Reproduces every performance and accuracy figure of the README (about 10 minutes on 2 cores).
+# Not part of the test suite. Output: bench/ (logs) and the figures on stdout.
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+"$ROOT/scripts/setup.sh"
+R="$ROOT/build/relume"
+OUT="${1:-$ROOT/out/bench}"
+mkdir -p "$OUT"
+run() { echo "\$ relume $*"; "$R" --log warn "$@" | tee -a "$OUT/bench.log"; echo; }
+run profile --what render,leaks,scatter,visibility
+run profile --what adjoint
+run profile --what adjoint --max-depth 2 --repeats 1
+run profile --what adjoint --max-depth 64 --repeats 1
+run profile --what pairing --batches 64
+run gradcheck --synth room
+"$R" --log warn synth --scene scan --out "$OUT/scan" --frames 2000 --test-frames 1 --width 128 --height 96 --spp 1 --max-depth 2
+echo "\$ relume prepare (1M triangles, 2000 frames)"
+"$R" prepare "$OUT/scan" --out "$OUT/scan_work" --force 2>&1 | grep -E "done in|prepared|peak RSS" | tee -a "$OUT/bench.log"
+du -sh "$OUT/scan_work"

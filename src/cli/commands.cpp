@@ -202,6 +202,7 @@ int runProfile(const ProfileArgs& a) {
       fmt::print("  crossfit (1 pass)    {:8.3f} s   iteration/primal = {:.2f}x\n", p.crossfit, p.crossfit / p.primal);
       fmt::print("  reuse (1 pass)       {:8.3f} s   iteration/primal = {:.2f}x\n", p.reuse, p.reuse / p.primal);
       fmt::print("  per-ray state {} B (delta), vertex record {} B x (depth+1) per thread\n", sizeof(Color), p.recordBytes);
+      fmt::print("  peak RSS {:.0f} MiB (whole process)\n", peakRssMiB());
     }
     if (wants("pairing")) {
       const auto stats = studyPairings(e.truth, e.current, e.rays, a.batches, 4 * a.batches);

@@ -110,10 +110,13 @@ class SceneBuilder {
       for (int j = 0; j < p.segT; ++j)
         for (int k = 0; k < p.segS; ++k) {
           const int v00 = base + j * (p.segS + 1) + k, v10 = v00 + 1, v01 = v00 + p.segS + 1, v11 = v01 + 1;
-          m.triangles.emplace_back(v00, v10, v11);
-          m.triangles.emplace_back(v00, v11, v01);
-          m.faceObject.push_back(p.object);
-          m.faceObject.push_back(p.object);
+          // Sphere rows at the poles collapse one triangle of each quad: leave those out.
+          for (const Eigen::Vector3i& t : {Eigen::Vector3i(v00, v10, v11), Eigen::Vector3i(v00, v11, v01)}) {
+            const Vec3 e1 = m.positions[t[1]] - m.positions[t[0]], e2 = m.positions[t[2]] - m.positions[t[0]];
+            if (e1.cross(e2).norm() <= 1e-10f) continue;
+            m.triangles.push_back(t);
+            m.faceObject.push_back(p.object);
+          }
         }
       for (int y = pl.y; y < pl.y + pl.h; ++y)
         for (int x = pl.x; x < pl.x + pl.w; ++x) {

@@ -350,28 +350,49 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   runPhase("init", initPrint, {work / "albedo_init.exr", work / "coverage.exr", work / "coverage.png"}, [&] {
     const VisibilityIndex vis = VisibilityIndex::read(work / "visibility.bin");
     const FrameStore store(work / "frames.bin");
-    std::vector<std::vector<uint32_t>> tilesOf(cap.frames.size());
+    // For each frame, its tiles and its position in each tile's frame list.
+    std::vector<std::vector<std::pair<uint32_t, uint32_t>>> tilesOf(cap.frames.size());
     for (size_t t = 0; t + 1 < vis.offsets.size(); ++t)
-      for (uint32_t k = vis.offsets[t]; k < vis.offsets[t + 1]; ++k) tilesOf[vis.frames[k]].push_back(static_cast<uint32_t>(t));
+      for (uint32_t k = vis.offsets[t]; k < vis.offsets[t + 1]; ++k)
+        tilesOf[vis.frames[k]].push_back({static_cast<uint32_t>(t), k - vis.offsets[t]});
+    // One bit per (texel, frame of its tile) remembers which observations the first pass found
+    // unoccluded, so a second pass re-projects without tracing again.
+    const size_t tileArea = static_cast<size_t>(o.tileTexels) * o.tileTexels;
+    std::vector<std::vector<uint64_t>> seenBits(vis.offsets.size() - 1);
+    for (size_t t = 0; t + 1 < vis.offsets.size(); ++t) seenBits[t].assign((tileArea * (vis.offsets[t + 1] - vis.offsets[t]) + 63) / 64, 0);
     const size_t texels = initMap.texelCount();
     MedianSketch sketch(texels);
     std::vector<Eigen::Array3d> sum(o.init == InitStatistic::Mean ? texels : 0, Eigen::Array3d::Zero());
     std::vector<uint32_t> coverage(texels, 0);
-    // Each pass visits frames in order and, inside a frame, its tiles in parallel: a texel is
-    // only ever updated by one thread at a time, so the sketches need no atomics.
+    // Each pass visits frames in order and, inside a frame, its tiles in parallel: a texel (and
+    // its tile's bits) is only ever updated by one thread at a time, so nothing needs atomics.
+    int passIndex = 0;
     auto pass = [&](const char* label, const std::function<void(size_t, const Color&)>& add) {
+      const bool traced = passIndex++ > 0;
       Progress progress(label, kept.size());
       for (size_t k : kept) {
         tbb::parallel_for(size_t{0}, tilesOf[k].size(), [&](size_t i) {
-          const int tile = static_cast<int>(tilesOf[k][i]);
-          const int tx = tile % tilesPerSide, ty = tile / tilesPerSide;
+          const auto [tile, slot] = tilesOf[k][i];
+          std::vector<uint64_t>& bits = seenBits[tile];
+          const int tx = static_cast<int>(tile) % tilesPerSide, ty = static_cast<int>(tile) / tilesPerSide;
           for (int y = ty * o.tileTexels; y < (ty + 1) * o.tileTexels; ++y)
             for (int x = tx * o.tileTexels; x < (tx + 1) * o.tileTexels; ++x) {
               const size_t texel = static_cast<size_t>(y) * initRes + x;
               if (!initMap.valid(texel)) continue;
-              const auto px = observe(scene, cap.frames[k].camera, initMap.point(mesh, texel), mesh.faceNormal(initMap.triangle(texel)));
+              const size_t bit = (static_cast<size_t>(y - ty * o.tileTexels) * o.tileTexels + (x - tx * o.tileTexels)) +
+                                 tileArea * slot;
+              std::optional<Vec2> px;
+              if (traced) {
+                if (!(bits[bit / 64] >> (bit % 64) & 1)) continue;
+                px = cap.frames[k].camera.project(initMap.point(mesh, texel));
+              } else {
+                px = observe(scene, cap.frames[k].camera, initMap.point(mesh, texel), mesh.faceNormal(initMap.triangle(texel)));
+              }
               if (!px) continue;
-              if (const auto c = store.bilinear(k, *px)) add(texel, *c);
+              const auto c = store.bilinear(k, *px);
+              if (!c) continue;
+              if (!traced) bits[bit / 64] |= uint64_t{1} << (bit % 64);
+              add(texel, *c);
             }
         });
         progress.advance();

@@ -23,14 +23,8 @@ AppearanceScope perturbedScope(const Appearance& base, const Appearance& perturb
 std::vector<Eigen::Array3d> traceAll(const Scene& scene, const LightSampler& lights, const AppearanceScope& scope,
                                      const std::vector<BatchRay>& rays, const PathSettings& path,
                                      const std::function<uint64_t(size_t)>& seed) {
-  std::vector<Eigen::Array3d> out(rays.size());
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t j = r.begin(); j < r.end(); ++j) {
-      Pcg32 rng(seed(j));
-      const Color L = tracePath(scene, lights, scope, path, rays[j].origin, rays[j].dir, rng);
-      out[j] = isFinite(L) ? Eigen::Array3d(L.cast<double>()) : Eigen::Array3d::Zero();
-    }
-  });
+  std::vector<Eigen::Array3d> out;
+  for (const Color& c : traceRays(scene, lights, scope, rays, path, seed)) out.push_back(c.cast<double>());
   return out;
 }
 

@@ -187,17 +187,23 @@ Color safeRadiance(const Color& c) { return isFinite(c) ? c : Color::Zero(); }
 
 size_t adjointRecordBytes() { return sizeof(VertexRecord); }
 
-std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
-                              const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration) {
+std::vector<Color> traceRays(const Scene& scene, const LightSampler& lights, const AppearanceScope& scope,
+                             const std::vector<BatchRay>& rays, const PathSettings& path,
+                             const std::function<uint64_t(size_t)>& seedOf) {
   std::vector<Color> estimate(rays.size());
-  const AppearanceScope scope = AppearanceScope::uniform(appearance);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
     for (size_t j = range.begin(); j < range.end(); ++j) {
-      Pcg32 rng(primalSeed(settings, iteration, j));
-      estimate[j] = safeRadiance(tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rng));
+      Pcg32 rng(seedOf(j));
+      estimate[j] = safeRadiance(tracePath(scene, lights, scope, path, rays[j].origin, rays[j].dir, rng));
     }
   });
   return estimate;
+}
+
+std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
+                              const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration) {
+  return traceRays(scene, lights, AppearanceScope::uniform(appearance), rays, settings.path,
+                   [&](size_t j) { return primalSeed(settings, iteration, j); });
 }
 
 void adjointPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,

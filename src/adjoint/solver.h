@@ -5,6 +5,7 @@
 // subtracted from a total), and delta_j x derivative is scattered onto the parameters.
 // Memory: O(batch) for delta + O(threads x max depth) for records.
 #pragma once
+#include <functional>
 #include <vector>
 
 #include "adjoint/loss.h"
@@ -60,6 +61,12 @@ struct GradientResult {
 // Seeds of the two independent samples of ray j in iteration `iteration`.
 uint64_t primalSeed(const AdjointSettings& s, uint64_t iteration, size_t ray);
 uint64_t adjointSeed(const AdjointSettings& s, uint64_t iteration, size_t ray);
+
+// Radiance estimate of every ray (non-finite estimates become 0), ray j seeded by seedOf(j),
+// each term evaluated with the appearance `scope` names.
+std::vector<Color> traceRays(const Scene& scene, const LightSampler& lights, const AppearanceScope& scope,
+                             const std::vector<BatchRay>& rays, const PathSettings& path,
+                             const std::function<uint64_t(size_t)>& seedOf);
 
 // Primal pass only: radiance estimates with seed s1.
 std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,

@@ -76,14 +76,9 @@ int runGradcheck(const GradcheckArgs& a) {
   GradientExperiment e;
   if (!a.scene.empty()) {
     if (a.cameras.empty()) fail("gradcheck: --scene needs --cameras transforms.json to aim rays");
-    e.truth = loadSceneFile(a.scene);
-    if (eo.emissionTextures && e.truth.appearance.emissionTextures.empty())
-      allocateEmissionTextures(e.truth.appearance, e.truth.mesh, 64, [](float u, float v) { return 0.6f + 0.8f * u * v; });
     std::vector<Camera> cams;
     for (const Frame& f : readTransforms(a.cameras).frames) cams.push_back(f.camera);
-    const Scene tmp(e.truth.mesh);
-    e.rays = raysFromCameras(tmp, e.truth.appearance, cams, eo);
-    e.current = perturbAppearance(e.truth.appearance, eo.seed);
+    e = makeGradientExperiment(loadSceneFile(a.scene), cams, eo);
   } else {
     e = makeGradientExperiment(parseSynthScene(a.synth), eo);
   }

@@ -41,18 +41,21 @@ Appearance perturbAppearance(const Appearance& a, uint64_t seed) {
   return p;
 }
 
-GradientExperiment makeGradientExperiment(SynthSceneKind kind, const ExperimentOptions& o) {
-  SynthScene synth = makeSynthScene(kind, o.atlasResolution);
-  GradientExperiment e{std::move(synth.scene), Appearance(), {}};
-  Appearance& truth = e.truth.appearance;
-  for (Color& c : truth.emission) c *= o.emissionScale;
-  if (o.emissionTextures)
-    allocateEmissionTextures(truth, e.truth.mesh, o.atlasResolution,
-                             [](float u, float v) { return 0.6f + 0.8f * u * v; });
+GradientExperiment makeGradientExperiment(SceneDescription truth, const std::vector<Camera>& cameras,
+                                          const ExperimentOptions& o) {
+  GradientExperiment e{std::move(truth), Appearance(), {}};
+  Appearance& a = e.truth.appearance;
+  for (Color& c : a.emission) c *= o.emissionScale;
+  if (o.emissionTextures && a.emissionTextures.empty())
+    allocateEmissionTextures(a, e.truth.mesh, o.atlasResolution, [](float u, float v) { return 0.6f + 0.8f * u * v; });
   const Scene scene(e.truth.mesh);
-  e.rays = raysFromCameras(scene, truth, synthCameraPath(kind, 8, 160, 120, 0.25), o);
-  e.current = perturbAppearance(truth, o.seed);
+  e.rays = raysFromCameras(scene, a, cameras, o);
+  e.current = perturbAppearance(a, o.seed);
   return e;
+}
+
+GradientExperiment makeGradientExperiment(SynthSceneKind kind, const ExperimentOptions& o) {
+  return makeGradientExperiment(makeSynthScene(kind, o.atlasResolution).scene, synthCameraPath(kind, 8, 160, 120, 0.25), o);
 }
 
 }  // namespace relume

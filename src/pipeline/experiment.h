@@ -24,6 +24,10 @@ struct ExperimentOptions {
 };
 
 GradientExperiment makeGradientExperiment(SynthSceneKind kind, const ExperimentOptions& options);
+// The same for any scene, with rays aimed from `cameras`; emission textures (if requested) are
+// added only when the scene has none.
+GradientExperiment makeGradientExperiment(SceneDescription truth, const std::vector<Camera>& cameras,
+                                          const ExperimentOptions& options);
 
 // Batch rays from the cameras of a capture (random pixels); references rendered from `truth`.
 std::vector<BatchRay> raysFromCameras(const Scene& scene, const Appearance& truth, const std::vector<Camera>& cameras,

@@ -60,13 +60,10 @@ class MedianSketch {
   static constexpr int kBins = 16, kSub = 32;
   static constexpr float kLogMin = -4.0f, kLogMax = 4.0f;
   explicit MedianSketch(size_t texels) : coarse_(texels * 3 * kBins, 0), count_(texels, 0) {}
-  static int binOf(float v, float lo, float width, int bins) {
-    const float l = std::log10(std::max(v, 1e-12f));
-    return std::clamp(static_cast<int>((l - lo) / width), 0, bins - 1);
-  }
+  static int binOfLog(float l) { return std::clamp(static_cast<int>((l - kLogMin) / width()), 0, kBins - 1); }
   void addCoarse(size_t t, const Color& c) {
     for (int ch = 0; ch < 3; ++ch) {
-      uint16_t& b = coarse_[(t * 3 + ch) * kBins + binOf(c[ch], kLogMin, width(), kBins)];
+      uint16_t& b = coarse_[(t * 3 + ch) * kBins + binOfLog(std::log10(std::max(c[ch], 1e-12f)))];
       b = static_cast<uint16_t>(std::min(65535, b + 1));
     }
     count_[t] = std::min<uint32_t>(count_[t] + 1, 65535);
@@ -97,7 +94,7 @@ class MedianSketch {
       const size_t k = t * 3 + ch;
       const float lo = kLogMin + binIndex_[k] * width();
       const float l = std::log10(std::max(c[ch], 1e-12f));
-      if (binIndex_[k] != binOf(c[ch], kLogMin, width(), kBins)) continue;
+      if (binIndex_[k] != binOfLog(l)) continue;
       const int s = std::clamp(static_cast<int>((l - lo) / (width() / kSub)), 0, kSub - 1);
       uint16_t& b = coarse_[k * kSub + s];
       b = static_cast<uint16_t>(std::min(65535, b + 1));
@@ -327,11 +324,9 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   runPhase("visibility", visPrint, {work / "visibility.bin"}, [&] {
     const VisibilityIndex vis = buildVisibilityIndex(scene, initMap, cap.frames, kept, o.tileTexels, o.samplesPerTile);
     const size_t tiles = vis.offsets.size() - 1;
-    std::vector<std::vector<uint32_t>> perTile(tiles);
-    for (size_t t = 0; t < tiles; ++t) perTile[t].assign(vis.frames.begin() + vis.offsets[t], vis.frames.begin() + vis.offsets[t + 1]);
     vis.write(work / "visibility.bin");
     size_t seen = 0;
-    for (const auto& f : perTile) seen += !f.empty();
+    for (size_t t = 0; t < tiles; ++t) seen += vis.offsets[t + 1] > vis.offsets[t];
     std::vector<char> frameSees(cap.frames.size(), 0);
     for (uint32_t f : vis.frames) frameSees[f] = 1;
     Json blind = Json::array();
@@ -361,6 +356,13 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
     std::vector<std::vector<uint64_t>> seenBits(vis.offsets.size() - 1);
     for (size_t t = 0; t + 1 < vis.offsets.size(); ++t) seenBits[t].assign((tileArea * (vis.offsets[t + 1] - vis.offsets[t]) + 63) / 64, 0);
     const size_t texels = initMap.texelCount();
+    // Each texel's surface point and normal, computed once rather than once per frame.
+    std::vector<Vec3> texelPoint(texels), texelNormal(texels);
+    tbb::parallel_for(size_t{0}, texels, [&](size_t t) {
+      if (!initMap.valid(t)) return;
+      texelPoint[t] = initMap.point(mesh, t);
+      texelNormal[t] = mesh.faceNormal(initMap.triangle(t));
+    });
     MedianSketch sketch(texels);
     std::vector<Eigen::Array3d> sum(o.init == InitStatistic::Mean ? texels : 0, Eigen::Array3d::Zero());
     std::vector<uint32_t> coverage(texels, 0);
@@ -384,9 +386,9 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
               std::optional<Vec2> px;
               if (traced) {
                 if (!(bits[bit / 64] >> (bit % 64) & 1)) continue;
-                px = cap.frames[k].camera.project(initMap.point(mesh, texel));
+                px = cap.frames[k].camera.project(texelPoint[texel]);
               } else {
-                px = observe(scene, cap.frames[k].camera, initMap.point(mesh, texel), mesh.faceNormal(initMap.triangle(texel)));
+                px = observe(scene, cap.frames[k].camera, texelPoint[texel], texelNormal[texel]);
               }
               if (!px) continue;
               const auto c = store.bilinear(k, *px);

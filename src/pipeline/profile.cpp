@@ -46,9 +46,8 @@ RenderProfile profileRender(const SceneDescription& desc, const Camera& camera, 
     rec.out = &recorded.local();
     for (int x = 0; x < camera.width; ++x)
       for (int s = 0; s < spp; ++s) {
-        Pcg32 rng(hashTuple({static_cast<uint64_t>(y) * camera.width + x, static_cast<uint64_t>(s), ro.seed, 0x7265}));
-        const Vec2 pixel(x + rng.next1D(), y + rng.next1D());
-        if (const auto dir = camera.rayDirection(pixel)) tracePath(scene, lights, scope, ro.path, camera.position, *dir, rng, rec);
+        CameraSample cs = cameraSample(camera, x, y, s, ro.seed);
+        if (cs.dir) tracePath(scene, lights, scope, ro.path, camera.position, *cs.dir, cs.rng, rec);
       }
   });
   std::vector<RecordedRay> rays;

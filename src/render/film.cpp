@@ -43,6 +43,13 @@ struct RayCounter : NullPathObserver {
 };
 }  // namespace
 
+CameraSample cameraSample(const Camera& camera, int x, int y, int s, uint64_t seed) {
+  CameraSample cs{Pcg32(hashTuple({static_cast<uint64_t>(y) * camera.width + x, static_cast<uint64_t>(s), seed, 0x7265})), {}};
+  const Vec2 pixel(x + cs.rng.next1D(), y + cs.rng.next1D());
+  cs.dir = camera.rayDirection(pixel);
+  return cs;
+}
+
 RenderResult renderImage(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
                          const Camera& camera, const RenderOptions& options) {
   RenderResult result;
@@ -61,13 +68,11 @@ RenderResult renderImage(const Scene& scene, const Appearance& appearance, const
         SurfaceHit first{};
         bool anyHit = false;
         for (int s = 0; s < options.spp; ++s) {
-          Pcg32 rng(hashTuple({static_cast<uint64_t>(y) * W + x, static_cast<uint64_t>(s), options.seed, 0x7265}));
-          const Vec2 pixel(x + rng.next1D(), y + rng.next1D());  // box filter over the pixel
-          const auto dir = camera.rayDirection(pixel);
-          if (!dir) continue;
+          CameraSample cs = cameraSample(camera, x, y, s, options.seed);
+          if (!cs.dir) continue;
           SurfaceHit hit;
           hit.t = -1.0f;
-          const Color L = tracePath(scene, lights, scope, options.path, camera.position, *dir, rng, counter, s == 0 ? &hit : nullptr);
+          const Color L = tracePath(scene, lights, scope, options.path, camera.position, *cs.dir, cs.rng, counter, s == 0 ? &hit : nullptr);
           if (isFinite(L)) sum += L;
           if (s == 0 && hit.t >= 0.0f) first = hit, anyHit = true;
         }

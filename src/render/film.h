@@ -1,5 +1,6 @@
 // Rendering whole images from a camera: TBB over 16x16 tiles, one PCG32 per (pixel, sample, seed).
 #pragma once
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -19,6 +20,15 @@ struct RenderOptions {
   PathSettings path;
   std::vector<Aov> aovs;
 };
+
+// The primary ray of sample s of pixel (x, y): a box-filtered position inside the pixel, and the
+// generator the rest of that path continues with. Shared by rendering and profiling, so the
+// profiler replays exactly the rendered paths.
+struct CameraSample {
+  Pcg32 rng;
+  std::optional<Vec3> dir;
+};
+CameraSample cameraSample(const Camera& camera, int x, int y, int s, uint64_t seed);
 
 struct RenderStats {
   double seconds = 0;

@@ -33,9 +33,9 @@ float stepFor(const ParamRef& p, float value, float eps) {
   return emission ? eps * std::max(std::abs(value), 1.0f) : eps;
 }
 
-// Per-ray loss weight and scale, as in computeGradients.
-Eigen::Array3d weightOf(const BatchRay& ray, const Eigen::Array3d& est) {
-  return lossWeight(est.cast<float>(), ray.reference, ray.clip).cast<double>() * ray.weight;
+// Loss residual of each estimate, in double (the per-ray Jacobian weight applies to the loss).
+Eigen::Array3d residualOf(const BatchRay& ray, const Eigen::Array3d& est) {
+  return lossResidual(est.cast<float>(), ray.reference, ray.clip).cast<double>();
 }
 
 // The scalar each pairing's per-sample estimator differentiates (see gradcheck.h), in double.
@@ -45,26 +45,24 @@ double sampleObjective(const std::vector<BatchRay>& rays, Pairing pairing, const
   double sum = 0;
   const double invN = 1.0 / rays.size();
   for (size_t j = 0; j < rays.size(); ++j) {
-    const Eigen::Array3d ref = rays[j].reference.cast<double>();
     switch (pairing) {
-      case Pairing::Decorrelated: sum += (deltaA[j].cast<double>() * b[j]).sum(); break;
+      case Pairing::Decorrelated: sum += (deltaA[j].cast<double>() * residualOf(rays[j], b[j])).sum(); break;
       case Pairing::Crossfit:
-        sum += 0.5 * ((deltaA[j].cast<double>() * b[j]).sum() + (deltaB[j].cast<double>() * a[j]).sum());
+        sum += 0.5 * ((deltaA[j].cast<double>() * residualOf(rays[j], b[j])).sum() +
+                      (deltaB[j].cast<double>() * residualOf(rays[j], a[j])).sum());
         break;
-      case Pairing::Reuse: sum += (weightOf(rays[j], a[j]) * (a[j] - ref).square()).sum() * invN; break;
+      case Pairing::Reuse: sum += rays[j].weight * residualOf(rays[j], a[j]).square().sum() * invN; break;
     }
   }
   return sum;
 }
 
-// Unbiased estimate of the true loss (E[I_hat] - I)^2 from two independent samples.
+// Unbiased estimate of the loss the adjoint differentiates, sum of E[r]^2, from two independent
+// samples: r(a) r(b) (for an unclipped reference, (E[I_hat] - I)^2).
 double productLoss(const std::vector<BatchRay>& rays, const std::vector<Eigen::Array3d>& a,
                    const std::vector<Eigen::Array3d>& b) {
   double sum = 0;
-  for (size_t j = 0; j < rays.size(); ++j) {
-    const Eigen::Array3d ref = rays[j].reference.cast<double>();
-    sum += (weightOf(rays[j], a[j]) * (a[j] - ref) * (b[j] - ref)).sum();
-  }
+  for (size_t j = 0; j < rays.size(); ++j) sum += rays[j].weight * (residualOf(rays[j], a[j]) * residualOf(rays[j], b[j])).sum();
   return sum / rays.size();
 }
 
@@ -72,7 +70,7 @@ std::vector<Color> deltas(const std::vector<BatchRay>& rays, const std::vector<E
   std::vector<Color> d(rays.size());
   const float invN = 1.0f / rays.size();
   for (size_t j = 0; j < rays.size(); ++j)
-    d[j] = rayLossGradient(est[j].cast<float>(), rays[j].reference, rays[j].clip, rays[j].weight * invN);
+    d[j] = rayLossDelta(est[j].cast<float>(), rays[j].reference, rays[j].clip, rays[j].weight * invN);
   return d;
 }
 
@@ -140,7 +138,7 @@ std::vector<double> meanAdjointGradient(const Scene& scene, const Appearance& ap
   for (int b = 0; b < batches; ++b) {
     g.clear();
     computeGradients(scene, appearance, lights, rays, settings, 1000 + b, g);
-    for (size_t i = 0; i < params.size(); ++i) mean[i] += g.value(params[i]) / batches;
+    for (size_t i = 0; i < params.size(); ++i) mean[i] += gradientValue(appearance, g, params[i]) / batches;
   }
   return mean;
 }
@@ -186,7 +184,7 @@ GradcheckReport runGradcheck(const Scene& scene, const Appearance& base, const s
         const auto b = s.pairing == Pairing::Reuse ? b0 : traceAll(scene, lights, scope, rays, s.path, seedB(it));
         return sampleObjective(rays, s.pairing, a, b, dA, dB);
       });
-      GradcheckRow row{"sample", p, g.value(p), fd};
+      GradcheckRow row{"sample", p, gradientValue(base, g, p), fd};
       const double floorAbs = 20 * 6e-8 * scale / stepFor(p, paramValue(base, p), o.eps);
       row.error = std::abs(row.adjoint - fd) / std::max(std::abs(fd), 1e-12);
       row.pass = std::abs(row.adjoint - fd) <= o.level1Tolerance * std::abs(fd) + floorAbs;
@@ -207,9 +205,9 @@ GradcheckReport runGradcheck(const Scene& scene, const Appearance& base, const s
           return productLoss(rays, traceAll(scene, lights, scope, rays, s.path, seedA(it)),
                              traceAll(scene, lights, scope, rays, s.path, seedB(it)));
         });
-        adj[i].push_back(g.value(params[i]));
+        adj[i].push_back(gradientValue(base, g, params[i]));
         fds[i].push_back(fd);
-        diff[i].push_back(g.value(params[i]) - fd);
+        diff[i].push_back(adj[i].back() - fd);
       }
     }
     auto mean = [](const std::vector<double>& v) { return std::accumulate(v.begin(), v.end(), 0.0) / v.size(); };

@@ -1,37 +1,43 @@
-// Image loss (paper eq. 1): per-channel squared error in linear space, one-sided where the
-// reference is clipped, mean over rays. delta = dLoss/dI_hat is the only per-ray state the
-// adjoint pass needs.
+// Image loss (paper eq. 1, continuous form): per-channel squared residual in linear space, mean
+// over rays. Where the reference is clipped the residual is one-sided and continuous in the
+// estimate: r = min(I_hat - vmax, 0) for a saturated reference, r = max(I_hat - vmin, 0) for a
+// dark one, r = I_hat - I otherwise (an indicator weight would make the loss jump by
+// (vmax - I)^2 when a noisy estimate crosses vmax).
 #pragma once
-#include <limits>
-
-#include "core/math.h"
+#include "sampling/batch.h"
 
 namespace relume {
 
-struct ClipThresholds {
-  float low = 0.0f;                                       // vmin: below, the reference is noise
-  float high = std::numeric_limits<float>::infinity();    // vmax: at or above, it is saturated
-};
-
-// w = [I_hat >= vmin or I >= vmin] * [I_hat <= vmax or I <= vmax], per channel.
-inline Color lossWeight(const Color& estimate, const Color& reference, const ClipThresholds& clip) {
-  Color w;
+inline Color lossResidual(const Color& estimate, const Color& reference, const ClipThresholds& clip) {
+  Color r;
   for (int c = 0; c < 3; ++c) {
-    const bool low = estimate[c] >= clip.low || reference[c] >= clip.low;
-    const bool high = estimate[c] <= clip.high || reference[c] <= clip.high;
-    w[c] = (low && high) ? 1.0f : 0.0f;
+    if (reference[c] >= clip.high) r[c] = std::min(estimate[c] - clip.high, 0.0f);
+    else if (reference[c] <= clip.low) r[c] = std::max(estimate[c] - clip.low, 0.0f);
+    else r[c] = estimate[c] - reference[c];
   }
-  return w;
+  return r;
 }
 
-// Sum over channels of w (I_hat - I)^2, for one ray.
+// d residual / d estimate: 1, or 0 on the flat side of a one-sided residual.
+inline Color lossResidualSlope(const Color& estimate, const Color& reference, const ClipThresholds& clip) {
+  Color s;
+  for (int c = 0; c < 3; ++c) {
+    if (reference[c] >= clip.high) s[c] = estimate[c] < clip.high ? 1.0f : 0.0f;
+    else if (reference[c] <= clip.low) s[c] = estimate[c] > clip.low ? 1.0f : 0.0f;
+    else s[c] = 1.0f;
+  }
+  return s;
+}
+
+// Sum over channels of r^2, for one ray.
 inline float rayLoss(const Color& estimate, const Color& reference, const ClipThresholds& clip) {
-  return (lossWeight(estimate, reference, clip) * (estimate - reference).square()).sum();
+  return lossResidual(estimate, reference, clip).square().sum();
 }
 
-// d rayLoss / d estimate, scaled by `scale` (1/N for the mean over N rays).
-inline Color rayLossGradient(const Color& estimate, const Color& reference, const ClipThresholds& clip, float scale) {
-  return 2.0f * scale * lossWeight(estimate, reference, clip) * (estimate - reference);
+// 2 r scale: the per-ray delta of the primal sample (1/N for the mean over N rays). The adjoint
+// sample b multiplies it by its own residual slope, so the gradient is that of E[r(a)] E[r(b)].
+inline Color rayLossDelta(const Color& estimate, const Color& reference, const ClipThresholds& clip, float scale) {
+  return 2.0f * scale * lossResidual(estimate, reference, clip);
 }
 
 }  // namespace relume

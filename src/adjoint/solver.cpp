@@ -34,17 +34,6 @@ const char* pairingName(Pairing p) {
   return "";
 }
 
-bool ParamMask::active(ParamKind k) const {
-  switch (k) {
-    case ParamKind::Albedo: return albedo;
-    case ParamKind::Roughness: return roughness;
-    case ParamKind::Specular: return specular;
-    case ParamKind::Emission: return emission;
-    case ParamKind::EmissionTexture: return emissionTexture;
-  }
-  return false;
-}
-
 uint64_t primalSeed(const AdjointSettings& s, uint64_t iteration, size_t ray) {
   return hashTuple({s.seed, iteration, ray, 0x5031});
 }
@@ -121,22 +110,22 @@ class Scatterer {
 
   void bsdf(const VertexRecord& r, const BsdfEval& d, const Color& w) {
     // w: per-channel weight of df (delta * beta * the term's radiance factor).
-    if (s_.mask.albedo && a_.usesTexture(r.object)) {
+    if (s_.mask.active(ParamKind::Albedo) && a_.usesTexture(r.object)) {
       const Color g = d.dAlbedo * w;
       const TexelFootprint fp = a_.albedo.footprint(r.uv);
       for (int k = 0; k < 4; ++k)
         if (fp.weight[k] != 0.0f) g_.addAlbedo(fp.index[k], fp.weight[k] * g);
     }
-    if (s_.mask.roughness) local_[g_.roughnessSlot(r.object)] += (d.dRoughness * w).sum();
-    if (s_.mask.specular) local_[g_.specularSlot(r.object)] += d.dSpecular * w.sum();
+    if (s_.mask.active(ParamKind::Roughness)) local_[g_.roughnessSlot(r.object)] += (d.dRoughness * w).sum();
+    if (s_.mask.active(ParamKind::Specular)) local_[g_.specularSlot(r.object)] += d.dSpecular * w.sum();
   }
   void emission(int object, const Vec2& uv, const Color& g) {
     if (const Texture* t = a_.emissionTexture(object)) {
-      if (!s_.mask.emissionTexture) return;
+      if (!s_.mask.active(ParamKind::EmissionTexture)) return;
       const TexelFootprint fp = t->footprint(uv);
       for (int k = 0; k < 4; ++k)
         if (fp.weight[k] != 0.0f) g_.addEmissionTexel(a_.emissionTextureOf[object], fp.index[k], fp.weight[k] * g);
-    } else if (s_.mask.emission) {
+    } else if (s_.mask.active(ParamKind::Emission)) {
       for (int c = 0; c < 3; ++c) local_[g_.emissionSlot(object, c)] += g[c];
     }
   }
@@ -221,7 +210,7 @@ void adjointPass(const Scene& scene, const Appearance& appearance, const LightSa
       Pcg32 rng(adjointSeed(settings, iteration, j));
       rec.count = 0;
       const Color L = tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rng, rec);
-      if (isFinite(L)) sweep(rec.records, rec.count, delta[j], settings, out);
+      if (isFinite(L)) sweep(rec.records, rec.count, delta[j] * lossResidualSlope(L, rays[j].reference, rays[j].clip), settings, out);
     }
   });
   grads.combine();
@@ -235,8 +224,9 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
   const float invN = 1.0f / static_cast<float>(rays.size());
   auto lossOf = [&](size_t j, const Color& est) { return rays[j].weight * rayLoss(est, rays[j].reference, rays[j].clip); };
   auto deltaOf = [&](size_t j, const Color& est) {
-    return rayLossGradient(est, rays[j].reference, rays[j].clip, rays[j].weight * invN);
+    return rayLossDelta(est, rays[j].reference, rays[j].clip, rays[j].weight * invN);
   };
+  auto slopeOf = [&](size_t j, const Color& est) { return lossResidualSlope(est, rays[j].reference, rays[j].clip); };
 
   if (settings.pairing == Pairing::Decorrelated) {
     Timer t;
@@ -272,19 +262,23 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
     for (size_t j = range.begin(); j < range.end(); ++j) {
       Pcg32 rngA(primalSeed(settings, iteration, j));
       recA.count = 0;
-      const Color a = safeRadiance(tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rngA, recA));
+      const Color a = tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rngA, recA);
       if (!crossfit) {
+        if (!isFinite(a)) continue;  // as in the decorrelated pass: no gradient from a broken path
         loss.local() += lossOf(j, a);
-        sweep(recA.records, recA.count, deltaOf(j, a), settings, out);
+        sweep(recA.records, recA.count, deltaOf(j, a) * slopeOf(j, a), settings, out);
         continue;
       }
       Pcg32 rngB(adjointSeed(settings, iteration, j));
       recB.count = 0;
-      const Color b = safeRadiance(tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rngB, recB));
-      loss.local() += 0.5 * (lossOf(j, a) + lossOf(j, b));
-      // Each sample's delta drives the other's path: a product of independent estimates.
-      sweep(recB.records, recB.count, 0.5f * deltaOf(j, a), settings, out);
-      sweep(recA.records, recA.count, 0.5f * deltaOf(j, b), settings, out);
+      const Color b = tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rngB, recB);
+      const Color sa = safeRadiance(a), sb = safeRadiance(b);
+      loss.local() += 0.5 * (lossOf(j, sa) + lossOf(j, sb));
+      // Each sample's delta drives the other's path: the derivative of r(a) r(b), a product of
+      // independent estimates. A non-finite sample drives nothing and receives nothing.
+      if (!isFinite(a) || !isFinite(b)) continue;
+      sweep(recB.records, recB.count, 0.5f * deltaOf(j, a) * slopeOf(j, b), settings, out);
+      sweep(recA.records, recA.count, 0.5f * deltaOf(j, b) * slopeOf(j, a), settings, out);
     }
   });
   grads.combine();

@@ -23,18 +23,6 @@ EmitterGradients parseEmitterGradients(const std::string& s);
 Pairing parsePairing(const std::string& s);
 const char* pairingName(Pairing p);
 
-struct BatchRay {
-  Vec3 origin, dir;
-  Color reference;
-  ClipThresholds clip;
-  float weight = 1.0f;  // optional per-ray Jacobian weight (ablation); 1 = omitted, as in the paper
-};
-
-struct ParamMask {
-  bool albedo = true, roughness = true, specular = true, emission = true, emissionTexture = true;
-  bool active(ParamKind k) const;
-};
-
 struct AdjointSettings {
   GradientMode mode = GradientMode::Direct;
   EmitterGradients emitters = EmitterGradients::Strict;
@@ -72,7 +60,8 @@ std::vector<Color> traceRays(const Scene& scene, const LightSampler& lights, con
 std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
                               const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration);
 
-// Adjoint pass only: scatters sum_j delta_j . dI_hat_j/dtheta (paths traced with seed s2) into `grads`.
+// Adjoint pass only: scatters sum_j delta_j . dr(I_hat_j)/dtheta (paths traced with seed s2, r the
+// ray's loss residual) into `grads`.
 void adjointPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
                  const std::vector<BatchRay>& rays, const std::vector<Color>& delta, const AdjointSettings& settings,
                  uint64_t iteration, Gradients& grads);

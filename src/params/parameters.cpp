@@ -33,34 +33,51 @@ std::string ParamRef::label() const {
   return "";
 }
 
+std::string ParamGroup::name() const {
+  return object < 0 ? paramKindName(kind) : fmt::format("{}[{}]", paramKindName(kind), object);
+}
+
+std::vector<ParamGroup> paramGroups(Appearance& a, Gradients* g, const ParamDomain& domain) {
+  const size_t n = static_cast<size_t>(a.objectCount());
+  auto floats = [](auto& v) { return std::span<float>(reinterpret_cast<float*>(v.data()), v.size() * sizeof(v[0]) / sizeof(float)); };
+  auto slice = [&](size_t begin, size_t count) {
+    return g ? std::span<float>(g->objects).subspan(begin, count) : std::span<float>();
+  };
+  std::vector<ParamGroup> groups;
+  groups.push_back({ParamKind::Albedo, -1, 3, 0.0f, 1.0f, floats(a.albedo.rgb), g ? floats(g->albedo) : std::span<float>()});
+  groups.push_back({ParamKind::Roughness, -1, 1, domain.roughnessMin, 1.0f, floats(a.roughness), slice(0, n)});
+  groups.push_back({ParamKind::Specular, -1, 1, 0.0f, 1.0f, floats(a.specular), slice(n, n)});
+  groups.push_back({ParamKind::Emission, -1, 3, 0.0f, INFINITY, floats(a.emission), slice(2 * n, 3 * n)});
+  for (int o = 0; o < a.objectCount(); ++o)
+    if (const int t = a.emissionTextureOf[o]; t >= 0)
+      groups.push_back({ParamKind::EmissionTexture, o, 3, 0.0f, INFINITY, floats(a.emissionTextures[t].rgb),
+                        g ? floats(g->emissionTexture[t]) : std::span<float>()});
+  return groups;
+}
+
 float& paramValue(Appearance& a, const ParamRef& p) {
-  switch (p.kind) {
-    case ParamKind::Albedo: return a.albedo.rgb[3 * p.texel + p.channel];
-    case ParamKind::Roughness: return a.roughness[p.object];
-    case ParamKind::Specular: return a.specular[p.object];
-    case ParamKind::Emission: return a.emission[p.object][p.channel];
-    case ParamKind::EmissionTexture: return a.emissionTextures[a.emissionTextureOf[p.object]].rgb[3 * p.texel + p.channel];
-  }
-  fail("bad parameter reference");
+  for (ParamGroup& g : paramGroups(a))
+    if (g.holds(p) && g.indexOf(p) < g.values.size()) return g.values[g.indexOf(p)];
+  fail("{}: no such parameter in this scene", p.label());
 }
 
 float paramValue(const Appearance& a, const ParamRef& p) { return paramValue(const_cast<Appearance&>(a), p); }
 
+float gradientValue(const Appearance& a, Gradients& grads, const ParamRef& p) {
+  for (ParamGroup& g : paramGroups(const_cast<Appearance&>(a), &grads))
+    if (g.holds(p) && g.indexOf(p) < g.grads.size()) return g.grads[g.indexOf(p)];
+  fail("{}: no such parameter in this scene", p.label());
+}
+
 void projectToDomain(Appearance& a, const ParamDomain& domain) {
-  for (float& v : a.albedo.rgb) v = std::clamp(v, 0.0f, 1.0f);
-  for (Color& c : a.albedoConstant) c = c.max(0.0f).min(1.0f);
-  for (float& r : a.roughness) r = std::clamp(r, domain.roughnessMin, 1.0f);
-  for (float& s : a.specular) s = std::clamp(s, 0.0f, 1.0f);
-  for (Color& e : a.emission) e = e.max(0.0f);
-  for (Texture& t : a.emissionTextures)
-    for (float& v : t.rgb) v = std::max(v, 0.0f);
+  for (ParamGroup& g : paramGroups(a, nullptr, domain))
+    for (float& v : g.values) v = std::clamp(v, g.lo, g.hi);
 }
 
 Gradients::Gradients(const Appearance& shape)
     : albedo(shape.albedo.rgb.size(), 0.0f),
-      objects(5 * static_cast<size_t>(shape.objectCount()), 0.0),
+      objects(5 * static_cast<size_t>(shape.objectCount()), 0.0f),
       objectCount_(shape.objectCount()),
-      emissionTextureOf_(shape.emissionTextureOf),
       objectLocal_([n = 5 * static_cast<size_t>(shape.objectCount())] { return std::vector<double>(n, 0.0); }) {
   for (const Texture& t : shape.emissionTextures) emissionTexture.emplace_back(t.rgb.size(), 0.0f);
 }
@@ -68,31 +85,18 @@ Gradients::Gradients(const Appearance& shape)
 void Gradients::clear() {
   std::fill(albedo.begin(), albedo.end(), 0.0f);
   for (auto& t : emissionTexture) std::fill(t.begin(), t.end(), 0.0f);
-  std::fill(objects.begin(), objects.end(), 0.0);
+  std::fill(objects.begin(), objects.end(), 0.0f);
   for (auto& local : objectLocal_) std::fill(local.begin(), local.end(), 0.0);
 }
 
 void Gradients::combine() {
+  std::vector<double> sum(objects.size(), 0.0);
   for (auto& local : objectLocal_) {
-    for (size_t i = 0; i < objects.size(); ++i) objects[i] += local[i];
+    for (size_t i = 0; i < sum.size(); ++i) sum[i] += local[i];
     std::fill(local.begin(), local.end(), 0.0);
   }
+  for (size_t i = 0; i < sum.size(); ++i) objects[i] += static_cast<float>(sum[i]);
 }
-
-double Gradients::value(const ParamRef& p) const {
-  switch (p.kind) {
-    case ParamKind::Albedo: return albedo[3 * p.texel + p.channel];
-    case ParamKind::Roughness: return objects[roughnessSlot(p.object)];
-    case ParamKind::Specular: return objects[specularSlot(p.object)];
-    case ParamKind::Emission: return objects[emissionSlot(p.object, p.channel)];
-    case ParamKind::EmissionTexture: return emissionTexture[emissionTextureOf_[p.object]][3 * p.texel + p.channel];
-  }
-  return 0.0;
-}
-
-}  // namespace relume
-
-namespace relume {
 
 void allocateEmissionTextures(Appearance& a, const TriangleMesh& mesh, int resolution,
                               const std::function<float(float, float)>& pattern) {

@@ -31,13 +31,16 @@ std::vector<BatchRay> raysFromCameras(const Scene& scene, const Appearance& trut
 Appearance perturbAppearance(const Appearance& a, uint64_t seed) {
   Appearance p = a;
   Pcg32 rng(seed);
-  for (float& v : p.albedo.rgb) v = 0.7f * v + 0.1f;
-  for (Color& c : p.albedoConstant) c = 0.7f * c + 0.1f;
-  for (float& r : p.roughness) r = std::clamp(r + 0.3f * (rng.next1D() - 0.5f), 0.1f, 0.95f);
-  for (float& s : p.specular) s = std::clamp(s + 0.4f * (rng.next1D() - 0.5f), 0.05f, 0.95f);
-  for (Color& e : p.emission) e *= 0.8f;
-  for (Texture& t : p.emissionTextures)
-    for (float& v : t.rgb) v *= 0.8f;
+  for (ParamGroup& g : paramGroups(p)) {
+    if (!std::isfinite(g.hi)) {  // unbounded (emission): a relative change
+      for (float& v : g.values) v *= 0.8f;
+    } else if (g.textured()) {  // towards the middle of the domain, keeping the texture's pattern
+      for (float& v : g.values) v = g.lo + 0.7f * (v - g.lo) + 0.1f * (g.hi - g.lo);
+    } else {  // per-object scalars: a random move, kept off the domain's edges
+      const float w = g.hi - g.lo;
+      for (float& v : g.values) v = std::clamp(v + 0.35f * w * (rng.next1D() - 0.5f), g.lo + 0.1f * w, g.hi - 0.05f * w);
+    }
+  }
   return p;
 }
 

@@ -17,24 +17,13 @@
 #include "io/json.h"
 #include "scene/scene.h"
 #include "scene/texel_map.h"
+#include "sampling/median_sketch.h"
+#include "sampling/visibility.h"
 
 namespace relume {
 namespace fs = std::filesystem;
 
 namespace {
-
-// Where a camera sees surface point p (normal n, winding side): in the image, facing, unoccluded.
-std::optional<Vec2> observe(const Scene& scene, const Camera& cam, const Vec3& p, const Vec3& n) {
-  const Vec3 toCam = cam.position - p;
-  if (n.dot(toCam) <= 0.0f) return std::nullopt;
-  const auto px = cam.project(p);
-  if (!px || px->x() < 0.5f || px->y() < 0.5f || px->x() > cam.width - 0.5f || px->y() > cam.height - 0.5f) return std::nullopt;
-  const float dist = toCam.norm();
-  const Vec3 dir = toCam / dist;
-  const Vec3 o = p + rayEpsilon(p) * n;
-  if (scene.occluded(o, dir, dist - 2 * rayEpsilon(cam.position))) return std::nullopt;
-  return px;
-}
 
 std::string fingerprintOf(const std::vector<fs::path>& files, const std::string& extra) {
   uint64_t h = std::hash<std::string>{}(extra);
@@ -53,82 +42,6 @@ fs::path findMesh(const fs::path& capture) {
   fail("{}: no mesh.ply or mesh.obj in the capture folder", capture.string());
 }
 
-// Streaming median in O(1) memory per texel: a coarse log histogram locates the median's bin,
-// a second pass over the observations refines it with sub-bins inside that bin.
-class MedianSketch {
- public:
-  static constexpr int kBins = 16, kSub = 32;
-  static constexpr float kLogMin = -4.0f, kLogMax = 4.0f;
-  explicit MedianSketch(size_t texels) : coarse_(texels * 3 * kBins, 0), count_(texels, 0) {}
-  static int binOfLog(float l) { return std::clamp(static_cast<int>((l - kLogMin) / width()), 0, kBins - 1); }
-  void addCoarse(size_t t, const Color& c) {
-    for (int ch = 0; ch < 3; ++ch) {
-      uint16_t& b = coarse_[(t * 3 + ch) * kBins + binOfLog(std::log10(std::max(c[ch], 1e-12f)))];
-      b = static_cast<uint16_t>(std::min(65535, b + 1));
-    }
-    count_[t] = std::min<uint32_t>(count_[t] + 1, 65535);
-  }
-  // After the coarse pass: pick each channel's median bin, reset storage for the fine pass.
-  void startFine() {
-    target_.assign(count_.size() * 3, 0);
-    below_.assign(count_.size() * 3, 0);
-    binIndex_.assign(count_.size() * 3, 0);
-    for (size_t t = 0; t < count_.size(); ++t)
-      for (int ch = 0; ch < 3; ++ch) {
-        const size_t k = t * 3 + ch;
-        const uint32_t half = (count_[t] + 1) / 2;
-        uint32_t cum = 0;
-        int b = 0;
-        for (; b < kBins; ++b) {
-          if (cum + coarse_[k * kBins + b] >= half) break;
-          cum += coarse_[k * kBins + b];
-        }
-        binIndex_[k] = static_cast<uint8_t>(std::min(b, kBins - 1));
-        below_[k] = cum;
-        target_[k] = half;
-      }
-    coarse_.assign(count_.size() * 3 * kSub, 0);  // reused as the fine histogram
-  }
-  void addFine(size_t t, const Color& c) {
-    for (int ch = 0; ch < 3; ++ch) {
-      const size_t k = t * 3 + ch;
-      const float lo = kLogMin + binIndex_[k] * width();
-      const float l = std::log10(std::max(c[ch], 1e-12f));
-      if (binIndex_[k] != binOfLog(l)) continue;
-      const int s = std::clamp(static_cast<int>((l - lo) / (width() / kSub)), 0, kSub - 1);
-      uint16_t& b = coarse_[k * kSub + s];
-      b = static_cast<uint16_t>(std::min(65535, b + 1));
-    }
-  }
-  uint32_t count(size_t t) const { return count_[t]; }
-  Color median(size_t t) const {
-    Color out;
-    for (int ch = 0; ch < 3; ++ch) {
-      const size_t k = t * 3 + ch;
-      uint32_t cum = below_[k];
-      const float lo = kLogMin + binIndex_[k] * width(), sub = width() / kSub;
-      float l = lo + width();
-      for (int s = 0; s < kSub; ++s) {
-        const uint16_t n = coarse_[k * kSub + s];
-        if (n > 0 && cum + n >= target_[k]) {
-          l = lo + sub * (s + (static_cast<float>(target_[k] - cum) - 0.5f) / n);  // interpolate inside the sub-bin
-          break;
-        }
-        cum += n;
-      }
-      out[ch] = l <= kLogMin + 1e-3f ? 0.0f : std::pow(10.0f, l);
-    }
-    return out;
-  }
-
- private:
-  static constexpr float width() { return (kLogMax - kLogMin) / kBins; }
-  std::vector<uint16_t> coarse_;
-  std::vector<uint32_t> count_;
-  std::vector<uint32_t> target_, below_;
-  std::vector<uint8_t> binIndex_;
-};
-
 Image falseColour(const std::vector<uint32_t>& counts, int res) {
   uint32_t maxCount = 1;
   for (uint32_t c : counts) maxCount = std::max(maxCount, c);
@@ -144,76 +57,6 @@ Image falseColour(const std::vector<uint32_t>& counts, int res) {
 }
 
 }  // namespace
-
-VisibilityIndex buildVisibilityIndex(const Scene& scene, const TexelMap& map, const std::vector<Frame>& frames,
-                                     const std::vector<size_t>& use, int tileTexels, int samplesPerTile) {
-  const TriangleMesh& mesh = scene.mesh();
-  const int res = map.resolution();
-  VisibilityIndex vis;
-  vis.resolution = res, vis.tileTexels = tileTexels, vis.tilesPerSide = res / tileTexels;
-  const size_t tiles = static_cast<size_t>(vis.tilesPerSide) * vis.tilesPerSide;
-  std::vector<std::vector<uint32_t>> perTile(tiles);
-  Progress progress("visibility", tiles);
-  tbb::parallel_for(size_t{0}, tiles, [&](size_t tile) {
-    const int tx = static_cast<int>(tile % vis.tilesPerSide), ty = static_cast<int>(tile / vis.tilesPerSide);
-    std::vector<size_t> texels;
-    for (int y = ty * tileTexels; y < (ty + 1) * tileTexels; ++y)
-      for (int x = tx * tileTexels; x < (tx + 1) * tileTexels; ++x)
-        if (map.valid(static_cast<size_t>(y) * res + x)) texels.push_back(static_cast<size_t>(y) * res + x);
-    if (!texels.empty()) {
-      // Evenly spread test points over the tile's valid texels (deterministic).
-      std::vector<std::pair<Vec3, Vec3>> samples;
-      const int n = std::min<int>(samplesPerTile, static_cast<int>(texels.size()));
-      for (int s = 0; s < n; ++s) {
-        const size_t texel = texels[(texels.size() * (2 * s + 1)) / (2 * n)];
-        samples.push_back({map.point(mesh, texel), mesh.faceNormal(map.triangle(texel))});
-      }
-      for (size_t k : use)
-        for (const auto& [p, nrm] : samples)
-          if (observe(scene, frames[k].camera, p, nrm)) {
-            perTile[tile].push_back(static_cast<uint32_t>(k));
-            break;
-          }
-    }
-    progress.advance();
-  });
-  vis.offsets.push_back(0);
-  for (const auto& f : perTile) {
-    vis.frames.insert(vis.frames.end(), f.begin(), f.end());
-    vis.offsets.push_back(static_cast<uint32_t>(vis.frames.size()));
-  }
-  return vis;
-}
-
-void VisibilityIndex::write(const fs::path& path) const {
-  std::string bytes = "RLMVIS01";
-  auto put = [&](const void* p, size_t n) { bytes.append(static_cast<const char*>(p), n); };
-  const uint32_t header[4] = {static_cast<uint32_t>(resolution), static_cast<uint32_t>(tileTexels),
-                              static_cast<uint32_t>(tilesPerSide), static_cast<uint32_t>(frames.size())};
-  put(header, sizeof(header));
-  put(offsets.data(), offsets.size() * sizeof(uint32_t));
-  put(frames.data(), frames.size() * sizeof(uint32_t));
-  writeTextAtomically(path, bytes);
-}
-
-VisibilityIndex VisibilityIndex::read(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (bytes.size() < 24 || bytes.compare(0, 8, "RLMVIS01") != 0) fail("{}: not a relume visibility index", path.string());
-  uint32_t header[4];
-  std::memcpy(header, bytes.data() + 8, sizeof(header));
-  VisibilityIndex v;
-  v.resolution = static_cast<int>(header[0]), v.tileTexels = static_cast<int>(header[1]), v.tilesPerSide = static_cast<int>(header[2]);
-  const size_t tiles = static_cast<size_t>(v.tilesPerSide) * v.tilesPerSide;
-  if (v.tilesPerSide <= 0 || v.tilesPerSide > 65536 || bytes.size() != 24 + (tiles + 1 + header[3]) * sizeof(uint32_t))
-    fail("{}: visibility index is truncated or corrupt", path.string());
-  v.offsets.resize(tiles + 1);
-  v.frames.resize(header[3]);
-  std::memcpy(v.offsets.data(), bytes.data() + 24, v.offsets.size() * sizeof(uint32_t));
-  std::memcpy(v.frames.data(), bytes.data() + 24 + v.offsets.size() * sizeof(uint32_t), v.frames.size() * sizeof(uint32_t));
-  if (v.offsets.back() != v.frames.size()) fail("{}: visibility index offsets are inconsistent", path.string());
-  return v;
-}
 
 PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, const PrepareOptions& o) {
   Timer total;

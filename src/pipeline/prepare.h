@@ -15,6 +15,7 @@
 #include "scene/atlas.h"
 #include "scene/scene.h"
 #include "scene/texel_map.h"
+#include "sampling/visibility.h"
 
 namespace relume {
 
@@ -44,20 +45,5 @@ struct PrepareSummary {
 PrepareSummary prepareCapture(const std::filesystem::path& capture, const std::filesystem::path& work,
                               const PrepareOptions& options);
 
-// Visibility index (CSR): frames that can see each tile.
-struct VisibilityIndex {
-  int resolution = 0, tileTexels = 0, tilesPerSide = 0;
-  std::vector<uint32_t> offsets;  // tiles + 1
-  std::vector<uint32_t> frames;
-  void write(const std::filesystem::path& path) const;
-  static VisibilityIndex read(const std::filesystem::path& path);
-  size_t bytes() const { return (offsets.size() + frames.size()) * sizeof(uint32_t); }
-};
-
 }  // namespace relume
 
-namespace relume {
-// Frames (of `use`) that see each tile of `map`: frustum, facing, one occlusion ray per test point.
-VisibilityIndex buildVisibilityIndex(const Scene& scene, const TexelMap& map, const std::vector<Frame>& frames,
-                                     const std::vector<size_t>& use, int tileTexels, int samplesPerTile);
-}  // namespace relume

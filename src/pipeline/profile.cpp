@@ -133,8 +133,8 @@ std::vector<PairingStat> studyPairings(const SceneDescription& desc, const Appea
       g.clear();
       computeGradients(scene, current, lights, rays, s, firstIteration + b, g);
       for (size_t i = 0; i < params.size(); ++i) {
-        mean[i] += g.value(params[i]) / n;
-        if (samples) (*samples)[i].push_back(g.value(params[i]));
+        mean[i] += gradientValue(current, g, params[i]) / n;
+        if (samples) (*samples)[i].push_back(gradientValue(current, g, params[i]));
       }
     }
     return std::pair{mean, t.seconds() / n};

@@ -7,14 +7,19 @@ using namespace relume;
 
 TEST(Loss, OneSidedAtClipThresholds) {
   ClipThresholds clip{0.01f, 1.0f};
-  // Saturated reference, estimate above the clip: no penalty; below: pulled up.
+  // Saturated reference: an estimate above vmax is not penalised; below, the residual is measured
+  // from vmax (not from the unknown true value), so the loss is continuous at vmax.
   EXPECT_EQ(rayLoss(Color::Constant(1.5f), Color::Constant(1.2f), clip), 0.0f);
-  EXPECT_GT(rayLoss(Color::Constant(0.5f), Color::Constant(1.2f), clip), 0.0f);
-  EXPECT_LT(rayLossGradient(Color::Constant(0.5f), Color::Constant(1.2f), clip, 1.0f)[0], 0.0f);
-  // Dark reference below vmin: an estimate also below is not penalised.
+  EXPECT_FLOAT_EQ(rayLoss(Color::Constant(0.5f), Color::Constant(1.2f), clip), 3 * 0.25f);
+  EXPECT_LT(rayLoss(Color::Constant(0.9999f), Color::Constant(1.2f), clip), 1e-6f);
+  EXPECT_LT(rayLossDelta(Color::Constant(0.5f), Color::Constant(1.2f), clip, 1.0f)[0], 0.0f);
+  EXPECT_EQ(lossResidualSlope(Color::Constant(1.5f), Color::Constant(1.2f), clip)[0], 0.0f);
+  EXPECT_EQ(lossResidualSlope(Color::Constant(0.5f), Color::Constant(1.2f), clip)[0], 1.0f);
+  // Dark reference below vmin: an estimate also below is not penalised, one above from vmin.
   EXPECT_EQ(rayLoss(Color::Constant(0.005f), Color::Constant(0.0f), clip), 0.0f);
+  EXPECT_FLOAT_EQ(rayLoss(Color(0.31f, 0.01f, 0.01f), Color::Constant(0.0f), clip), 0.09f);
   EXPECT_FLOAT_EQ(rayLoss(Color(0.3f, 0.3f, 0.3f), Color(0.1f, 0.3f, 0.5f), {}), 0.08f);
-  EXPECT_TRUE(rayLossGradient(Color(0.3f, 0.3f, 0.3f), Color(0.1f, 0.3f, 0.5f), {}, 0.5f).isApprox(Color(0.2f, 0.0f, -0.2f)));
+  EXPECT_TRUE(rayLossDelta(Color(0.3f, 0.3f, 0.3f), Color(0.1f, 0.3f, 0.5f), {}, 0.5f).isApprox(Color(0.2f, 0.0f, -0.2f)));
 }
 
 namespace {
@@ -50,8 +55,8 @@ TEST_F(AdjointPassTest, TinyDeltasAreNotDroppedAndGradientIsLinear) {
 }
 
 TEST_F(AdjointPassTest, FrozenGroupsGetNoGradient) {
-  s.mask.roughness = false;
-  s.mask.albedo = false;
+  s.mask.set(ParamKind::Roughness, false);
+  s.mask.set(ParamKind::Albedo, false);
   Gradients g(e.current);
   computeGradients(scene, e.current, lights, e.rays, s, 0, g);
   for (int obj = 0; obj < e.current.objectCount(); ++obj) EXPECT_EQ(g.objects[g.roughnessSlot(obj)], 0.0);

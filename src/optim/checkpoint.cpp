@@ -1,0 +1,79 @@
+#include "optim/checkpoint.h"
+
+#include <fstream>
+
+#include "core/error.h"
+#include "io/atomic_file.h"
+
+namespace relume {
+
+namespace {
+constexpr char kMagic[8] = {'R', 'L', 'M', 'C', 'K', 'P', '0', '1'};
+}
+
+size_t Checkpoint::bytes(const std::string& name) const {
+  const auto it = arrays_.find(name);
+  return it == arrays_.end() ? 0 : it->second.size();
+}
+
+void Checkpoint::copyOut(const std::string& name, void* out, size_t bytes) const {
+  const auto it = arrays_.find(name);
+  if (it == arrays_.end()) fail("{}: checkpoint has no array '{}'", source_.string(), name);
+  if (it->second.size() != bytes)
+    fail("{}: checkpoint array '{}' has {} bytes, expected {} (was it written for another work folder?)", source_.string(),
+         name, it->second.size(), bytes);
+  if (bytes) std::memcpy(out, it->second.data(), bytes);
+}
+
+void Checkpoint::write(const std::filesystem::path& path) const {
+  writeAtomically(path, [&](const std::filesystem::path& tmp) {
+    std::ofstream out(tmp, std::ios::binary);
+    Json header = meta;
+    Json index = Json::array();
+    for (const auto& [name, data] : arrays_) index.push_back({name, data.size()});
+    const std::string text = Json{{"meta", header}, {"arrays", index}}.dump();
+    const uint64_t length = text.size();
+    out.write(kMagic, sizeof(kMagic));
+    out.write(reinterpret_cast<const char*>(&length), sizeof(length));
+    out.write(text.data(), static_cast<std::streamsize>(text.size()));
+    for (const auto& [name, data] : arrays_) out.write(data.data(), static_cast<std::streamsize>(data.size()));
+    if (!out) fail("{}: could not write the checkpoint", path.string());
+  });
+}
+
+Checkpoint Checkpoint::read(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail("{}: cannot open checkpoint", path.string());
+  in.seekg(0, std::ios::end);
+  const uint64_t size = static_cast<uint64_t>(in.tellg());
+  in.seekg(0);
+  char magic[8] = {};
+  uint64_t length = 0;
+  in.read(magic, sizeof(magic));
+  in.read(reinterpret_cast<char*>(&length), sizeof(length));
+  if (!in || std::memcmp(magic, kMagic, sizeof(kMagic)) != 0) fail("{}: not a relume checkpoint", path.string());
+  if (length > size - 16) fail("{}: checkpoint header is truncated", path.string());
+  std::string text(length, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(length));
+  Checkpoint c;
+  c.source_ = path;
+  const Json j = withJsonErrors(path, [&] { return Json::parse(text); });
+  uint64_t offset = 16 + length;
+  withJsonErrors(path, [&] {
+    c.meta = j.at("meta");
+    for (const Json& entry : j.at("arrays")) {
+      const std::string name = entry.at(0).get<std::string>();
+      const uint64_t n = entry.at(1).get<uint64_t>();
+      if (n > size - offset) fail("{}: checkpoint array '{}' is truncated", path.string(), name);
+      std::vector<char>& b = c.arrays_[name];
+      b.resize(n);
+      in.read(b.data(), static_cast<std::streamsize>(n));
+      offset += n;
+    }
+    return 0;
+  });
+  if (!in || offset != size) fail("{}: checkpoint is truncated or has trailing bytes", path.string());
+  return c;
+}
+
+}  // namespace relume

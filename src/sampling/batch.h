@@ -1,0 +1,23 @@
+// One training ray: a camera ray towards a surface point with the reference radiance the frame
+// recorded there. Both samplers (texture space, image space) produce these; the loss and the
+// adjoint solver consume them.
+#pragma once
+#include <limits>
+
+#include "core/math.h"
+
+namespace relume {
+
+struct ClipThresholds {
+  float low = 0.0f;                                       // vmin: at or below, the reference is noise
+  float high = std::numeric_limits<float>::infinity();    // vmax: at or above, it is saturated
+};
+
+struct BatchRay {
+  Vec3 origin, dir;
+  Color reference;
+  ClipThresholds clip;
+  float weight = 1.0f;  // optional per-ray Jacobian weight (ablation); 1 = omitted, as in the paper
+};
+
+}  // namespace relume

@@ -11,48 +11,17 @@
 #include "core/error.h"
 #include "core/system.h"
 #include "adjoint/gradcheck.h"
+#include "pipeline/demo.h"
 #include "pipeline/experiment.h"
+#include "pipeline/fit.h"
 #include "pipeline/prepare.h"
 #include "pipeline/profile.h"
+#include "pipeline/render_views.h"
 #include "pipeline/synth.h"
 #include "render/film.h"
 
 namespace relume {
 namespace {
-
-struct RenderArgs {
-  std::string scene, cameras, out, aovs;
-  int spp = 64, maxDepth = 8;
-  uint64_t seed = 0;
-  bool roulette = false;
-};
-
-RenderStats runRender(const RenderArgs& a) {
-  const SceneDescription desc = loadSceneFile(a.scene);
-  const Capture cap = readTransforms(a.cameras);
-  Scene scene(desc.mesh);
-  LightSampler lights(scene, desc.appearance);
-  if (lights.empty()) spdlog::warn("{}: no emitters; images will be black", a.scene);
-  RenderOptions ro;
-  ro.spp = a.spp;
-  ro.seed = a.seed;
-  ro.path.maxDepth = a.maxDepth;
-  ro.path.russianRoulette = a.roulette;
-  ro.aovs = parseAovs(a.aovs);
-  const std::filesystem::path out(a.out);
-  RenderStats total;
-  for (size_t i = 0; i < cap.frames.size(); ++i) {
-    const RenderResult r = renderImage(scene, desc.appearance, lights, cap.frames[i].camera, ro);
-    const std::string stem = cap.frames[i].image.stem().string();
-    writeExr(out / (stem + ".exr"), r.color);
-    writePng(out / (stem + ".png"), r.color);
-    for (size_t k = 0; k < r.aovs.size(); ++k) writeExr(out / fmt::format("{}_{}.exr", stem, aovName(ro.aovs[k])), r.aovs[k]);
-    total.seconds += r.stats.seconds, total.paths += r.stats.paths, total.rays += r.stats.rays;
-  }
-  spdlog::info("rendered {} views to {} in {:.1f}s: {:.3f} Mpaths/s, {:.2f} Mrays/s", cap.frames.size(), out.string(),
-               total.seconds, total.paths / total.seconds * 1e-6, total.rays / total.seconds * 1e-6);
-  return total;
-}
 
 struct GradcheckArgs {
   std::string scene, cameras, synth = "room", param = "all", gradients = "direct", emitters = "strict",
@@ -266,6 +235,26 @@ void registerProfile(CLI::App& app, CommandTable& table) {
   table[c] = [=] { return runProfile(*a); };
 }
 
+void registerFit(CLI::App& app, CommandTable& table) {
+  auto work = std::make_shared<std::string>();
+  auto config = std::make_shared<std::string>();
+  auto resume = std::make_shared<bool>(false);
+  auto maxRes = std::make_shared<int>(0);
+  CLI::App* c = app.add_subcommand("fit", "reconstruct albedo, roughness, specular and emission from a prepared work folder");
+  c->add_option("work", *work, "work folder written by `relume prepare`")->required()->check(CLI::ExistingDirectory);
+  c->add_option("--config", *config, "fit config JSON (every key in the README)")->check(CLI::ExistingFile);
+  c->add_option("--res", *maxRes, "cap on the final albedo resolution (default: what the frames resolve)")->check(CLI::NonNegativeNumber);
+  c->add_flag("--resume", *resume, "continue from WORK/checkpoint.bin");
+  table[c] = [=] {
+    FitConfig cfg = config->empty() ? FitConfig{} : FitConfig::load(*config);
+    if (*maxRes > 0) cfg.maxResolution = *maxRes;
+    const FitSummary s = runFit(*work, cfg, *resume);
+    spdlog::info("fit: {} iterations in {:.0f}s, albedo {}^2, {} light source(s), result in {}", s.iterations, s.seconds,
+                 s.finalResolution, s.emitters.size(), s.resultDir.string());
+    return 0;
+  };
+}
+
 void registerGradcheck(CLI::App& app, CommandTable& table) {
   auto a = std::make_shared<GradcheckArgs>();
   CLI::App* c = app.add_subcommand("gradcheck", "adjoint gradients vs central finite differences (common random numbers)");
@@ -287,35 +276,6 @@ void registerGradcheck(CLI::App& app, CommandTable& table) {
   c->add_option("--clip-high", a->clipHigh, "reference saturation threshold (one-sided loss)");
   c->add_flag("--russian-roulette", a->roulette);
   table[c] = [=] { return runGradcheck(*a); };
-}
-
-// A one-page summary with pictures and numbers, for a newcomer to open after `relume demo`.
-void writeDemoReport(const std::filesystem::path& out, const PrepareSummary& ps, const RenderStats& rs, double seconds) {
-  const Json prep = readJson(out / "work" / "prepare.json");
-  const Json& atlas = prep["phases"]["atlas"];
-  std::string md = "# relume demo\n\n";
-  md += fmt::format("Synthetic room ({} triangles, {} objects), {} training frames; finished in {:.0f} s, peak RSS {:.0f} MiB.\n\n",
-                    ps.triangles, atlas.value("objects", 0), ps.frames, seconds, peakRssMiB());
-  md += "## Texture space (`relume prepare`)\n\n| quantity | value |\n| --- | --- |\n";
-  md += fmt::format("| uv charts | {} ({} least-squares conformal) |\n", atlas.value("charts", 0), atlas.value("lscm_charts", 0));
-  md += fmt::format("| packing efficiency | {:.3f} |\n", atlas.value("packing_efficiency", 0.0));
-  md += fmt::format("| frames kept | {} of {} |\n", ps.keptFrames, ps.frames);
-  md += fmt::format("| texels never observed | {:.1f}% |\n", 100 * ps.fractionUnobserved);
-  for (const char* phase : {"atlas", "frames", "visibility", "init"})
-    md += fmt::format("| {} phase | {:.2f} s |\n", phase, prep["phases"][phase].value("seconds", 0.0));
-  md += "\nInitial albedo (per-texel median of observed radiance) and coverage (black: never seen, red: most):\n\n";
-  md += "![albedo_init](work/albedo_init.png) ![coverage](work/coverage.png)\n\n";
-  md += "## Novel views of the ground truth (`relume render`)\n\n";
-  md += fmt::format("{:.3f} Mpaths/s, {:.2f} Mrays/s on {} threads.\n\n", rs.paths / rs.seconds * 1e-6,
-                    rs.rays / rs.seconds * 1e-6, threadCount());
-  std::vector<std::string> views;
-  for (const auto& entry : std::filesystem::directory_iterator(out / "novel_views"))
-    if (entry.path().extension() == ".png") views.push_back(entry.path().filename().string());
-  std::sort(views.begin(), views.end());
-  for (const std::string& name : views) md += fmt::format("![{}](novel_views/{}) ", name, name);
-  md += "\n\n## Next\n\n- `relume gradcheck --synth room`: adjoint gradients against finite differences\n"
-        "- `relume profile --what render,adjoint`: speed by phase\n";
-  writeTextAtomically(out / "report.md", md);
 }
 
 }  // namespace
@@ -349,55 +309,43 @@ CommandTable registerCommands(CLI::App& app) {
     return 0;
   };
 
-  auto renderArgs = std::make_shared<RenderArgs>();
+  auto renderArgs = std::make_shared<RenderViewsOptions>();
+  renderArgs->render.spp = 64;
+  auto renderPaths = std::make_shared<std::array<std::string, 3>>();
   CLI::App* render = app.add_subcommand("render", "render a scene.json from the cameras of a transforms.json");
-  render->add_option("--scene", renderArgs->scene, "scene.json")->required()->check(CLI::ExistingFile);
-  render->add_option("--cameras", renderArgs->cameras, "transforms.json")->required()->check(CLI::ExistingFile);
-  render->add_option("--out", renderArgs->out, "output folder")->required();
-  render->add_option("--spp", renderArgs->spp)->capture_default_str();
-  render->add_option("--max-depth", renderArgs->maxDepth)->capture_default_str();
-  render->add_option("--seed", renderArgs->seed)->capture_default_str();
-  render->add_flag("--russian-roulette", renderArgs->roulette);
+  render->add_option("--scene", (*renderPaths)[0], "scene.json")->required()->check(CLI::ExistingFile);
+  render->add_option("--cameras", (*renderPaths)[1], "transforms.json")->required()->check(CLI::ExistingFile);
+  render->add_option("--out", (*renderPaths)[2], "output folder")->required();
+  render->add_option("--spp", renderArgs->render.spp)->capture_default_str()->check(CLI::Range(1, 1 << 20));
+  render->add_option("--max-depth", renderArgs->render.path.maxDepth)->capture_default_str()->check(CLI::Range(0, 1024));
+  render->add_option("--seed", renderArgs->render.seed)->capture_default_str();
+  render->add_flag("--russian-roulette", renderArgs->render.path.russianRoulette);
   render->add_option("--aov", renderArgs->aovs, "comma list of albedo,normal,depth,object");
   table[render] = [=] {
-    runRender(*renderArgs);
+    renderViews((*renderPaths)[0], (*renderPaths)[1], (*renderPaths)[2], *renderArgs);
     return 0;
   };
 
+  auto demo = std::make_shared<DemoOptions>();
   auto demoOut = std::make_shared<std::string>("out/demo");
-  CLI::App* demo = app.add_subcommand("demo", "end to end on the built-in synthetic room");
-  demo->add_option("--out", *demoOut, "output folder")->capture_default_str();
-  table[demo] = [=] {
-    const std::filesystem::path out(*demoOut);
-    Timer t;
-    SynthCaptureOptions o;
-    o.out = out / "capture";
-    writeSynthCapture(o);
-    PrepareOptions po;
-    po.resolutions = {1024, 2048};
-    const PrepareSummary ps = prepareCapture(o.out, out / "work", po);
-    RenderArgs r;
-    r.scene = (out / "capture" / "gt" / "scene.json").string();
-    r.cameras = (out / "capture" / "transforms_test.json").string();
-    r.out = (out / "novel_views").string();
-    r.aovs = "albedo,normal,depth,object";
-    r.spp = 32;
-    const RenderStats rs = runRender(r);
-    writeDemoReport(out, ps, rs, t.seconds());
-    spdlog::info("demo finished in {:.0f}s", t.seconds());
-    spdlog::info("report:                     {}", (out / "report.md").string());
-    spdlog::info("capture (input format):     {}", o.out.string());
-    spdlog::info("ground truth scene:         {}", r.scene);
-    spdlog::info("texture space (prepare):    {}  ({} frames kept of {}, {:.1f}% of texels never observed;",
-                 (out / "work").string(), ps.keptFrames, ps.frames, 100 * ps.fractionUnobserved);
-    spdlog::info("                            see albedo_init.png, coverage.png, prepare.json)");
-    spdlog::info("novel views + AOVs:         {}", r.out);
-    spdlog::info("next: relume gradcheck --synth room   (adjoint gradients vs finite differences)");
-    spdlog::info("      relume profile --what render,adjoint");
+  CLI::App* demoCmd = app.add_subcommand("demo", "end to end on the built-in synthetic room: synth, prepare, fit, evaluate");
+  demoCmd->add_option("--out", *demoOut, "output folder")->capture_default_str();
+  table[demoCmd] = [=] {
+    demo->out = *demoOut;
+    const Json s = runDemo(*demo);
+    fmt::print("\nrelume demo: fit {:.0f} s ({} iterations), albedo MAE {:.4f} (PSNR {:.1f} dB), roughness MAE {:.3f}, "
+               "specular MAE {:.3f}, emitters {}/{} found, emission error {:.1f}%, test views PSNR {:.1f} dB\n",
+               s["fit_seconds"].get<double>(), s["fit_iterations"].get<int>(), s["albedo_mae"].get<double>(),
+               s["albedo_psnr"].get<double>(), s["roughness_mae"].get<double>(), s["specular_mae"].get<double>(),
+               s["emitters_found"].get<int>(), s["emitters_true"].get<int>(), 100 * s["emission_rel_error"].get<double>(),
+               s["test_psnr"].get<double>());
+    spdlog::info("report: {}   summary: {}   result: {}", (demo->out / "report.md").string(),
+                 (demo->out / "summary.json").string(), (demo->out / "work" / "result").string());
     return 0;
   };
   registerProfile(app, table);
   registerPrepare(app, table);
+  registerFit(app, table);
   registerGradcheck(app, table);
   return table;
 }

@@ -49,16 +49,26 @@ void Progress::advance(size_t n) {
   if (now - last >= 200 && lastDrawMs_.compare_exchange_strong(last, now)) draw(false);
 }
 
+void Progress::note(std::string text) {
+  std::lock_guard lock(noteMutex_);
+  note_ = std::move(text);
+}
+
 void Progress::draw(bool final) {
   static std::mutex m;
   std::lock_guard lock(m);
+  std::string note;
+  {
+    std::lock_guard noteLock(noteMutex_);
+    note = note_.empty() ? "" : "  " + note_;
+  }
   const double frac = std::min(1.0, static_cast<double>(done_) / static_cast<double>(total_));
   const double elapsed = timer_.seconds();
   const double eta = frac > 0 ? elapsed * (1.0 - frac) / frac : 0.0;
   const int width = 30, filled = static_cast<int>(frac * width);
-  std::fprintf(stderr, "\r%-18s [%s%s] %5.1f%% %6.1fs ETA %5.1fs%s", label_.c_str(),
+  std::fprintf(stderr, "\r%-18s [%s%s] %5.1f%% %6.1fs ETA %5.1fs%s\033[K%s", label_.c_str(),
                std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(), 100.0 * frac,
-               elapsed, eta, final ? "\n" : "");
+               elapsed, eta, note.c_str(), final ? "\n" : "");
   std::fflush(stderr);
 }
 

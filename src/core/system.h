@@ -3,6 +3,7 @@
 #include <tbb/global_control.h>
 
 #include <atomic>
+#include <mutex>
 #include <chrono>
 #include <cstddef>
 #include <memory>
@@ -34,10 +35,12 @@ class Progress {
   Progress(std::string label, size_t total);
   ~Progress();
   void advance(size_t n = 1);
+  void note(std::string text);  // shown after the bar (e.g. loss, rays/s)
 
  private:
   void draw(bool final);
-  std::string label_;
+  std::string label_, note_;
+  std::mutex noteMutex_;
   size_t total_;
   std::atomic<size_t> done_{0};
   std::atomic<long> lastDrawMs_{-1000};

@@ -2,6 +2,8 @@
 
 #include <tbb/parallel_for.h>
 
+#include "sampling/samplers.h"
+
 namespace relume {
 
 std::vector<BatchRay> raysFromCameras(const Scene& scene, const Appearance& truth, const std::vector<Camera>& cameras,
@@ -16,7 +18,7 @@ std::vector<BatchRay> raysFromCameras(const Scene& scene, const Appearance& trut
     const Camera& cam = cameras[rng.nextU32() % cameras.size()];
     BatchRay& r = rays[j];
     r.origin = cam.position;
-    r.dir = cam.rayDirection(Vec2(rng.next1D() * cam.width, rng.next1D() * cam.height)).value_or(cam.rotation.col(2));
+    r.dir = randomPixelRay(cam, rng).value_or(std::pair{Vec2::Zero().eval(), Vec3(cam.rotation.col(2))}).second;
     Color sum = Color::Zero();
     for (int s = 0; s < o.referenceSpp; ++s) {
       Pcg32 pr(hashTuple({o.seed, static_cast<uint64_t>(j), static_cast<uint64_t>(s), 0x7265}));

@@ -108,7 +108,7 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
     return Json{{"triangles", atlas.triangles.size()}, {"objects", atlas.objectCount}, {"dropped_degenerate", mesh.droppedDegenerate},
                 {"kept_input_uv", ar.keptInputUv}, {"charts", ar.charts}, {"lscm_charts", ar.lscmCharts},
                 {"split_charts", ar.splitCharts}, {"packing_efficiency", ar.packingEfficiency},
-                {"texels_per_metre", ar.texelsPerMetre}, {"stretch_p05_median_p95", {ar.stretchP05, ar.stretchMedian, ar.stretchP95}},
+                {"texels_per_metre", ar.texelsPerMetre}, {"gutter_resolution", o.atlas.gutterResolution}, {"stretch_p05_median_p95", {ar.stretchP05, ar.stretchMedian, ar.stretchP95}},
                 {"object_names", names}};
   });
   const TriangleMesh mesh = loadMesh(work / "atlas_mesh.ply");
@@ -290,6 +290,7 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   s.triangles = mesh.triangles.size();
   s.fractionUnobserved = phases["init"].value("fraction_unobserved", 0.0);
   s.seconds = total.seconds();
+  report["capture"] = fs::absolute(capture).string();
   report["resolutions"] = o.resolutions;
   report["texel_map_bytes_per_texel"] = sizeof(uint32_t);
   report["peak_rss_mib"] = peakRssMiB();

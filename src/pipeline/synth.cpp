@@ -1,5 +1,7 @@
 #include "pipeline/synth.h"
 
+#include "io/json.h"
+
 #include <spdlog/spdlog.h>
 
 #include "core/error.h"
@@ -351,6 +353,9 @@ int writeSynthCapture(const SynthCaptureOptions& o) {
   MeshData capMesh = gt.mesh.toData();
   if (!o.withUv) capMesh.uvs.clear();
   writePly(o.out / "mesh.ply", capMesh);
+  Json objects = Json::array();  // the segmentation's names, as a capture would carry them
+  for (int id = 0; id < gt.appearance.objectCount(); ++id) objects.push_back({{"id", id}, {"name", gt.appearance.names[id]}});
+  writeJson(o.out / "objects.json", Json{{"objects", objects}});
 
   Scene scene(gt.mesh);
   LightSampler lights(scene, gt.appearance);

@@ -1,0 +1,21 @@
+// `relume demo`: the whole pipeline on the built-in synthetic room, with known ground truth:
+// synth -> prepare -> fit -> re-render the held-out views -> compare with the truth. Writes
+// OUT/summary.json and OUT/report.md (pictures and numbers).
+#pragma once
+#include <filesystem>
+
+#include "io/json.h"
+#include "pipeline/fit.h"
+
+namespace relume {
+
+struct DemoOptions {
+  std::filesystem::path out = "out/demo";
+  FitConfig fit = demoFitConfig();
+  int testSpp = 32;
+  static FitConfig demoFitConfig();  // reduced settings: the demo fits in a few minutes on 2 cores
+};
+
+Json runDemo(const DemoOptions& options);
+
+}  // namespace relume

@@ -1,0 +1,748 @@
+#include "pipeline/fit.h"
+
+#include <spdlog/spdlog.h>
+
+#include <fstream>
+#include <numeric>
+#include <set>
+#include <variant>
+
+#include "capture/frame_store.h"
+#include "core/error.h"
+#include "core/system.h"
+#include "io/atomic_file.h"
+#include "io/image.h"
+#include "optim/adam.h"
+#include "optim/checkpoint.h"
+#include "optim/upsample.h"
+#include "sampling/samplers.h"
+#include "scene/atlas.h"
+
+#include <tbb/parallel_for.h>
+
+namespace relume {
+namespace fs = std::filesystem;
+
+// ---------------------------------------------------------------------------------------------
+// Config: one table of keys serves loading, validation and writing.
+
+namespace {
+
+using ConfigField = std::variant<int*, float*, bool*, std::string*, uint64_t*>;
+
+template <typename Fn> void forEachConfigKey(FitConfig& c, Fn&& fn) {
+  fn("sampler", ConfigField(&c.sampler));
+  fn("batch_texels", ConfigField(&c.batchTexels));
+  fn("frames_per_texel", ConfigField(&c.framesPerTexel));
+  fn("image_rays", ConfigField(&c.imageRays));
+  fn("samples_per_ray", ConfigField(&c.samplesPerRay));
+  fn("max_depth", ConfigField(&c.maxDepth));
+  fn("gradients", ConfigField(&c.gradients));
+  fn("emitter_gradients", ConfigField(&c.emitterGradients));
+  fn("pairing", ConfigField(&c.pairing));
+  fn("russian_roulette", ConfigField(&c.russianRoulette));
+  fn("lr_albedo", ConfigField(&c.lrAlbedo));
+  fn("lr_roughness", ConfigField(&c.lrRoughness));
+  fn("lr_specular", ConfigField(&c.lrSpecular));
+  fn("lr_emission", ConfigField(&c.lrEmission));
+  fn("emission_floor", ConfigField(&c.emissionFloor));
+  fn("masked_adam", ConfigField(&c.maskedAdam));
+  fn("per_entry_steps", ConfigField(&c.perEntrySteps));
+  fn("gradient_clamp", ConfigField(&c.gradientClamp));
+  fn("polyak_fraction", ConfigField(&c.polyakFraction));
+  fn("emission_iterations", ConfigField(&c.emissionIterations));
+  fn("material_iterations", ConfigField(&c.materialIterations));
+  fn("emission_texture_iterations", ConfigField(&c.emissionTextureIterations));
+  fn("albedo_passes", ConfigField(&c.albedoPasses));
+  fn("max_stage_iterations", ConfigField(&c.maxStageIterations));
+  fn("max_resolution", ConfigField(&c.maxResolution));
+  fn("prune_fraction", ConfigField(&c.pruneFraction));
+  fn("emitter_radiance_fraction", ConfigField(&c.emitterRadianceFraction));
+  fn("highlight_min_observations", ConfigField(&c.highlightMinObservations));
+  fn("emitter_parameterisation", ConfigField(&c.emitterParameterisation));
+  fn("median_init", ConfigField(&c.medianInit));
+  fn("init_white_point", ConfigField(&c.initWhitePoint));
+  fn("coarse_to_fine", ConfigField(&c.coarseToFine));
+  fn("emission_textures", ConfigField(&c.emissionTextures));
+  fn("seed", ConfigField(&c.seed));
+  fn("checkpoint_every", ConfigField(&c.checkpointEvery));
+  fn("metrics_every", ConfigField(&c.metricsEvery));
+}
+
+void validate(const FitConfig& c, const std::string& where) {
+  auto need = [&](bool ok, const char* what) {
+    if (!ok) fail("{}: {}", where, what);
+  };
+  need(c.sampler == "texture" || c.sampler == "image", "sampler must be texture or image");
+  need(c.batchTexels >= 1 && c.batchTexels <= (1 << 24), "batch_texels must be in [1, 2^24]");
+  need(c.framesPerTexel >= 1 && c.framesPerTexel <= 64, "frames_per_texel must be in [1, 64]");
+  need(c.imageRays >= 1 && c.imageRays <= (1 << 24), "image_rays must be in [1, 2^24]");
+  need(c.samplesPerRay >= 1 && c.samplesPerRay <= 64, "samples_per_ray must be in [1, 64]");
+  need(c.maxDepth >= 0 && c.maxDepth <= 64, "max_depth must be in [0, 64]");
+  parseGradientMode(c.gradients);
+  parseEmitterGradients(c.emitterGradients);
+  parsePairing(c.pairing);
+  for (float lr : {c.lrAlbedo, c.lrRoughness, c.lrSpecular, c.lrEmission})
+    need(std::isfinite(lr) && lr > 0 && lr <= 10, "learning rates must be in (0, 10]");
+  need(std::isfinite(c.emissionFloor) && c.emissionFloor > 0 && c.emissionFloor <= 1, "emission_floor must be in (0, 1]");
+  need(std::isfinite(c.gradientClamp) && c.gradientClamp >= 0, "gradient_clamp must be >= 0 (0 = off)");
+  need(c.polyakFraction >= 0 && c.polyakFraction <= 1, "polyak_fraction must be in [0, 1]");
+  need(c.emissionIterations >= 0 && c.materialIterations >= 0 && c.emissionTextureIterations >= 0 &&
+           c.maxStageIterations >= 1,
+       "stage lengths must be >= 0 (max_stage_iterations >= 1)");
+  need(std::isfinite(c.albedoPasses) && c.albedoPasses > 0 && c.albedoPasses <= 1e4, "albedo_passes must be in (0, 1e4]");
+  need(c.maxResolution >= 0, "max_resolution must be >= 0");
+  need(c.initWhitePoint >= 0 && c.initWhitePoint <= 1, "init_white_point must be in [0, 1] (0 = off)");
+  need(c.pruneFraction >= 0 && c.pruneFraction < 1, "prune_fraction must be in [0, 1)");
+  need(c.emitterRadianceFraction >= 0 && c.emitterRadianceFraction <= 1, "emitter_radiance_fraction must be in [0, 1]");
+  need(c.highlightMinObservations >= 0, "highlight_min_observations must be >= 0");
+  need(c.checkpointEvery >= 1 && c.metricsEvery >= 1, "checkpoint_every and metrics_every must be >= 1");
+}
+
+}  // namespace
+
+FitConfig FitConfig::load(const fs::path& path) {
+  const Json j = readJson(path);
+  if (!j.is_object()) fail("{}: a fit config is a JSON object", path.string());
+  FitConfig c;
+  std::set<std::string> known;
+  forEachConfigKey(c, [&](const char* key, ConfigField field) {
+    known.insert(key);
+    if (!j.contains(key)) return;
+    const Json& v = j[key];
+    std::visit(
+        [&](auto* p) {
+          using T = std::remove_pointer_t<decltype(p)>;
+          const bool ok = std::is_same_v<T, bool>          ? v.is_boolean()
+                          : std::is_same_v<T, std::string> ? v.is_string()
+                          : std::is_same_v<T, float>       ? v.is_number()
+                                                           : v.is_number_integer();
+          if (!ok) fail("{}: '{}' has the wrong type ({})", path.string(), key, v.type_name());
+          *p = v.get<T>();
+        },
+        field);
+  });
+  for (const auto& [key, value] : j.items())
+    if (!known.count(key)) fail("{}: unknown key '{}' (see the README's fit config table)", path.string(), key);
+  validate(c, path.string());
+  return c;
+}
+
+Json FitConfig::toJson() const {
+  Json j = Json::object();
+  forEachConfigKey(const_cast<FitConfig&>(*this), [&](const char* key, ConfigField field) {
+    std::visit([&](auto* p) { j[key] = *p; }, field);
+  });
+  return j;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+namespace {
+
+constexpr int kCheckpointVersion = 1;
+
+// Everything prepare built, loaded once.
+struct Workspace {
+  fs::path dir;
+  Json prepare;
+  TriangleMesh mesh;
+  std::unique_ptr<Scene> scene;
+  std::vector<Frame> frames;
+  std::unique_ptr<FrameStore> store;
+  VisibilityIndex vis;
+  int initResolution = 0;
+  std::vector<int> resolutions;
+  std::vector<float> coverage;  // observations per texel at the init resolution
+  std::vector<std::string> names;
+  std::vector<uint32_t> kept;
+
+  explicit Workspace(const fs::path& work) : dir(work) {
+    const fs::path pj = work / "prepare.json";
+    if (!fs::exists(pj)) fail("{}: no prepare.json; run `relume prepare CAPTURE --out {}` first", work.string(), work.string());
+    prepare = readJson(pj);
+    for (const char* f : {"atlas_mesh.ply", "frames.bin", "visibility.bin", "albedo_init.exr", "coverage.exr"})
+      if (!fs::exists(work / f)) fail("{}: missing {}; rerun `relume prepare`", work.string(), f);
+    withJsonErrors(pj, [&] {
+      const fs::path capture = prepare.at("capture").get<std::string>();
+      frames = readTransforms(capture / "transforms.json").frames;
+      kept = prepare.at("phases").at("frames").at("kept").get<std::vector<uint32_t>>();
+      resolutions = prepare.at("resolutions").get<std::vector<int>>();
+      const Json objectNames = prepare["phases"]["atlas"].value("object_names", Json::object());
+      for (const auto& [id, name] : objectNames.items()) names.push_back(id + "=" + name.get<std::string>());
+      return 0;
+    });
+    mesh = loadMesh(work / "atlas_mesh.ply");
+    scene = std::make_unique<Scene>(mesh);
+    store = std::make_unique<FrameStore>(work / "frames.bin");
+    if (store->frameCount() != frames.size())
+      fail("{}: frames.bin has {} frames but transforms.json {}; rerun `relume prepare`", work.string(), store->frameCount(),
+           frames.size());
+    for (uint32_t k : kept)
+      if (k >= frames.size()) fail("{}: prepare.json keeps frame {} of {}", pj.string(), k, frames.size());
+    vis = VisibilityIndex::read(work / "visibility.bin");
+    initResolution = vis.resolution;
+    const Image cov = readImage(work / "coverage.exr");
+    if (cov.width != initResolution || cov.height != initResolution)
+      fail("{}: coverage.exr is {}x{}, expected {}^2", work.string(), cov.width, cov.height, initResolution);
+    coverage.resize(static_cast<size_t>(initResolution) * initResolution);
+    for (size_t t = 0; t < coverage.size(); ++t) coverage[t] = cov.rgb[3 * t];
+    if (kept.empty()) fail("{}: prepare dropped every frame (see prepare.json)", work.string());
+  }
+
+  // Observations of the init-resolution texel that contains texel t of a `res` map.
+  float coverageOf(size_t t, int res) const {
+    const int s = res / initResolution;
+    const size_t x = (t % res) / s, y = (t / res) / s;
+    return coverage[y * initResolution + x];
+  }
+  TrainingFrames trainingFrames() const { return {&frames, store.get(), kept}; }
+};
+
+// The albedo texels of one resolution: the texel map, which texels may be sampled (covered and
+// observed) and which may be updated (also the dilated ring, read by bilinear lookups).
+struct TexelSpace {
+  int resolution = 0;
+  TexelMap map;
+  std::vector<uint32_t> sampleable;
+  std::vector<uint8_t> updatable;
+  TexelSpace(const Workspace& w, int res) : resolution(res), map(w.mesh, res), updatable(map.texelCount(), 0) {
+    for (size_t t = 0; t < map.texelCount(); ++t) {
+      if (!map.valid(t) || w.coverageOf(t, res) <= 0) continue;
+      updatable[t] = 1;
+      if (map.covered(t)) sampleable.push_back(static_cast<uint32_t>(t));
+    }
+    if (sampleable.empty()) fail("{}: no texel of the mesh was observed by any kept frame", w.dir.string());
+  }
+};
+
+struct Stage {
+  std::string name;
+  ParamMask active;
+  int resolution = 0;  // albedo resolution during the stage
+  int iterations = 0;
+  bool pruneAfter = false, emissionTexturesBefore = false;
+};
+
+// The resolution the frames resolve: the smallest stage resolution whose texel is no larger than
+// the median footprint of an observed pixel on the surface.
+int resolvedResolution(const Workspace& w, const Batch& batch) {
+  std::vector<float> footprint;
+  for (const BatchRay& r : batch.rays) {
+    const auto hit = w.scene->intersect(r.origin, r.dir);
+    if (!hit) continue;
+    const Camera* cam = nullptr;
+    for (uint32_t k : w.kept)
+      if ((w.frames[k].camera.position - r.origin).squaredNorm() == 0.0f) cam = &w.frames[k].camera;
+    if (!cam) continue;
+    // Pixel footprint on the surface: distance / focal length, stretched by the obliquity.
+    footprint.push_back(hit->t / cam->fx / std::max(0.2f, std::abs(hit->ng.dot(r.dir))));
+  }
+  const double texelsPerMetreInit = w.prepare["phases"]["atlas"].value("texels_per_metre", 0.0) *
+                                    w.initResolution / w.prepare["phases"]["atlas"].value("gutter_resolution", AtlasOptions{}.gutterResolution);
+  if (footprint.empty() || texelsPerMetreInit <= 0) return w.resolutions.back();
+  std::nth_element(footprint.begin(), footprint.begin() + footprint.size() / 2, footprint.end());
+  const double pixelMetres = footprint[footprint.size() / 2];
+  for (int r : w.resolutions)
+    if (1.0 / (texelsPerMetreInit * r / w.initResolution) <= pixelMetres) return r;
+  return w.resolutions.back();
+}
+
+std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& resolutions, const Workspace& w,
+                                 const std::function<size_t(int)>& sampleableAt) {
+  using K = ParamKind;
+  const int finalRes = resolutions.back();
+  auto albedoIterations = [&](int res) {
+    const double n = std::ceil(c.albedoPasses * sampleableAt(res) / std::max(1, c.sampler == "texture" ? c.batchTexels : c.imageRays));
+    return static_cast<int>(std::clamp(n, 1.0, static_cast<double>(c.maxStageIterations)));
+  };
+  std::vector<Stage> s;
+  const ParamMask emission = c.emitterParameterisation ? ParamMask::only({K::Emission}) : ParamMask::only({K::EmissionTexture});
+  if (!c.coarseToFine) {
+    ParamMask all = ParamMask::only({K::Albedo, K::Roughness, K::Specular});
+    all.bits |= emission.bits;
+    int n = c.emissionIterations + c.materialIterations;
+    for (int r : resolutions) n += albedoIterations(r);
+    s.push_back({"all", all, finalRes, n, false, false});
+    return s;
+  }
+  s.push_back({"emission", emission, resolutions.front(), c.emissionIterations, c.emitterParameterisation, false});
+  ParamMask materials = emission;
+  materials.set(K::Roughness, true);
+  materials.set(K::Specular, true);
+  s.push_back({"materials", materials, resolutions.front(), c.materialIterations, false, false});
+  ParamMask albedo = materials;
+  albedo.set(K::Albedo, true);
+  for (int r : resolutions) s.push_back({fmt::format("albedo@{}", r), albedo, r, albedoIterations(r), false, false});
+  if (c.emitterParameterisation && c.emissionTextures && c.emissionTextureIterations > 0) {
+    ParamMask tex = ParamMask::only({K::EmissionTexture, K::Albedo, K::Roughness, K::Specular});
+    s.push_back({"emission_texture", tex, finalRes, c.emissionTextureIterations, false, true});
+  }
+  return s;
+}
+
+class Fit {
+ public:
+  Fit(const fs::path& work, const FitConfig& config)
+      : c_(config), w_(work), appearance_(w_.mesh.objectCount) {
+    settings_.mode = parseGradientMode(c_.gradients);
+    settings_.emitters = parseEmitterGradients(c_.emitterGradients);
+    settings_.pairing = parsePairing(c_.pairing);
+    settings_.path.maxDepth = c_.maxDepth;
+    settings_.path.russianRoulette = c_.russianRoulette;
+    settings_.seed = c_.seed;
+    for (size_t i = 0; i < w_.names.size(); ++i) {
+      const auto eq = w_.names[i].find('=');
+      const int id = std::stoi(w_.names[i].substr(0, eq));
+      if (id >= 0 && id < appearance_.objectCount()) appearance_.names[id] = w_.names[i].substr(eq + 1);
+    }
+    std::fill(appearance_.albedoFromTexture.begin(), appearance_.albedoFromTexture.end(), 1);
+    emitter_.assign(appearance_.objectCount(), 1);
+    observedSum_.assign(appearance_.objectCount(), 0.0);
+    observedCount_.assign(appearance_.objectCount(), 0);
+    highlight_.assign(appearance_.objectCount(), 0);
+  }
+
+  FitSummary run(bool resume) {
+    Timer total;
+    const fs::path checkpointPath = w_.dir / "checkpoint.bin";
+    // Resolutions: the prepared ones up to what the frames resolve (or the cap).
+    TexelSpace init(w_, w_.initResolution);
+    {
+      TextureSpaceSampler probe(*w_.scene, init.map, init.sampleable, w_.vis, w_.trainingFrames());
+      const Batch b = probe.sample(c_.seed, 0xFFFFFFFF, {std::min(c_.batchTexels, 4096), c_.framesPerTexel});
+      finalRes_ = c_.maxResolution > 0 ? c_.maxResolution : resolvedResolution(w_, b);
+      // The brightest observation sets the scale of emission steps (lights are what is brightest).
+      if (b.rays.empty()) fail("{}: no frame connection survived (every texel occluded or off-frame?)", w_.dir.string());
+      for (const BatchRay& r : b.rays)
+        if (std::isfinite(r.reference.maxCoeff())) radianceScale_ = std::max(radianceScale_, r.reference.maxCoeff());
+    }
+    std::vector<int> resolutions;
+    for (int r : w_.resolutions)
+      if (r <= finalRes_) resolutions.push_back(r);
+    if (resolutions.empty()) fail("fit: max_resolution {} is below the init resolution {}", finalRes_, w_.initResolution);
+    if (!c_.coarseToFine) resolutions = {resolutions.back()};
+    finalRes_ = resolutions.back();
+    std::map<int, size_t> sampleableCount{{init.resolution, init.sampleable.size()}};
+    auto sampleableAt = [&](int r) {
+      // Valid texels scale with the area: estimate from the init resolution, no texel map needed.
+      return sampleableCount.count(r) ? sampleableCount[r] : init.sampleable.size() * (static_cast<size_t>(r) / init.resolution) * (r / init.resolution);
+    };
+    const std::vector<Stage> stages = buildSchedule(c_, resolutions, w_, sampleableAt);
+    spdlog::info("fit: {} stages, final albedo resolution {}^2 ({} texels sampleable at {}^2), radiance scale {:.3g}",
+                 stages.size(), finalRes_, init.sampleable.size(), init.resolution, radianceScale_);
+
+    // Initial state, or the checkpoint's.
+    int startStage = 0, startIteration = 0;
+    std::unique_ptr<TexelSpace> space;
+    if (resume && fs::exists(checkpointPath)) {
+      const Checkpoint ck = Checkpoint::read(checkpointPath);
+      if (ck.meta.value("version", 0) != kCheckpointVersion || ck.meta.value("config", Json()) != c_.toJson())
+        fail("{}: checkpoint was written with another config; rerun without --resume", checkpointPath.string());
+      startStage = ck.meta.value("stage", 0);
+      startIteration = ck.meta.value("iteration", 0);
+      globalIteration_ = ck.meta.value("global_iteration", 0);
+      const int res = ck.meta.value("resolution", w_.initResolution);
+      space = std::make_unique<TexelSpace>(w_, res);
+      appearance_.albedo = Texture(res, res);
+      restore(ck);  // per-object emission first: it decides which objects get emission textures
+      if (ck.meta.value("emission_textures", false)) {
+        allocateEmissionTextures(appearance_, w_.mesh, res, [](float, float) { return 1.0f; });
+        restore(ck);
+      }
+      spdlog::info("fit: resumed at stage {} iteration {} from {}", startStage, startIteration, checkpointPath.string());
+    } else {
+      fs::remove(w_.dir / "metrics.jsonl");
+      space = std::make_unique<TexelSpace>(w_, stages.front().resolution);
+      appearance_.albedo = Texture(space->resolution, space->resolution, Color::Constant(0.5f));
+      if (!c_.emitterParameterisation) {
+        // Ablation without the emitter parameterisation: spatially varying emission on every object.
+        for (Color& e : appearance_.emission) e = Color::Constant(1.0f);
+        allocateEmissionTextures(appearance_, w_.mesh, space->resolution, [](float, float) { return 0.0f; });
+      }
+      initialiseAlbedo(*space);
+    }
+
+    FitSummary summary;
+    for (size_t si = startStage; si < stages.size(); ++si) {
+      const Stage& st = stages[si];
+      if (st.resolution != space->resolution) {
+        auto finer = std::make_unique<TexelSpace>(w_, st.resolution);
+        upsampleAlbedo(*space, *finer);
+        space = std::move(finer);
+      }
+      if (st.emissionTexturesBefore && appearance_.emissionTextures.empty())
+        allocateEmissionTextures(appearance_, w_.mesh, space->resolution, [](float, float) { return 1.0f; });
+      if (st.name == "materials" && startIteration == 0) decideHighlights(*space);
+      runStage(st, si, si == static_cast<size_t>(startStage) ? startIteration : 0, *space, si + 1 == stages.size(),
+               checkpointPath);
+      if (st.pruneAfter) prune();
+      startIteration = 0;
+    }
+    summary.resultDir = writeResult(*space);
+    summary.seconds = total.seconds();
+    summary.iterations = globalIteration_;
+    summary.finalResolution = finalRes_;
+    summary.finalLoss = lastLoss_;
+    for (int o = 0; o < appearance_.objectCount(); ++o)
+      if (appearance_.isEmissive(o)) summary.emitters.push_back(o);
+    return summary;
+  }
+
+ private:
+  void initialiseAlbedo(const TexelSpace& space) {
+    if (!c_.medianInit) return;  // ablation: mid-grey everywhere
+    const Image init = readImage(w_.dir / "albedo_init.exr");
+    if (init.width != w_.initResolution) fail("{}: albedo_init.exr has the wrong size", w_.dir.string());
+    std::vector<float> v(init.rgb.begin(), init.rgb.end());
+    if (space.resolution != w_.initResolution) {
+      const TexelMap initMap(w_.mesh, w_.initResolution);
+      v = upsampleTexels(v, initMap, space.map, w_.mesh, 3);
+    }
+    // The median is radiance, darker than albedo by the irradiance factor (~0.4 in a lit room): a
+    // lit wall would then need an emission of its own to look right, and the emission stage would
+    // find light sources everywhere. White-patch normalisation: the 95th-percentile observed
+    // texel becomes albedo init_white_point (the brightest diffuse surfaces of a room are near white).
+    if (c_.initWhitePoint > 0) {
+      std::vector<float> lum;
+      for (size_t t = 0; t < space.updatable.size(); ++t)
+        if (space.updatable[t]) lum.push_back(luminance(Color(v[3 * t], v[3 * t + 1], v[3 * t + 2])));
+      if (!lum.empty()) {
+        std::nth_element(lum.begin(), lum.begin() + lum.size() * 95 / 100, lum.end());
+        const float p95 = lum[lum.size() * 95 / 100];
+        if (p95 > 0) {
+          for (float& x : v) x *= c_.initWhitePoint / p95;
+          spdlog::info("fit: albedo init = median radiance x {:.3g} (95th percentile {:.3g} -> {:.2f})", c_.initWhitePoint / p95,
+                       p95, c_.initWhitePoint);
+        }
+      }
+    }
+    for (float& x : v) x = std::clamp(x, 0.0f, 1.0f);
+    appearance_.albedo.rgb = std::move(v);
+  }
+
+  // Values and Adam state move to the finer resolution; m and v are rescaled because each child
+  // texel receives about 1/f^2 of its parent's splat weight (keeps m / sqrt(v), the step, the same).
+  void upsampleAlbedo(const TexelSpace& from, const TexelSpace& to) {
+    const float f2 = static_cast<float>(to.resolution) / from.resolution * static_cast<float>(to.resolution) / from.resolution;
+    std::vector<float> values = upsampleTexels(appearance_.albedo.rgb, from.map, to.map, w_.mesh, 3);
+    appearance_.albedo = Texture(to.resolution, to.resolution);
+    appearance_.albedo.rgb = std::move(values);
+    if (auto it = adam_.find("albedo"); it != adam_.end()) {
+      AdamState& s = it->second;
+      AdamState up;
+      up.m = upsampleTexels(s.m, from.map, to.map, w_.mesh, 3);
+      up.v = upsampleTexels(s.v, from.map, to.map, w_.mesh, 3);
+      for (float& m : up.m) m /= f2;
+      for (float& v : up.v) v /= f2 * f2;
+      std::vector<float> steps(s.steps.begin(), s.steps.end());
+      steps = upsampleTexels(steps, from.map, to.map, w_.mesh, 3);
+      up.steps.assign(steps.size(), 0);
+      for (size_t i = 0; i < steps.size(); ++i) up.steps[i] = static_cast<uint16_t>(std::lround(steps[i]));
+      s = std::move(up);
+    }
+    polyak_.erase("albedo");
+  }
+
+  AdamSettings adamFor(const ParamGroup& g) const {
+    AdamSettings s;
+    s.masked = c_.maskedAdam;
+    s.perEntrySteps = c_.perEntrySteps;
+    switch (g.kind) {
+      case ParamKind::Albedo: s.learningRate = c_.lrAlbedo; break;
+      case ParamKind::Roughness: s.learningRate = c_.lrRoughness; break;
+      case ParamKind::Specular: s.learningRate = c_.lrSpecular; break;
+      case ParamKind::Emission:
+      case ParamKind::EmissionTexture:
+        s.learningRate = c_.lrEmission;
+        s.relativeFloor = c_.emissionFloor * radianceScale_;
+        break;
+    }
+    return s;
+  }
+
+  // Zeroes the gradient of entries that must not move: unobserved texels, pruned emitters,
+  // objects whose highlights were never seen.
+  void maskGradients(ParamGroup& g, const TexelSpace& space) const {
+    switch (g.kind) {
+      case ParamKind::Albedo:
+        for (size_t t = 0; t < space.updatable.size(); ++t)
+          if (!space.updatable[t]) g.grads[3 * t] = g.grads[3 * t + 1] = g.grads[3 * t + 2] = 0.0f;
+        break;
+      case ParamKind::Roughness:
+      case ParamKind::Specular:
+        for (size_t o = 0; o < highlight_.size(); ++o)
+          if (!highlight_[o]) g.grads[o] = 0.0f;
+        break;
+      case ParamKind::Emission:
+        for (size_t o = 0; o < emitter_.size(); ++o)
+          if (!emitter_[o]) g.grads[3 * o] = g.grads[3 * o + 1] = g.grads[3 * o + 2] = 0.0f;
+        break;
+      case ParamKind::EmissionTexture: break;
+    }
+  }
+
+  Batch sampleBatch(const TexelSpace& space, uint64_t iteration) const {
+    Batch b;
+    if (c_.sampler == "texture") {
+      const TextureSpaceSampler sampler(*w_.scene, space.map, space.sampleable, w_.vis, w_.trainingFrames());
+      b = sampler.sample(c_.seed, iteration, {c_.batchTexels, c_.framesPerTexel});
+    } else {
+      b = ImageSpaceSampler(w_.trainingFrames()).sample(c_.seed, iteration, c_.imageRays, *w_.scene);
+    }
+    if (c_.samplesPerRay > 1) {  // independent estimates of the same connection
+      std::vector<BatchRay> rays;
+      rays.reserve(b.rays.size() * c_.samplesPerRay);
+      for (const BatchRay& r : b.rays)
+        for (int s = 0; s < c_.samplesPerRay; ++s) rays.push_back(r);
+      b.rays = std::move(rays);
+    }
+    return b;
+  }
+
+  void runStage(const Stage& st, size_t stageIndex, int firstIteration, const TexelSpace& space, bool finalStage,
+                const fs::path& checkpointPath) {
+    AdjointSettings settings = settings_;
+    settings.mask = st.active;
+    const int averageFrom = finalStage && c_.polyakFraction > 0
+                                ? st.iterations - std::max(1, static_cast<int>(std::lround(c_.polyakFraction * st.iterations)))
+                                : st.iterations;
+    Progress progress(st.name, static_cast<size_t>(st.iterations));
+    progress.advance(static_cast<size_t>(firstIteration));
+    PhaseTimes times;
+    for (int it = firstIteration; it < st.iterations; ++it) {
+      const uint64_t iteration = static_cast<uint64_t>(globalIteration_);
+      Timer ts;
+      const Batch batch = sampleBatch(space, iteration);
+      times.sample += ts.seconds();
+      stats_.add(batch.stats);
+      if (st.pruneAfter)
+        for (size_t j = 0; j < batch.rays.size(); ++j)
+          observedSum_[batch.object[j]] += luminance(batch.rays[j].reference), ++observedCount_[batch.object[j]];
+      Timer tl;
+      const LightSampler lights(*w_.scene, appearance_);
+      times.lights += tl.seconds();
+      Gradients grads(appearance_);
+      const GradientResult gr = computeGradients(*w_.scene, appearance_, lights, batch.rays, settings, iteration, grads);
+      times.primal += gr.times.primal, times.loss += gr.times.loss, times.adjoint += gr.times.adjoint;
+      Timer to;
+      for (ParamGroup& g : paramGroups(appearance_, &grads)) {
+        if (!st.active.active(g.kind)) continue;
+        maskGradients(g, space);
+        clampGradients(g.grads, c_.gradientClamp);
+        auto [state, inserted] = adam_.try_emplace(g.name(), g.values.size());
+        if (state->second.size() != g.values.size()) state->second = AdamState(g.values.size());
+        state->second.step(g.values, g.grads, g.lo, g.hi, adamFor(g), static_cast<uint32_t>(it + 1));
+        if (it >= averageFrom) polyak_[g.name()].add(g.values);
+      }
+      times.optimiser += to.seconds();
+      lastLoss_ = gr.loss;
+      ++globalIteration_;
+      progress.advance();
+      progress.note(fmt::format("loss {:.3e}, {} rays", gr.loss, batch.rays.size()));
+      if ((it + 1) % c_.metricsEvery == 0 || it + 1 == st.iterations) {
+        appendMetrics({{"stage", st.name}, {"iteration", globalIteration_}, {"stage_iteration", it + 1}, {"loss", gr.loss},
+                       {"rays", batch.rays.size()}, {"sampler", statsJson(batch.stats)}, {"seconds", times.toJson()}});
+      }
+      if ((it + 1) % c_.checkpointEvery == 0 && it + 1 < st.iterations) writeCheckpoint(checkpointPath, stageIndex, it + 1, space);
+    }
+    if (finalStage)
+      for (ParamGroup& g : paramGroups(appearance_))
+        if (auto p = polyak_.find(g.name()); p != polyak_.end() && p->second.mean.size() == g.values.size())
+          std::copy(p->second.mean.begin(), p->second.mean.end(), g.values.begin());
+    writeCheckpoint(checkpointPath, stageIndex + 1, 0, space);
+    spdlog::info("fit: stage {} done: {} iterations, loss {:.4e}; per iteration: sample {:.1f} ms, primal {:.1f} ms, adjoint {:.1f} ms, optimiser {:.1f} ms",
+                 st.name, st.iterations - firstIteration, lastLoss_, 1e3 * times.sample / std::max(1, st.iterations - firstIteration),
+                 1e3 * times.primal / std::max(1, st.iterations - firstIteration),
+                 1e3 * times.adjoint / std::max(1, st.iterations - firstIteration),
+                 1e3 * times.optimiser / std::max(1, st.iterations - firstIteration));
+  }
+
+  // Light sources are the objects whose own emission explains most of how they look (at least
+  // emitter_radiance_fraction of their mean observed radiance) and that carry at least
+  // prune_fraction of the total emitted power. The rest go to 0 and stay frozen. The radiance test
+  // matters because during this stage the albedo is the median radiance, darker than the true
+  // albedo by the irradiance factor, so lit walls make up for it with a weak emission of their own.
+  void prune() {
+    std::vector<double> area(appearance_.objectCount(), 0.0);
+    for (size_t f = 0; f < w_.mesh.triangles.size(); ++f) {
+      const auto& t = w_.mesh.triangles[f];
+      area[w_.mesh.faceObject[f]] +=
+          0.5 * (w_.mesh.positions[t[1]] - w_.mesh.positions[t[0]]).cross(w_.mesh.positions[t[2]] - w_.mesh.positions[t[0]]).norm();
+    }
+    std::vector<double> power(appearance_.objectCount());
+    double totalPower = 0;
+    for (int o = 0; o < appearance_.objectCount(); ++o) totalPower += power[o] = luminance(appearance_.emission[o]) * area[o];
+    for (int o = 0; o < appearance_.objectCount(); ++o) {
+      const double observed = observedCount_[o] ? observedSum_[o] / observedCount_[o] : 0.0;
+      emitter_[o] = totalPower > 0 && power[o] >= c_.pruneFraction * totalPower &&
+                    luminance(appearance_.emission[o]) >= c_.emitterRadianceFraction * observed;
+      if (power[o] >= c_.pruneFraction * totalPower && !emitter_[o])
+        spdlog::info("fit: object {} ({}) emits {:.3g} but looks {:.3g}: lit, not a light source", o, appearance_.names[o],
+                     luminance(appearance_.emission[o]), observed);
+      if (!emitter_[o]) appearance_.emission[o] = Color::Zero();
+      else spdlog::info("fit: object {} ({}) is a light source: emission {:.3g} {:.3g} {:.3g}, {:.1f}% of the power", o,
+                        appearance_.names[o], appearance_.emission[o][0], appearance_.emission[o][1], appearance_.emission[o][2],
+                        100 * power[o] / totalPower);
+    }
+  }
+
+  // Which objects the frames saw a light source reflected in. For probe connections (camera to
+  // surface point) the mirror direction about the geometric normal, and four directions 10
+  // degrees around it (a glossy lobe's width), are traced; reaching the front of an emitter is a
+  // highlight observation. Roughness and specular of objects with fewer than
+  // highlight_min_observations keep their init: nothing in the data constrains them.
+  void decideHighlights(const TexelSpace& space) {
+    std::vector<size_t> observations(appearance_.objectCount(), 0), connections(appearance_.objectCount(), 0);
+    for (uint64_t probe = 0; probe < 4; ++probe) {
+      const Batch batch = sampleBatch(space, (uint64_t{1} << 40) + probe);
+      std::vector<int8_t> sawLight(batch.rays.size(), -1);
+      tbb::parallel_for(size_t{0}, batch.rays.size(), [&](size_t j) {
+        const BatchRay& r = batch.rays[j];
+        const auto hit = w_.scene->intersect(r.origin, r.dir);
+        if (!hit) return;
+        const Vec3 n = hit->ng.dot(r.dir) < 0 ? hit->ng : Vec3(-hit->ng);
+        const Vec3 mirror = r.dir - 2.0f * r.dir.dot(n) * n;
+        const ShadingFrame frame(mirror);
+        sawLight[j] = 0;
+        for (int k = 0; k < 5 && !sawLight[j]; ++k) {
+          const float phi = 0.5f * kPi * k, tilt = k == 0 ? 0.0f : std::sin(10.0f * kPi / 180.0f);
+          const Vec3 d = frame.toWorld(Vec3(tilt * std::cos(phi), tilt * std::sin(phi), std::sqrt(1 - tilt * tilt)));
+          if (d.dot(n) <= 0) continue;
+          const auto light = w_.scene->intersect(Scene::offsetOrigin(*hit, d), d);
+          sawLight[j] = light && emitter_[light->object] && appearance_.isEmissive(light->object) && light->ng.dot(d) < 0;
+        }
+      });
+      for (size_t j = 0; j < batch.rays.size(); ++j)
+        if (sawLight[j] >= 0) ++connections[batch.object[j]], observations[batch.object[j]] += sawLight[j];
+    }
+    for (int o = 0; o < appearance_.objectCount(); ++o) {
+      highlight_[o] = !emitter_[o] && observations[o] >= static_cast<size_t>(c_.highlightMinObservations);
+      spdlog::info("fit: object {} ({}): {} of {} probe connections see a light reflected -> roughness/specular {}", o,
+                   appearance_.names[o], observations[o], connections[o], highlight_[o] ? "fitted" : "unconstrained (kept at init)");
+    }
+  }
+
+  struct PhaseTimes {
+    double sample = 0, lights = 0, primal = 0, loss = 0, adjoint = 0, optimiser = 0;
+    Json toJson() const {
+      return {{"sample", sample}, {"lights", lights}, {"primal", primal}, {"loss", loss}, {"adjoint", adjoint}, {"optimiser", optimiser}};
+    }
+  };
+
+  static Json statsJson(const SamplerStats& s) {
+    return {{"slots", s.slots}, {"candidates", s.candidates}, {"not_seen", s.notSeen},
+            {"first_hit_elsewhere", s.firstHitElsewhere}, {"masked", s.masked}, {"rays", s.rays}};
+  }
+
+  void appendMetrics(const Json& j) {
+    std::ofstream out(w_.dir / "metrics.jsonl", std::ios::app);
+    out << j.dump() << '\n';
+  }
+
+  void writeCheckpoint(const fs::path& path, size_t stage, int iteration, const TexelSpace& space) {
+    Checkpoint ck;
+    ck.meta = {{"version", kCheckpointVersion}, {"config", c_.toJson()}, {"stage", stage}, {"iteration", iteration},
+               {"global_iteration", globalIteration_}, {"resolution", space.resolution},
+               {"emission_textures", !appearance_.emissionTextures.empty()}, {"loss", lastLoss_}};
+    for (ParamGroup& g : paramGroups(appearance_)) ck.put(g.name() + ".values", std::span<const float>(g.values));
+    for (const auto& [name, s] : adam_) {
+      ck.put(name + ".m", s.m);
+      ck.put(name + ".v", s.v);
+      ck.put(name + ".steps", s.steps);
+    }
+    for (const auto& [name, p] : polyak_) {
+      ck.put(name + ".mean", p.mean);
+      ck.put(name + ".count", std::vector<uint32_t>{p.count});
+    }
+    ck.put("emitter", emitter_);
+    ck.put("highlight", highlight_);
+    ck.put("observed.sum", observedSum_);
+    ck.put("observed.count", observedCount_);
+    ck.write(path);
+  }
+
+  void restore(const Checkpoint& ck) {
+    for (ParamGroup& g : paramGroups(appearance_)) ck.get(g.name() + ".values", g.values);
+    for (ParamGroup& g : paramGroups(appearance_)) {
+      if (!ck.has(g.name() + ".m")) continue;
+      AdamState s(g.values.size());
+      ck.get(g.name() + ".m", s.m);
+      ck.get(g.name() + ".v", s.v);
+      ck.get(g.name() + ".steps", s.steps);
+      adam_[g.name()] = std::move(s);
+      if (ck.has(g.name() + ".mean")) {
+        PolyakAverage& p = polyak_[g.name()];
+        p.mean.resize(g.values.size());
+        ck.get(g.name() + ".mean", p.mean);
+        std::vector<uint32_t> count(1);
+        ck.get(g.name() + ".count", count);
+        p.count = count[0];
+      }
+    }
+    ck.get("emitter", emitter_);
+    ck.get("highlight", highlight_);
+    ck.get("observed.sum", observedSum_);
+    ck.get("observed.count", observedCount_);
+    lastLoss_ = ck.meta.value("loss", 0.0);
+  }
+
+  fs::path writeResult(const TexelSpace& space) {
+    const fs::path result = w_.dir / "result", staging = w_.dir / "result.partial";
+    fs::remove_all(staging);
+    fs::create_directories(staging);
+    SceneDescription desc{w_.dir / "atlas_mesh.ply", w_.mesh, appearance_};
+    saveSceneFile(staging / "scene.json", desc);
+    Image albedo(space.resolution, space.resolution);
+    albedo.rgb = appearance_.albedo.rgb;
+    writePng(staging / "albedo.png", albedo);
+    Json materials = Json::array();
+    std::vector<size_t> observed(appearance_.objectCount(), 0), total(appearance_.objectCount(), 0);
+    for (size_t t = 0; t < space.map.texelCount(); ++t)
+      if (space.map.covered(t)) {
+        const int o = w_.mesh.faceObject[space.map.triangle(t)];
+        ++total[o];
+        observed[o] += space.updatable[t];
+      }
+    for (int o = 0; o < appearance_.objectCount(); ++o) {
+      const Color e = appearance_.meanEmission(o);
+      materials.push_back({{"id", o}, {"name", appearance_.names[o]}, {"roughness", appearance_.roughness[o]},
+                           {"specular", appearance_.specular[o]}, {"emission", {e[0], e[1], e[2]}},
+                           {"is_emitter", appearance_.isEmissive(o)}, {"highlight_observed", highlight_[o] != 0},
+                           {"observed_texel_fraction", total[o] ? double(observed[o]) / total[o] : 0.0}});
+    }
+    Json summary = {{"objects", materials}, {"albedo_resolution", space.resolution}, {"iterations", globalIteration_},
+                    {"final_loss", lastLoss_}, {"sampler", statsJson(stats_)}, {"config", c_.toJson()},
+                    {"peak_rss_mib", peakRssMiB()}};
+    writeJson(staging / "materials.json", summary);
+    fs::remove_all(result);
+    fs::rename(staging, result);
+    spdlog::info("fit: result in {}", result.string());
+    return result;
+  }
+
+  FitConfig c_;
+  Workspace w_;
+  Appearance appearance_;
+  AdjointSettings settings_;
+  std::vector<uint8_t> emitter_, highlight_;
+  std::vector<double> observedSum_;      // per object, luminance of the references seen in the emission stage
+  std::vector<uint64_t> observedCount_;
+  std::map<std::string, AdamState> adam_;
+  std::map<std::string, PolyakAverage> polyak_;
+  SamplerStats stats_;
+  float radianceScale_ = 1e-6f;
+  int finalRes_ = 0;
+  int globalIteration_ = 0;
+  double lastLoss_ = 0;
+};
+
+}  // namespace
+
+FitSummary runFit(const fs::path& work, const FitConfig& config, bool resume) {
+  validate(config, "fit config");
+  Fit fit(work, config);
+  return fit.run(resume);
+}
+
+}  // namespace relume

@@ -1,0 +1,68 @@
+// `relume fit WORK`: the reconstruction (Nimier-David et al. 2021, 3.2-3.4) on what `prepare`
+// built. Each iteration draws a batch (texture-space sampler by default), computes the loss
+// gradient with the adjoint solver, and takes a masked Adam step per parameter group. Stages
+// (defaults): (1) per-object emission from 0, then emitters below a fraction of the total power
+// are pruned and frozen; (2) + per-object roughness and specular, on objects whose highlights the
+// frames observed; (3) albedo from the median init, coarse to fine up to the resolution the
+// frames resolve; (4) emission textures on the emitters only. Every choice is a config key, so
+// the paper's ablation can be rerun. Checkpoints allow `--resume` after a kill.
+#pragma once
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "adjoint/solver.h"
+#include "io/json.h"
+
+namespace relume {
+
+struct FitConfig {
+  // Sampling
+  std::string sampler = "texture";  // texture | image (the ablation's baseline)
+  int batchTexels = 8192;           // B: texels per iteration (texture sampler)
+  int framesPerTexel = 4;           // K: frames connected per texel
+  int imageRays = 16384;            // rays per iteration (image sampler)
+  int samplesPerRay = 1;            // independent (primal, adjoint) pairs per connection
+  int maxDepth = 8;
+  std::string gradients = "direct", emitterGradients = "strict", pairing = "decorrelated";
+  bool russianRoulette = false;
+  // Optimiser
+  float lrAlbedo = 0.02f, lrRoughness = 0.02f, lrSpecular = 0.02f;
+  float lrEmission = 0.2f;          // relative: a step is lr * max(E, emissionFloor * brightest observation)
+  float emissionFloor = 0.02f;
+  bool maskedAdam = true, perEntrySteps = true;
+  float gradientClamp = 10.0f;      // x the median nonzero gradient magnitude of the group; 0 = off
+  float polyakFraction = 0.1f;      // of the final stage; 0 = off
+  // Schedule
+  int emissionIterations = 150, materialIterations = 150, emissionTextureIterations = 100;
+  float albedoPasses = 20.0f;       // albedo stage length: expected draws per sampleable texel
+  int maxStageIterations = 2000;    // cap on any albedo stage
+  int maxResolution = 0;            // cap on the final albedo resolution; 0 = what the frames resolve
+  float pruneFraction = 0.02f;      // emitters below this fraction of the total power go to 0
+  float emitterRadianceFraction = 0.75f;  // ... and those whose emission is below this fraction of
+                                          // their own observed radiance (lit, not emitting)
+  int highlightMinObservations = 20;  // probe connections that must see a light reflected in an object
+                                      // before its roughness and specular are fitted
+  bool emitterParameterisation = true, medianInit = true, coarseToFine = true, emissionTextures = true;
+  float initWhitePoint = 0.8f;      // the median init's 95th-percentile texel becomes this albedo; 0 = off
+  uint64_t seed = 1;
+  int checkpointEvery = 100, metricsEvery = 10;
+
+  static FitConfig load(const std::filesystem::path& path);  // unknown key or wrong type: one-line error
+  Json toJson() const;
+};
+
+struct FitSummary {
+  double seconds = 0;
+  int iterations = 0;
+  int finalResolution = 0;
+  double finalLoss = 0;
+  std::vector<int> emitters;
+  std::filesystem::path resultDir;
+};
+
+// Runs (or resumes) the fit; writes WORK/result/ (scene.json, albedo.exr/.png, emission
+// textures, materials.json), WORK/metrics.jsonl and WORK/checkpoint.bin.
+FitSummary runFit(const std::filesystem::path& work, const FitConfig& config, bool resume);
+
+}  // namespace relume

@@ -1,0 +1,136 @@
+#include "sampling/samplers.h"
+
+#include <tbb/parallel_for.h>
+
+#include "core/error.h"
+#include "core/rng.h"
+
+namespace relume {
+
+void SamplerStats::add(const SamplerStats& o) {
+  slots += o.slots, candidates += o.candidates, notSeen += o.notSeen, firstHitElsewhere += o.firstHitElsewhere;
+  masked += o.masked, rays += o.rays;
+}
+
+namespace {
+
+// Per-slot output, compacted in slot order afterwards so the batch does not depend on threads.
+struct SlotRays {
+  std::vector<BatchRay> rays;
+  int object = 0;
+  SamplerStats stats;
+};
+
+Batch compact(std::vector<SlotRays>& slots) {
+  Batch b;
+  for (size_t s = 0; s < slots.size(); ++s) {
+    for (BatchRay& r : slots[s].rays) {
+      b.rays.push_back(r);
+      b.slot.push_back(static_cast<uint32_t>(s));
+      b.object.push_back(slots[s].object);
+    }
+    b.stats.add(slots[s].stats);
+  }
+  b.stats.rays = b.rays.size();
+  return b;
+}
+
+ClipThresholds clipOf(const Frame& f) { return {f.clipLow, f.clipHigh}; }
+
+}  // namespace
+
+TextureSpaceSampler::TextureSpaceSampler(const Scene& scene, const TexelMap& map, std::vector<uint32_t> texels,
+                                         const VisibilityIndex& vis, const TrainingFrames& frames)
+    : scene_(scene), map_(map), texels_(std::move(texels)), vis_(vis), frames_(frames), usable_(frames.frames->size(), 0) {
+  if (map.resolution() % vis.resolution != 0)
+    fail("texture sampler: resolution {} is not a multiple of the visibility index's {}", map.resolution(), vis.resolution);
+  for (uint32_t f : frames.usable) usable_[f] = 1;
+}
+
+Batch TextureSpaceSampler::sample(uint64_t seed, uint64_t iteration, const TextureSamplerSettings& s) const {
+  std::vector<SlotRays> slots(texels_.empty() ? 0 : s.texels);
+  const TriangleMesh& mesh = scene_.mesh();
+  tbb::parallel_for(size_t{0}, slots.size(), [&](size_t j) {
+    Pcg32 rng(hashTuple({seed, iteration, j, 0x7473}));
+    SlotRays& out = slots[j];
+    out.stats.slots = 1;
+    const uint32_t texel = texels_[rng.nextU32() % texels_.size()];
+    const uint32_t tri = map_.triangle(texel);
+    out.object = mesh.faceObject[tri];
+    const Vec3 p = map_.point(mesh, texel), n = mesh.faceNormal(tri);
+    const size_t tile = vis_.tileOf(texel, map_.resolution());
+    // Up to K distinct candidate frames, drawn without replacement (partial Fisher-Yates).
+    const uint32_t* list = vis_.framesOf(tile);
+    std::vector<uint32_t> candidates(list, list + vis_.frameCount(tile));
+    const size_t k = std::min<size_t>(s.framesPerTexel, candidates.size());
+    for (size_t i = 0; i < k; ++i) {
+      std::swap(candidates[i], candidates[i + rng.nextU32() % (candidates.size() - i)]);
+      const uint32_t f = candidates[i];
+      if (!usable_[f]) continue;
+      ++out.stats.candidates;
+      const Frame& frame = (*frames_.frames)[f];
+      const Camera& cam = frame.camera;
+      const Vec3 toPoint = p - cam.position;
+      const auto px = cam.project(p);
+      if (!(n.dot(toPoint) < 0.0f) || !px || !(px->x() >= 0.5f && px->y() >= 0.5f && px->x() <= cam.width - 0.5f &&
+                                               px->y() <= cam.height - 0.5f)) {
+        ++out.stats.notSeen;
+        continue;
+      }
+      const float dist = toPoint.norm();
+      const Vec3 dir = toPoint / dist;
+      // The training ray must first hit this surface point: anything else (an occluder, or a
+      // neighbouring surface at a grazing angle) would train the wrong texel.
+      const auto hit = scene_.intersect(cam.position, dir);
+      if (!hit || hit->t < dist - 1e-3f * dist - 2 * rayEpsilon(p)) {
+        ++out.stats.notSeen;
+        continue;
+      }
+      if (hit->prim != tri && (hit->p - p).norm() > 1e-3f * dist + 2 * rayEpsilon(p)) {
+        ++out.stats.firstHitElsewhere;
+        continue;
+      }
+      const auto reference = frames_.store->bilinear(f, *px);
+      if (!reference) {
+        ++out.stats.masked;
+        continue;
+      }
+      out.rays.push_back({cam.position, dir, *reference, clipOf(frame)});
+    }
+  });
+  return compact(slots);
+}
+
+std::optional<std::pair<Vec2, Vec3>> randomPixelRay(const Camera& cam, Pcg32& rng) {
+  const Vec2 px(rng.next1D() * cam.width, rng.next1D() * cam.height);
+  const auto dir = cam.rayDirection(px);
+  if (!dir) return std::nullopt;
+  return std::pair{px, *dir};
+}
+
+Batch ImageSpaceSampler::sample(uint64_t seed, uint64_t iteration, int rays, const Scene& scene) const {
+  std::vector<SlotRays> slots(frames_.usable.empty() ? 0 : rays);
+  tbb::parallel_for(size_t{0}, slots.size(), [&](size_t j) {
+    Pcg32 rng(hashTuple({seed, iteration, j, 0x6973}));
+    SlotRays& out = slots[j];
+    out.stats.slots = out.stats.candidates = 1;
+    const uint32_t f = frames_.usable[rng.nextU32() % frames_.usable.size()];
+    const Frame& frame = (*frames_.frames)[f];
+    const auto ray = randomPixelRay(frame.camera, rng);
+    const auto hit = ray ? scene.intersect(frame.camera.position, ray->second) : std::nullopt;
+    if (!hit) {
+      ++out.stats.notSeen;
+      return;
+    }
+    out.object = hit->object;
+    const auto reference = frames_.store->bilinear(f, ray->first);
+    if (!reference) {
+      ++out.stats.masked;
+      return;
+    }
+    out.rays.push_back({frame.camera.position, ray->second, *reference, clipOf(frame)});
+  });
+  return compact(slots);
+}
+
+}  // namespace relume

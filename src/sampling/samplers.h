@@ -1,0 +1,78 @@
+// Training batches. The texture-space sampler (the paper's, 3.3) draws texels uniformly from the
+// valid texels of the current resolution, maps them to surface points through the texel map and
+// connects each to up to K frames that see it (candidates from the visibility index; inside the
+// frustum, facing, and the camera ray's first hit must be that surface point). The image-space
+// sampler (random frames, random pixels) is the ablation's baseline. Both are deterministic: slot
+// j of iteration i is seeded from (seed, i, j), whatever the thread count.
+#pragma once
+#include <span>
+#include <vector>
+
+#include "capture/frame_store.h"
+#include "core/rng.h"
+#include "sampling/batch.h"
+#include "sampling/visibility.h"
+
+namespace relume {
+
+// The frames a sampler may use: cameras and clip thresholds, the cached pixels, and which frames
+// prepare kept.
+struct TrainingFrames {
+  const std::vector<Frame>* frames = nullptr;
+  const FrameStore* store = nullptr;
+  std::vector<uint32_t> usable;
+};
+
+struct SamplerStats {
+  size_t slots = 0;            // texels (or pixels) drawn
+  size_t candidates = 0;       // frame connections tried
+  size_t notSeen = 0;          // outside the image, back-facing, occluded
+  size_t firstHitElsewhere = 0;  // the camera ray first hits another surface (grazing, self-occlusion)
+  size_t masked = 0;           // reference pixel masked (NaN/Inf in the input)
+  size_t rays = 0;             // training rays produced
+  void add(const SamplerStats& o);
+};
+
+// A batch and, per ray, the surface it was aimed at (texture space: the texel slot it came from).
+struct Batch {
+  std::vector<BatchRay> rays;
+  std::vector<uint32_t> slot;    // which drawn texel (or pixel) produced the ray
+  std::vector<int> object;       // the object of the targeted surface point
+  SamplerStats stats;
+};
+
+struct TextureSamplerSettings {
+  int texels = 16384;         // B: texels per iteration
+  int framesPerTexel = 4;     // K: frame connections tried per texel
+};
+
+class TextureSpaceSampler {
+ public:
+  // `texels` are the sampleable texels of `map` (covered and observed).
+  TextureSpaceSampler(const Scene& scene, const TexelMap& map, std::vector<uint32_t> texels, const VisibilityIndex& vis,
+                      const TrainingFrames& frames);
+  Batch sample(uint64_t seed, uint64_t iteration, const TextureSamplerSettings& settings) const;
+  size_t texelCount() const { return texels_.size(); }
+
+ private:
+  const Scene& scene_;
+  const TexelMap& map_;
+  std::vector<uint32_t> texels_;
+  const VisibilityIndex& vis_;
+  TrainingFrames frames_;
+  std::vector<uint8_t> usable_;  // per frame index
+};
+
+// A uniformly random pixel of `cam` and the unit ray direction through it.
+std::optional<std::pair<Vec2, Vec3>> randomPixelRay(const Camera& cam, Pcg32& rng);
+
+class ImageSpaceSampler {
+ public:
+  explicit ImageSpaceSampler(const TrainingFrames& frames) : frames_(frames) {}
+  Batch sample(uint64_t seed, uint64_t iteration, int rays, const Scene& scene) const;
+
+ private:
+  TrainingFrames frames_;
+};
+
+}  // namespace relume

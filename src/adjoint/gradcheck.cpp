@@ -228,6 +228,23 @@ GradcheckReport runGradcheck(const Scene& scene, const Appearance& base, const s
   return report;
 }
 
+std::string directVersusFull(const Scene& scene, const Appearance& appearance, const std::vector<BatchRay>& rays,
+                             const AdjointSettings& direct, const GradcheckReport& report, int batches) {
+  std::vector<ParamRef> params;
+  for (const GradcheckRow& r : report.rows)
+    if (r.level == "loss") params.push_back(r.param);
+  AdjointSettings full = direct;
+  full.mode = GradientMode::Full;
+  const auto gd = meanAdjointGradient(scene, appearance, rays, direct, params, batches);
+  const auto gf = meanAdjointGradient(scene, appearance, rays, full, params, batches);
+  std::string out = fmt::format("bias of direct vs full (mean over {} batches):\n{:<34} {:>14} {:>14} {:>10}\n", batches,
+                                "parameter", "direct", "full", "rel diff");
+  for (size_t i = 0; i < params.size(); ++i)
+    out += fmt::format("{:<34} {:>14.6e} {:>14.6e} {:>9.1f}%\n", params[i].label(), gd[i], gf[i],
+                       100.0 * std::abs(gd[i] - gf[i]) / std::max(std::abs(gf[i]), 1e-30));
+  return out;
+}
+
 bool GradcheckReport::pass() const {
   return std::all_of(rows.begin(), rows.end(), [](const GradcheckRow& r) { return r.pass; });
 }

@@ -51,4 +51,9 @@ GradcheckReport runGradcheck(const Scene& scene, const Appearance& appearance, c
 std::vector<double> meanAdjointGradient(const Scene& scene, const Appearance& appearance, const std::vector<BatchRay>& rays,
                                         const AdjointSettings& settings, const std::vector<ParamRef>& params, int batches);
 
+// How far `direct` gradients are from `full` ones for the parameters of the report's whole-loss
+// rows (mean over `batches`): the bias the paper's first-vertex gradients accept. A table.
+std::string directVersusFull(const Scene& scene, const Appearance& appearance, const std::vector<BatchRay>& rays,
+                             const AdjointSettings& direct, const GradcheckReport& report, int batches);
+
 }  // namespace relume

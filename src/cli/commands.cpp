@@ -12,6 +12,7 @@
 #include "core/system.h"
 #include "adjoint/gradcheck.h"
 #include "pipeline/demo.h"
+#include "pipeline/evaluate.h"
 #include "pipeline/experiment.h"
 #include "pipeline/fit.h"
 #include "pipeline/prepare.h"
@@ -67,20 +68,8 @@ int runGradcheck(const GradcheckArgs& a) {
   fmt::print("gradcheck: {} rays, gradients {}, emitter gradients {}, pairing {}, depth {}, eps {}\n", e.rays.size(),
              a.gradients, a.emitters, a.pairing, a.maxDepth, a.eps);
   fmt::print("{}", report.table());
-  if (go.settings.mode == GradientMode::Direct && go.level2) {
-    std::vector<ParamRef> params;
-    for (const GradcheckRow& r : report.rows)
-      if (r.level == "loss") params.push_back(r.param);
-    AdjointSettings full = go.settings;
-    full.mode = GradientMode::Full;
-    const auto gd = meanAdjointGradient(scene, e.current, e.rays, go.settings, params, go.batches);
-    const auto gf = meanAdjointGradient(scene, e.current, e.rays, full, params, go.batches);
-    fmt::print("\nbias of direct vs full (mean over {} batches):\n{:<34} {:>14} {:>14} {:>10}\n", go.batches, "parameter",
-               "direct", "full", "rel diff");
-    for (size_t i = 0; i < params.size(); ++i)
-      fmt::print("{:<34} {:>14.6e} {:>14.6e} {:>9.1f}%\n", params[i].label(), gd[i], gf[i],
-                 100.0 * std::abs(gd[i] - gf[i]) / std::max(std::abs(gf[i]), 1e-30));
-  }
+  if (go.settings.mode == GradientMode::Direct && go.level2)
+    fmt::print("\n{}", directVersusFull(scene, e.current, e.rays, go.settings, report, go.batches));
   fmt::print("{} in {:.1f}s\n", report.pass() ? "PASS" : "FAIL", t.seconds());
   return report.pass() ? 0 : 1;
 }
@@ -255,6 +244,44 @@ void registerFit(CLI::App& app, CommandTable& table) {
   };
 }
 
+void registerEval(CLI::App& app, CommandTable& table) {
+  auto paths = std::make_shared<std::array<std::string, 5>>();
+  auto spp = std::make_shared<int>(64);
+  CLI::App* c = app.add_subcommand("eval", "re-render a scene at held-out frames and compare (and with a ground truth)");
+  c->add_option("--scene", (*paths)[0], "scene.json to evaluate")->required()->check(CLI::ExistingFile);
+  c->add_option("--cameras", (*paths)[1], "transforms.json of the reference frames")->required()->check(CLI::ExistingFile);
+  c->add_option("--out", (*paths)[2], "output folder (renders, eval.json)")->required();
+  c->add_option("--truth", (*paths)[3], "ground-truth scene.json (same triangles)")->check(CLI::ExistingFile);
+  c->add_option("--coverage", (*paths)[4], "coverage.exr of the work folder (albedo scored where observed >= 5 times)")
+      ->check(CLI::ExistingFile);
+  c->add_option("--spp", *spp)->capture_default_str()->check(CLI::Range(1, 1 << 16));
+  table[c] = [=] {
+    const auto& [scenePath, cameras, out, truthPath, coveragePath] = *paths;
+    const SceneDescription scene = loadSceneFile(scenePath);
+    RenderOptions ro;
+    ro.spp = *spp;
+    std::filesystem::create_directories(out);
+    const ViewComparison v = compareViews(scene, cameras, ro, out);
+    Json report = {{"views", v.toJson()}};
+    fmt::print("views: PSNR {:.2f} dB, MSRE {:.4f} over {} frames\n", v.psnr, v.msre, v.framePsnr.size());
+    if (!truthPath.empty()) {
+      if (coveragePath.empty()) fail("eval: --truth needs --coverage (prepare's coverage.exr)");
+      const Image cov = readImage(coveragePath);
+      std::vector<float> coverage(static_cast<size_t>(cov.width) * cov.height);
+      for (size_t i = 0; i < coverage.size(); ++i) coverage[i] = cov.rgb[3 * i];
+      const TruthComparison t = compareWithTruth(scene, loadSceneFile(truthPath), coverage, cov.width, {});
+      report["truth"] = t.toJson();
+      fmt::print("albedo: MAE {:.4f}, PSNR {:.2f} dB over {} texels; roughness MAE {:.3f}, specular MAE {:.3f}; emitters "
+                 "{}/{} found ({} found in all), emission error {:.2f}%\n",
+                 t.albedoMae, t.albedoPsnr, t.albedoTexels, t.roughnessMae, t.specularMae, t.emittersCorrect, t.emittersTrue,
+                 t.emittersFound, 100 * t.emissionRelError);
+      for (const Json& o : t.perObject) fmt::print("  {}\n", o.dump());
+    }
+    writeJson(std::filesystem::path(out) / "eval.json", report);
+    return 0;
+  };
+}
+
 void registerGradcheck(CLI::App& app, CommandTable& table) {
   auto a = std::make_shared<GradcheckArgs>();
   CLI::App* c = app.add_subcommand("gradcheck", "adjoint gradients vs central finite differences (common random numbers)");
@@ -346,6 +373,7 @@ CommandTable registerCommands(CLI::App& app) {
   registerProfile(app, table);
   registerPrepare(app, table);
   registerFit(app, table);
+  registerEval(app, table);
   registerGradcheck(app, table);
   return table;
 }

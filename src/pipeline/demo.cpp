@@ -14,11 +14,10 @@ namespace fs = std::filesystem;
 
 FitConfig DemoOptions::demoFitConfig() {
   FitConfig c;
-  c.maxDepth = 4;
   c.batchTexels = 8192;
   c.emissionIterations = 100;
-  c.materialIterations = 100;
-  c.albedoPasses = 6;
+  c.materialIterations = 150;
+  c.albedoPasses = 40;
   c.emissionTextureIterations = 40;
   return c;
 }
@@ -77,7 +76,8 @@ Json runDemo(const DemoOptions& o) {
   writeSynthCapture(so);
   const double synthSeconds = ts.seconds();
   PrepareOptions po;
-  po.resolutions = {1024, 2048};
+  po.resolutions = {512, 1024};  // the demo's 256x192 frames resolve about 512^2 of this atlas
+  po.atlas.gutterResolution = 512;
   const PrepareSummary ps = prepareCapture(so.out, o.out / "work", po);
   const FitSummary fs = runFit(o.out / "work", o.fit, false);
 

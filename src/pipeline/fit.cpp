@@ -45,6 +45,8 @@ template <typename Fn> void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("lr_roughness", ConfigField(&c.lrRoughness));
   fn("lr_specular", ConfigField(&c.lrSpecular));
   fn("lr_emission", ConfigField(&c.lrEmission));
+  fn("lr_emission_texture", ConfigField(&c.lrEmissionTexture));
+  fn("lr_final_fraction", ConfigField(&c.lrFinalFraction));
   fn("emission_floor", ConfigField(&c.emissionFloor));
   fn("masked_adam", ConfigField(&c.maskedAdam));
   fn("per_entry_steps", ConfigField(&c.perEntrySteps));
@@ -65,6 +67,7 @@ template <typename Fn> void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("coarse_to_fine", ConfigField(&c.coarseToFine));
   fn("emission_textures", ConfigField(&c.emissionTextures));
   fn("seed", ConfigField(&c.seed));
+  fn("stop_after_iterations", ConfigField(&c.stopAfterIterations));
   fn("checkpoint_every", ConfigField(&c.checkpointEvery));
   fn("metrics_every", ConfigField(&c.metricsEvery));
 }
@@ -82,7 +85,8 @@ void validate(const FitConfig& c, const std::string& where) {
   parseGradientMode(c.gradients);
   parseEmitterGradients(c.emitterGradients);
   parsePairing(c.pairing);
-  for (float lr : {c.lrAlbedo, c.lrRoughness, c.lrSpecular, c.lrEmission})
+  need(c.lrFinalFraction > 0 && c.lrFinalFraction <= 1, "lr_final_fraction must be in (0, 1]");
+  for (float lr : {c.lrAlbedo, c.lrRoughness, c.lrSpecular, c.lrEmission, c.lrEmissionTexture})
     need(std::isfinite(lr) && lr > 0 && lr <= 10, "learning rates must be in (0, 10]");
   need(std::isfinite(c.emissionFloor) && c.emissionFloor > 0 && c.emissionFloor <= 1, "emission_floor must be in (0, 1]");
   need(std::isfinite(c.gradientClamp) && c.gradientClamp >= 0, "gradient_clamp must be >= 0 (0 = off)");
@@ -97,6 +101,7 @@ void validate(const FitConfig& c, const std::string& where) {
   need(c.emitterRadianceFraction >= 0 && c.emitterRadianceFraction <= 1, "emitter_radiance_fraction must be in [0, 1]");
   need(c.highlightMinObservations >= 0, "highlight_min_observations must be >= 0");
   need(c.checkpointEvery >= 1 && c.metricsEvery >= 1, "checkpoint_every and metrics_every must be >= 1");
+  need(c.stopAfterIterations >= 0, "stop_after_iterations must be >= 0 (0 = run to the end)");
 }
 
 }  // namespace
@@ -141,6 +146,12 @@ Json FitConfig::toJson() const {
 namespace {
 
 constexpr int kCheckpointVersion = 1;
+
+// A checkpoint continues the run its config describes; where to stop is not part of the run.
+bool sameRun(Json a, Json b) {
+  a.erase("stop_after_iterations"), b.erase("stop_after_iterations");
+  return a == b;
+}
 
 // Everything prepare built, loaded once.
 struct Workspace {
@@ -267,12 +278,15 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
     return s;
   }
   s.push_back({"emission", emission, resolutions.front(), c.emissionIterations, c.emitterParameterisation, false});
+  // Roughness and specular are fitted together with the albedo: with the albedo held at its init
+  // the specular lobe of a rough object makes up for a too-dark albedo (measured on the room:
+  // walls went to specular 1.0).
   ParamMask materials = emission;
   materials.set(K::Roughness, true);
   materials.set(K::Specular, true);
+  materials.set(K::Albedo, true);
   s.push_back({"materials", materials, resolutions.front(), c.materialIterations, false, false});
-  ParamMask albedo = materials;
-  albedo.set(K::Albedo, true);
+  const ParamMask albedo = materials;
   for (int r : resolutions) s.push_back({fmt::format("albedo@{}", r), albedo, r, albedoIterations(r), false, false});
   if (c.emitterParameterisation && c.emissionTextures && c.emissionTextureIterations > 0) {
     ParamMask tex = ParamMask::only({K::EmissionTexture, K::Albedo, K::Roughness, K::Specular});
@@ -337,7 +351,7 @@ class Fit {
     std::unique_ptr<TexelSpace> space;
     if (resume && fs::exists(checkpointPath)) {
       const Checkpoint ck = Checkpoint::read(checkpointPath);
-      if (ck.meta.value("version", 0) != kCheckpointVersion || ck.meta.value("config", Json()) != c_.toJson())
+      if (ck.meta.value("version", 0) != kCheckpointVersion || !sameRun(ck.meta.value("config", Json()), c_.toJson()))
         fail("{}: checkpoint was written with another config; rerun without --resume", checkpointPath.string());
       startStage = ck.meta.value("stage", 0);
       startIteration = ck.meta.value("iteration", 0);
@@ -376,6 +390,12 @@ class Fit {
       if (st.name == "materials" && startIteration == 0) decideHighlights(*space);
       runStage(st, si, si == static_cast<size_t>(startStage) ? startIteration : 0, *space, si + 1 == stages.size(),
                checkpointPath);
+      if (stopped_) {
+        spdlog::info("fit: stopped after {} iterations as asked; continue with --resume", globalIteration_);
+        summary.stopped = true;
+        summary.iterations = globalIteration_;
+        return summary;
+      }
       if (st.pruneAfter) prune();
       startIteration = 0;
     }
@@ -444,7 +464,7 @@ class Fit {
     polyak_.erase("albedo");
   }
 
-  AdamSettings adamFor(const ParamGroup& g) const {
+  AdamSettings adamFor(const ParamGroup& g, float lrScale) const {
     AdamSettings s;
     s.masked = c_.maskedAdam;
     s.perEntrySteps = c_.perEntrySteps;
@@ -454,10 +474,11 @@ class Fit {
       case ParamKind::Specular: s.learningRate = c_.lrSpecular; break;
       case ParamKind::Emission:
       case ParamKind::EmissionTexture:
-        s.learningRate = c_.lrEmission;
+        s.learningRate = g.kind == ParamKind::Emission ? c_.lrEmission : c_.lrEmissionTexture;
         s.relativeFloor = c_.emissionFloor * radianceScale_;
         break;
     }
+    s.learningRate *= lrScale;
     return s;
   }
 
@@ -512,6 +533,9 @@ class Fit {
     PhaseTimes times;
     for (int it = firstIteration; it < st.iterations; ++it) {
       const uint64_t iteration = static_cast<uint64_t>(globalIteration_);
+      // Constant, except over the second half of the final stage: linear down to lr_final_fraction.
+      const float half = 0.5f * st.iterations;
+      const float lrScale = !finalStage || it < half ? 1.0f : 1.0f - (1.0f - c_.lrFinalFraction) * (it - half) / std::max(1.0f, half);
       Timer ts;
       const Batch batch = sampleBatch(space, iteration);
       times.sample += ts.seconds();
@@ -532,19 +556,27 @@ class Fit {
         clampGradients(g.grads, c_.gradientClamp);
         auto [state, inserted] = adam_.try_emplace(g.name(), g.values.size());
         if (state->second.size() != g.values.size()) state->second = AdamState(g.values.size());
-        state->second.step(g.values, g.grads, g.lo, g.hi, adamFor(g), static_cast<uint32_t>(it + 1));
+        state->second.step(g.values, g.grads, g.lo, g.hi, adamFor(g, lrScale), static_cast<uint32_t>(it + 1));
         if (it >= averageFrom) polyak_[g.name()].add(g.values);
       }
       times.optimiser += to.seconds();
       lastLoss_ = gr.loss;
       ++globalIteration_;
       progress.advance();
-      progress.note(fmt::format("loss {:.3e}, {} rays", gr.loss, batch.rays.size()));
+      const double traceSeconds = gr.times.primal + gr.times.adjoint;
+      progress.note(fmt::format("loss {:.3e}, {} rays, {:.2f} Mrays/s", gr.loss, batch.rays.size(),
+                                traceSeconds > 0 ? batch.rays.size() / traceSeconds * 1e-6 : 0.0));
       if ((it + 1) % c_.metricsEvery == 0 || it + 1 == st.iterations) {
         appendMetrics({{"stage", st.name}, {"iteration", globalIteration_}, {"stage_iteration", it + 1}, {"loss", gr.loss},
-                       {"rays", batch.rays.size()}, {"sampler", statsJson(batch.stats)}, {"seconds", times.toJson()}});
+                       {"rays", batch.rays.size()}, {"lr_scale", lrScale}, {"sampler", statsJson(batch.stats)},
+                       {"seconds", times.toJson()}});
       }
       if ((it + 1) % c_.checkpointEvery == 0 && it + 1 < st.iterations) writeCheckpoint(checkpointPath, stageIndex, it + 1, space);
+      if (c_.stopAfterIterations > 0 && globalIteration_ >= c_.stopAfterIterations && it + 1 < st.iterations) {
+        writeCheckpoint(checkpointPath, stageIndex, it + 1, space);
+        stopped_ = true;
+        return;
+      }
     }
     if (finalStage)
       for (ParamGroup& g : paramGroups(appearance_))
@@ -734,6 +766,7 @@ class Fit {
   float radianceScale_ = 1e-6f;
   int finalRes_ = 0;
   int globalIteration_ = 0;
+  bool stopped_ = false;
   double lastLoss_ = 0;
 };
 

@@ -1,0 +1,126 @@
+#include <gtest/gtest.h>
+#include <tbb/task_arena.h>
+
+#include "core/error.h"
+#include "io/image.h"
+#include "pipeline/prepare.h"
+#include "sampling/samplers.h"
+
+using namespace relume;
+namespace fs = std::filesystem;
+
+namespace {
+
+// A 2 x 2 m floor (object 0) seen from above by 6 cameras, with a 0.6 m quad (object 1) hovering
+// at 1 m, facing down: it hides part of the floor from some cameras and is never seen itself.
+// Frame i shows radiance 0.1 + 0.1 i everywhere, so a reference says which frame it came from.
+fs::path makeCapture() {
+  const fs::path dir = fs::temp_directory_path() / "relume_sampler_test";
+  fs::remove_all(dir);
+  fs::create_directories(dir / "images");
+  MeshData m;
+  m.positions = {{-1, 0, -1}, {1, 0, -1}, {1, 0, 1}, {-1, 0, 1}, {-0.3f, 1, -0.3f}, {0.3f, 1, -0.3f}, {0.3f, 1, 0.3f}, {-0.3f, 1, 0.3f}};
+  m.triangles = {{0, 2, 1}, {0, 3, 2}, {4, 5, 6}, {4, 6, 7}};
+  m.faceObject = {0, 0, 1, 1};
+  writePly(dir / "mesh.ply", m);
+  std::vector<Frame> frames;
+  for (int i = 0; i < 6; ++i) {
+    Frame f;
+    Camera& c = f.camera;
+    c.width = 64, c.height = 48, c.fx = c.fy = 30, c.cx = 32, c.cy = 24;
+    c.position = Vec3(0.4f * (i % 3) - 0.4f, 2.5f, 0.5f * (i / 3) - 0.25f);
+    c.rotation.col(0) = Vec3(1, 0, 0), c.rotation.col(1) = Vec3(0, 0, 1), c.rotation.col(2) = Vec3(0, -1, 0);
+    Image img(c.width, c.height);
+    for (float& v : img.rgb) v = 0.1f + 0.1f * i;
+    f.image = dir / "images" / fmt::format("{:02d}.exr", i);
+    writeExr(f.image, img);
+    frames.push_back(f);
+  }
+  writeTransforms(dir / "transforms.json", frames);
+  PrepareOptions po;
+  po.resolutions = {256};
+  po.atlas.gutterResolution = 256;
+  prepareCapture(dir, dir / "work", po);
+  return dir;
+}
+
+struct Fixture {
+  fs::path dir = makeCapture();
+  TriangleMesh mesh = loadMesh(dir / "work" / "atlas_mesh.ply");
+  Scene scene{mesh};
+  TexelMap map{mesh, 256};
+  VisibilityIndex vis = VisibilityIndex::read(dir / "work" / "visibility.bin");
+  Capture cap = readTransforms(dir / "transforms.json");
+  FrameStore store{dir / "work" / "frames.bin"};
+  std::vector<uint32_t> texels;
+  Fixture() {
+    for (size_t t = 0; t < map.texelCount(); ++t)
+      if (map.covered(t)) texels.push_back(static_cast<uint32_t>(t));
+  }
+  TrainingFrames frames() const { return {&cap.frames, &store, {0, 1, 2, 3, 4, 5}}; }
+};
+
+}  // namespace
+
+TEST(TextureSampler, EveryRayFirstHitsItsSurfacePointWithThatFramesReference) {
+  Fixture f;
+  const TextureSpaceSampler sampler(f.scene, f.map, f.texels, f.vis, f.frames());
+  const Batch b = sampler.sample(3, 0, {2048, 3});
+  ASSERT_GT(b.rays.size(), 2000u);
+  EXPECT_EQ(b.stats.slots, 2048u);
+  EXPECT_GT(b.stats.notSeen, 0u);  // the hovering quad hides some of the floor, and is never seen itself
+  for (size_t j = 0; j < b.rays.size(); ++j) {
+    const BatchRay& r = b.rays[j];
+    const auto hit = f.scene.intersect(r.origin, r.dir);
+    ASSERT_TRUE(hit);
+    EXPECT_EQ(hit->object, 0);
+    EXPECT_EQ(b.object[j], 0);
+    // The reference is the pixel of the frame whose camera the ray starts at.
+    int frame = -1;
+    for (int i = 0; i < 6; ++i)
+      if ((f.cap.frames[i].camera.position - r.origin).norm() < 1e-6f) frame = i;
+    ASSERT_GE(frame, 0);
+    EXPECT_NEAR(r.reference[0], 0.1f + 0.1f * frame, 1e-3f);
+  }
+  // At most K rays per texel slot, slots in order.
+  for (size_t j = 1; j < b.slot.size(); ++j) EXPECT_LE(b.slot[j - 1], b.slot[j]);
+}
+
+TEST(TextureSampler, SameBatchAtAnyThreadCount) {
+  Fixture f;
+  const TextureSpaceSampler sampler(f.scene, f.map, f.texels, f.vis, f.frames());
+  Batch one;
+  tbb::task_arena(1).execute([&] { one = sampler.sample(5, 7, {1024, 4}); });
+  const Batch two = sampler.sample(5, 7, {1024, 4});
+  ASSERT_EQ(one.rays.size(), two.rays.size());
+  for (size_t j = 0; j < one.rays.size(); ++j) {
+    EXPECT_EQ(one.rays[j].dir, two.rays[j].dir);
+    EXPECT_EQ(one.rays[j].reference[0], two.rays[j].reference[0]);
+  }
+  const Batch other = sampler.sample(5, 8, {1024, 4});
+  EXPECT_NE(other.rays.front().dir, one.rays.front().dir);
+}
+
+TEST(ImageSampler, RaysThroughRandomPixelsOfUsableFrames) {
+  Fixture f;
+  TrainingFrames tf = f.frames();
+  tf.usable = {2};
+  const Batch b = ImageSpaceSampler(tf).sample(1, 0, 512, f.scene);
+  // The wide camera sees the floor in part of the image only: pixels that see nothing give no ray.
+  EXPECT_EQ(b.stats.slots, 512u);
+  EXPECT_EQ(b.rays.size() + b.stats.notSeen + b.stats.masked, 512u);
+  ASSERT_GT(b.rays.size(), 50u);
+  for (const BatchRay& r : b.rays) {
+    EXPECT_LT((r.origin - f.cap.frames[2].camera.position).norm(), 1e-6f);
+    EXPECT_NEAR(r.reference[0], 0.3f, 1e-3f);
+  }
+}
+
+TEST(Observe, RejectsNonFiniteNormalsAndPointsAtTheCamera) {
+  Fixture f;
+  const Camera& cam = f.cap.frames[0].camera;
+  EXPECT_TRUE(observe(f.scene, cam, Vec3(0.9f, 0, 0.9f), Vec3(0, 1, 0)));
+  EXPECT_FALSE(observe(f.scene, cam, Vec3(0.9f, 0, 0.9f), Vec3(NAN, NAN, NAN)));
+  EXPECT_FALSE(observe(f.scene, cam, Vec3(0.9f, 0, 0.9f), Vec3(0, -1, 0)));
+  EXPECT_FALSE(observe(f.scene, cam, cam.position, Vec3(0, 1, 0)));
+}

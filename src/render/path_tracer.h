@@ -33,7 +33,7 @@ struct AppearanceScope {
 };
 
 inline BsdfParams bsdfParamsAt(const Appearance& a, const SurfaceHit& hit) {
-  return {a.albedoAt(hit.object, hit.uv), a.roughness[hit.object], a.specular[hit.object], a.diffuse};
+  return {a.albedoAt(hit.object, hit.uv), a.roughness[hit.object], a.specular[hit.object], a.model};
 }
 
 // Front-facing Lambertian emission of `hit` seen along -dir.

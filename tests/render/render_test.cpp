@@ -30,9 +30,11 @@ Color meanRadiance(const Scene& scene, const Appearance& a, const Vec3& origin, 
 
 TEST(Render, WhiteFurnace) {
   // Closed sphere, Lambert albedo a, specular 0, emission Le everywhere: radiance is
-  // Le (1 - a^(D+1)) / (1 - a) for max depth D, -> Le / (1 - a).
+  // Le (1 - a^(D+1)) / (1 - a) for max depth D, -> Le / (1 - a). glTF at specular 0 is Lambert.
   SynthScene furnace = makeSynthScene(SynthSceneKind::Furnace, 64);
   Appearance& a = furnace.scene.appearance;
+  a.model = BsdfModel::Gltf;
+  ASSERT_EQ(a.specular[0], 0.0f);
   Scene scene(furnace.scene.mesh);
   for (float albedo : {0.3f, 0.8f}) {
     std::fill(a.albedo.rgb.begin(), a.albedo.rgb.end(), albedo);
@@ -53,6 +55,7 @@ TEST(Render, FurnaceFailsWithWrongAlbedo) {
   // Guard against a test that cannot fail: the estimate does separate nearby albedos.
   SynthScene furnace = makeSynthScene(SynthSceneKind::Furnace, 64);
   Appearance& a = furnace.scene.appearance;
+  a.model = BsdfModel::Gltf;
   Scene scene(furnace.scene.mesh);
   std::fill(a.albedo.rgb.begin(), a.albedo.rgb.end(), 0.52f);
   double se = 0;
@@ -61,7 +64,7 @@ TEST(Render, FurnaceFailsWithWrongAlbedo) {
 }
 
 TEST(Render, SmallEmitterAnalyticIrradiance) {
-  // Receiver plane y=0 (Lambert albedo rho, no specular); square emitter of half-size h at height d
+  // Receiver plane y=0 (Lambert albedo rho: glTF with specular 0); square emitter of half-size h at height d
   // facing down. Radiance leaving the receiver point below the centre with direct lighting only:
   // rho/pi * E, E = 4 pi Le F(h/d, h/d) (corner form factor to a parallel rectangle).
   const float h = 0.1f, d = 1.0f, rho = 0.5f, le = 10.0f;
@@ -71,7 +74,7 @@ TEST(Render, SmallEmitterAnalyticIrradiance) {
   m.faceObject = {0, 0, 1, 1};
   Scene scene(buildMesh(m, "two planes"));
   Appearance a(2);
-  a.diffuse = DiffuseModel::Lambert;
+  a.model = BsdfModel::Gltf;
   a.albedoConstant = {Color::Constant(rho), Color::Constant(0)};
   a.specular = {0, 0};
   a.emission[1] = Color::Constant(le);

@@ -45,7 +45,7 @@ double sampleObjective(const std::vector<BatchRay>& rays, Pairing pairing, const
   double sum = 0;
   const double invN = 1.0 / rays.size();
   for (size_t j = 0; j < rays.size(); ++j) {
-    const Eigen::Array3d ref = rays[j].reference.cast<double>();
+    const Eigen::Array3d ref = lossTarget(rays[j].reference, rays[j].clip).cast<double>();
     switch (pairing) {
       case Pairing::Decorrelated: sum += (deltaA[j].cast<double>() * b[j]).sum(); break;
       case Pairing::Crossfit:
@@ -62,7 +62,7 @@ double productLoss(const std::vector<BatchRay>& rays, const std::vector<Eigen::A
                    const std::vector<Eigen::Array3d>& b) {
   double sum = 0;
   for (size_t j = 0; j < rays.size(); ++j) {
-    const Eigen::Array3d ref = rays[j].reference.cast<double>();
+    const Eigen::Array3d ref = lossTarget(rays[j].reference, rays[j].clip).cast<double>();
     sum += (weightOf(rays[j], a[j]) * (a[j] - ref) * (b[j] - ref)).sum();
   }
   return sum / rays.size();

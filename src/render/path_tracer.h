@@ -13,8 +13,14 @@
 
 namespace relume {
 
+// Path length: the number of scattering vertices, each with next-event estimation (0 = emission
+// seen directly only, 1 = direct lighting, N = N - 1 indirect bounces). Cycles' "max bounces" B
+// counts indirect bounces, so it equals depth B + 1; the default 9 is Cycles' default 8 (measured
+// against Cycles 3.4: README "Agreement with Blender Cycles").
+inline constexpr int kDefaultMaxDepth = 9;
+
 struct PathSettings {
-  int maxDepth = 8;  // scattering events; 0 = emission seen directly only, 1 = direct lighting
+  int maxDepth = kDefaultMaxDepth;
   bool russianRoulette = false;
   int rouletteDepth = 3;
 };

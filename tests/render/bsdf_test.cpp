@@ -126,24 +126,24 @@ TEST(Bsdf, PdfMassMatchesSamplingSuccess) {
   // The pdf integrates to the probability that sampling succeeds (GGX reflections below the
   // horizon are rejected); the tolerance is 4 standard errors of the uniform-sphere estimate.
   for (BsdfModel m : kModels)
-  for (const Config& c : kConfigs) {
-    const BsdfParams p = params(c.albedo, c.roughness, c.specular, m);
-    const Vec3 wo = dirFromAngle(c.thetaDeg, 10);
-    Pcg32 rng(3);
-    const int n = 400000;
-    double sum = 0, sum2 = 0;
-    int success = 0;
-    for (int i = 0; i < n; ++i) {
-      const Vec3 w = squareToUniformSphere(Vec2(rng.next1D(), rng.next1D()));
-      const double v = pdfBsdf(p, wo, w) * 4 * kPi;
-      sum += v, sum2 += v * v;
-      if (sampleBsdf(p, wo, rng.next1D(), Vec2(rng.next1D(), rng.next1D()))) ++success;
+    for (const Config& c : kConfigs) {
+      const BsdfParams p = params(c.albedo, c.roughness, c.specular, m);
+      const Vec3 wo = dirFromAngle(c.thetaDeg, 10);
+      Pcg32 rng(3);
+      const int n = 400000;
+      double sum = 0, sum2 = 0;
+      int success = 0;
+      for (int i = 0; i < n; ++i) {
+        const Vec3 w = squareToUniformSphere(Vec2(rng.next1D(), rng.next1D()));
+        const double v = pdfBsdf(p, wo, w) * 4 * kPi;
+        sum += v, sum2 += v * v;
+        if (sampleBsdf(p, wo, rng.next1D(), Vec2(rng.next1D(), rng.next1D()))) ++success;
+      }
+      const double integral = sum / n, se = std::sqrt((sum2 / n - integral * integral) / n);
+      const double rate = double(success) / n, seRate = std::sqrt(rate * (1 - rate) / n);
+      EXPECT_LE(integral, 1.0 + 4 * se);
+      EXPECT_NEAR(integral, rate, 4 * std::hypot(se, seRate)) << "roughness " << c.roughness << " theta " << c.thetaDeg;
     }
-    const double integral = sum / n, se = std::sqrt((sum2 / n - integral * integral) / n);
-    const double rate = double(success) / n, seRate = std::sqrt(rate * (1 - rate) / n);
-    EXPECT_LE(integral, 1.0 + 4 * se);
-    EXPECT_NEAR(integral, rate, 4 * std::hypot(se, seRate)) << "roughness " << c.roughness << " theta " << c.thetaDeg;
-  }
   // Pure cosine lobe: exactly 1.
   Pcg32 rng(4);
   double integral = 0;
@@ -190,40 +190,45 @@ TEST(Bsdf, DirectionalAlbedoAtMostOne) {
 
 using namespace relume::reference;
 
-TEST(Bsdf, PrincipledV1ClosedForm) {
-  // Cycles' Principled diffuse (1 - FL/2)(1 - FV/2) + RR (FL + FV + FL FV (RR - 1)), RR = 2 r (wi.h)^2,
-  // F = Schlick weight, plus GGX with G1(wi) G1(wo) and the exact Fresnel at Cycles' ior.
+namespace {
+
+// f of `model` (albedo 0.6) against `expected(r, s, wi, wo, h)` over roughness, specular and
+// directions up to grazing.
+template <class Expected> void expectClosedForm(BsdfModel model, const Expected& expected) {
   for (float r : {0.1f, 0.5f, 1.0f})
     for (float s : {0.0f, 0.3f, 1.0f})
       for (auto [ti, to] : {std::pair{10.0f, 20.0f}, {60.0f, 30.0f}, {80.0f, 85.0f}, {45.0f, 88.0f}}) {
         const Vec3 wi = dirFromAngle(ti, 0), wo = dirFromAngle(to, 160);
-        const Vec3 h = (wi + wo).normalized();
-        const double cosD = wi.dot(h), alpha = double(r) * r;
-        const double fl = std::pow(1 - wi.z(), 5), fv = std::pow(1 - wo.z(), 5), rr = 2 * r * cosD * cosD;
-        const double diffuse = 0.6 / M_PI * ((1 - 0.5 * fl) * (1 - 0.5 * fv) + rr * (fl + fv + fl * fv * (rr - 1)));
-        const double g = 1 / ((1 + smithLambda(alpha, wi.z())) * (1 + smithLambda(alpha, wo.z())));
-        const double spec = snellFresnel(cosD, cyclesIor(s)) * ggxD(alpha, h.z()) * g / (4 * wi.z() * wo.z());
-        const double expected = diffuse + spec;
-        const float f = evalBsdf(params(0.6f, r, s), wo, wi).f[0];
-        EXPECT_NEAR(f, expected, 2e-5 * expected) << "r " << r << " s " << s << " theta " << ti << "," << to;
+        const double e = expected(double(r), double(s), wi.cast<double>(), wo.cast<double>(),
+                                  (wi + wo).normalized().cast<double>());
+        const float f = evalBsdf(params(0.6f, r, s, model), wo, wi).f[0];
+        EXPECT_NEAR(f, e, 2e-5 * e) << bsdfModelName(model) << " r " << r << " s " << s << " theta " << ti << "," << to;
       }
+}
+
+}  // namespace
+
+TEST(Bsdf, PrincipledV1ClosedForm) {
+  // Cycles' Principled diffuse (1 - FL/2)(1 - FV/2) + RR (FL + FV + FL FV (RR - 1)), RR = 2 r (wi.h)^2,
+  // F = Schlick weight, plus GGX with G1(wi) G1(wo) and the exact Fresnel at Cycles' ior.
+  expectClosedForm(BsdfModel::PrincipledV1, [](double r, double s, const Vec3d& wi, const Vec3d& wo, const Vec3d& h) {
+    const double cosD = wi.dot(h), alpha = r * r;
+    const double fl = std::pow(1 - wi.z(), 5), fv = std::pow(1 - wo.z(), 5), rr = 2 * r * cosD * cosD;
+    const double diffuse = 0.6 / M_PI * ((1 - 0.5 * fl) * (1 - 0.5 * fv) + rr * (fl + fv + fl * fv * (rr - 1)));
+    const double g = 1 / ((1 + smithLambda(alpha, wi.z())) * (1 + smithLambda(alpha, wo.z())));
+    return diffuse + snellFresnel(cosD, cyclesIor(s)) * ggxD(alpha, h.z()) * g / (4 * wi.z() * wo.z());
+  });
 }
 
 TEST(Bsdf, GltfClosedForm) {
   // glTF 2.0 + KHR_materials_specular, metallic 0: fresnel_mix(Lambert, GGX) with
   // F = s (F0' + (1 - F0') (1 - V.H)^5), F0' = 0.08, and V = G2 / (4 N.L N.V), height-correlated.
-  for (float r : {0.1f, 0.5f, 1.0f})
-    for (float s : {0.0f, 0.3f, 1.0f})
-      for (auto [ti, to] : {std::pair{10.0f, 20.0f}, {60.0f, 30.0f}, {80.0f, 85.0f}, {45.0f, 88.0f}}) {
-        const Vec3 wi = dirFromAngle(ti, 0), wo = dirFromAngle(to, 160);
-        const Vec3 h = (wi + wo).normalized();
-        const double alpha = double(r) * r;
-        const double F = s * (0.08 + 0.92 * std::pow(1 - wo.dot(h), 5));
-        const double vis = 1 / ((1 + smithLambda(alpha, wi.z()) + smithLambda(alpha, wo.z())) * 4 * wi.z() * wo.z());
-        const double expected = (1 - F) * 0.6 / M_PI + F * ggxD(alpha, h.z()) * vis;
-        const float f = evalBsdf(params(0.6f, r, s, BsdfModel::Gltf), wo, wi).f[0];
-        EXPECT_NEAR(f, expected, 2e-5 * expected) << "r " << r << " s " << s << " theta " << ti << "," << to;
-      }
+  expectClosedForm(BsdfModel::Gltf, [](double r, double s, const Vec3d& wi, const Vec3d& wo, const Vec3d& h) {
+    const double alpha = r * r;
+    const double F = s * (0.08 + 0.92 * std::pow(1 - wo.dot(h), 5));
+    const double vis = 1 / ((1 + smithLambda(alpha, wi.z()) + smithLambda(alpha, wo.z())) * 4 * wi.z() * wo.z());
+    return (1 - F) * 0.6 / M_PI + F * ggxD(alpha, h.z()) * vis;
+  });
 }
 
 TEST(Bsdf, PrincipledFresnelIsTheExactDielectricOne) {
@@ -246,11 +251,11 @@ TEST(Bsdf, PrincipledFresnelIsTheExactDielectricOne) {
 
 TEST(Bsdf, NoNanAtExtremes) {
   for (BsdfModel m : kModels)
-  for (float r : {0.0f, kRoughnessMin, 1.0f})
-    for (float s : {0.0f, 1.0f})
-      for (float ti : {0.0f, 89.99f, 90.0f})
-        for (float to : {0.0f, 89.99f}) {
-          const BsdfEval e = evalBsdf(params(0.5f, r, s, m), dirFromAngle(to), dirFromAngle(ti, 180), kBsdfValue | kBsdfDerivatives);
-          EXPECT_TRUE(isFinite(e.f) && isFinite(e.dRoughness) && isFinite(e.dSpecular));
-        }
+    for (float r : {0.0f, kRoughnessMin, 1.0f})
+      for (float s : {0.0f, 1.0f})
+        for (float ti : {0.0f, 89.99f, 90.0f})
+          for (float to : {0.0f, 89.99f}) {
+            const BsdfEval e = evalBsdf(params(0.5f, r, s, m), dirFromAngle(to), dirFromAngle(ti, 180), kBsdfValue | kBsdfDerivatives);
+            EXPECT_TRUE(isFinite(e.f) && isFinite(e.dRoughness) && isFinite(e.dSpecular));
+          }
 }

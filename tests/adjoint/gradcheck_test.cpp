@@ -78,17 +78,22 @@ INSTANTIATE_TEST_SUITE_P(AllModes, GradcheckModes,
 class GradcheckModels : public ::testing::TestWithParam<BsdfModel> {};
 
 TEST_P(GradcheckModels, EveryParameterKindOnCornell) {
-  ExperimentOptions o;
-  o.rays = 128;
-  o.atlasResolution = 32;
-  SceneDescription truth = makeSynthScene(SynthSceneKind::Cornell, o.atlasResolution).scene;
-  truth.appearance.model = GetParam();
-  const GradientExperiment e =
-      makeGradientExperiment(std::move(truth), synthCameraPath(SynthSceneKind::Cornell, 8, 160, 120, 0.25), o);
+  const auto experimentOf = [](BsdfModel model, bool emissionTextures) {
+    ExperimentOptions o;
+    o.rays = 128;
+    o.atlasResolution = 32;
+    o.emissionTextures = emissionTextures;
+    SceneDescription truth = makeSynthScene(SynthSceneKind::Cornell, o.atlasResolution).scene;
+    truth.appearance.model = model;
+    return makeGradientExperiment(std::move(truth), synthCameraPath(SynthSceneKind::Cornell, 8, 160, 120, 0.25), o);
+  };
+  const GradientExperiment e = experimentOf(GetParam(), false);
   ASSERT_EQ(e.current.model, GetParam());
   const std::string name = bsdfModelName(GetParam());
   expectPass(check(e, kConstantKinds, GradientMode::Full, Pairing::Decorrelated), name + " full");
   expectPass(check(e, kConstantKinds, GradientMode::Direct, Pairing::Crossfit), name + " direct/crossfit");
+  expectPass(check(experimentOf(GetParam(), true), {ParamKind::EmissionTexture}, GradientMode::Full, Pairing::Decorrelated),
+             name + " emission texture");
 }
 
 INSTANTIATE_TEST_SUITE_P(BothModels, GradcheckModels, ::testing::Values(BsdfModel::PrincipledV1, BsdfModel::Gltf),

@@ -8,12 +8,12 @@ R="$ROOT/build/relume"
 OUT="${1:-$ROOT/out/bench}"
 mkdir -p "$OUT"
 run() { echo "\$ relume $*"; "$R" --log warn "$@" | tee -a "$OUT/bench.log"; echo; }
-run profile --what render,leaks,scatter,visibility
-run profile --what adjoint
+run profile --what render,leaks,scatter,visibility --max-depth 8
+run profile --what adjoint --max-depth 8
 run profile --what adjoint --max-depth 2 --repeats 1
 run profile --what adjoint --max-depth 64 --repeats 1
-run profile --what pairing --batches 64
-run gradcheck --synth room
+run profile --what pairing --batches 64 --max-depth 8
+run gradcheck --synth room --max-depth 8
 "$R" --log warn synth --scene scan --out "$OUT/scan" --frames 2000 --test-frames 1 --width 128 --height 96 --spp 1 --max-depth 2
 echo "\$ relume prepare (1M triangles, 2000 frames)"
 "$R" prepare "$OUT/scan" --out "$OUT/scan_work" --force 2>&1 | grep -E "done in|prepared|peak RSS" | tee -a "$OUT/bench.log"

@@ -117,7 +117,7 @@ class Scatterer {
         if (fp.weight[k] != 0.0f) g_.addAlbedo(fp.index[k], fp.weight[k] * g);
     }
     if (s_.mask.active(ParamKind::Roughness)) local_[g_.roughnessSlot(r.object)] += (d.dRoughness * w).sum();
-    if (s_.mask.active(ParamKind::Specular)) local_[g_.specularSlot(r.object)] += d.dSpecular * w.sum();
+    if (s_.mask.active(ParamKind::Specular)) local_[g_.specularSlot(r.object)] += (d.dSpecular * w).sum();
   }
   void emission(int object, const Vec2& uv, const Color& g) {
     if (const Texture* t = a_.emissionTexture(object)) {

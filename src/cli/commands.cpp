@@ -24,10 +24,12 @@
 namespace relume {
 namespace {
 
+constexpr const char* kMaxDepthHelp = "scattering vertices per path, each with light sampling (1 = direct light only; Cycles' max bounces B is depth B + 1)";
+
 struct GradcheckArgs {
   std::string scene, cameras, synth = "room", param = "all", gradients = "direct", emitters = "strict",
                                  pairing = "decorrelated", level = "both";
-  int rays = 256, batches = 32, perKind = 3, maxDepth = 8, atlas = 64;
+  int rays = 256, batches = 32, perKind = 3, maxDepth = kDefaultMaxDepth, atlas = 64;
   float eps = 1e-3f, emissionScale = 1.0f, clipHigh = INFINITY;
   bool roulette = false;
 };
@@ -117,7 +119,7 @@ void registerPrepare(CLI::App& app, CommandTable& table) {
 
 struct ProfileArgs {
   std::string synth = "room", what = "render,adjoint";
-  int width = 320, height = 240, spp = 4, maxDepth = 8, rays = 65536, repeats = 3, batches = 32, studyRays = 4096;
+  int width = 320, height = 240, spp = 4, maxDepth = kDefaultMaxDepth, rays = 65536, repeats = 3, batches = 32, studyRays = 4096;
   int scatterRes = 4096;
 };
 
@@ -215,7 +217,7 @@ void registerProfile(CLI::App& app, CommandTable& table) {
   c->add_option("--width", a->width)->capture_default_str();
   c->add_option("--height", a->height)->capture_default_str();
   c->add_option("--spp", a->spp)->capture_default_str();
-  c->add_option("--max-depth", a->maxDepth)->capture_default_str();
+  c->add_option("--max-depth", a->maxDepth, kMaxDepthHelp)->capture_default_str();
   c->add_option("--rays", a->rays, "adjoint batch size")->capture_default_str();
   c->add_option("--repeats", a->repeats)->capture_default_str();
   c->add_option("--batches", a->batches, "pairing study batches")->capture_default_str();
@@ -297,7 +299,7 @@ void registerGradcheck(CLI::App& app, CommandTable& table) {
   c->add_option("--batches", a->batches, "independent batches for the whole-loss check")->capture_default_str();
   c->add_option("--params-per-kind", a->perKind)->capture_default_str();
   c->add_option("--eps", a->eps, "finite-difference step (relative for emission)")->capture_default_str();
-  c->add_option("--max-depth", a->maxDepth)->capture_default_str();
+  c->add_option("--max-depth", a->maxDepth, kMaxDepthHelp)->capture_default_str();
   c->add_option("--atlas-res", a->atlas, "synthetic albedo atlas resolution")->capture_default_str();
   c->add_option("--emission-scale", a->emissionScale, "multiply emitters (e.g. 1e4 to stress)")->capture_default_str();
   c->add_option("--clip-high", a->clipHigh, "reference saturation threshold (one-sided loss)");
@@ -321,7 +323,7 @@ CommandTable registerCommands(CLI::App& app) {
   synth->add_option("--width", synthArgs->width)->capture_default_str();
   synth->add_option("--height", synthArgs->height)->capture_default_str();
   synth->add_option("--spp", synthArgs->spp, "samples per pixel")->capture_default_str();
-  synth->add_option("--max-depth", synthArgs->maxDepth)->capture_default_str();
+  synth->add_option("--max-depth", synthArgs->maxDepth, kMaxDepthHelp)->capture_default_str();
   synth->add_option("--seed", synthArgs->seed)->capture_default_str();
   synth->add_option("--atlas-res", synthArgs->atlasResolution, "ground-truth albedo atlas resolution")->capture_default_str();
   synth->add_flag("--with-uv", synthArgs->withUv, "keep uv coordinates in the capture's mesh.ply");
@@ -344,7 +346,7 @@ CommandTable registerCommands(CLI::App& app) {
   render->add_option("--cameras", (*renderPaths)[1], "transforms.json")->required()->check(CLI::ExistingFile);
   render->add_option("--out", (*renderPaths)[2], "output folder")->required();
   render->add_option("--spp", renderArgs->render.spp)->capture_default_str()->check(CLI::Range(1, 1 << 20));
-  render->add_option("--max-depth", renderArgs->render.path.maxDepth)->capture_default_str()->check(CLI::Range(0, 1024));
+  render->add_option("--max-depth", renderArgs->render.path.maxDepth, kMaxDepthHelp)->capture_default_str()->check(CLI::Range(0, 1024));
   render->add_option("--seed", renderArgs->render.seed)->capture_default_str();
   render->add_flag("--russian-roulette", renderArgs->render.path.russianRoulette);
   render->add_option("--aov", renderArgs->aovs, "comma list of albedo,normal,depth,object");

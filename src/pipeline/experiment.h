@@ -16,7 +16,7 @@ struct ExperimentOptions {
   int rays = 256;
   int atlasResolution = 64;
   int referenceSpp = 4;
-  int maxDepth = 8;
+  int maxDepth = kDefaultMaxDepth;
   uint64_t seed = 7;
   bool emissionTextures = false;  // give emitters textured emission (for emission_tex gradients)
   float emissionScale = 1.0f;     // multiply every emitter (stress: very bright emitters)

@@ -77,7 +77,7 @@ class SceneBuilder {
 
   // Packs one chart per patch into a square atlas (shelf packing, 2-texel gutter at `resolution`),
   // tessellates, and bakes the albedo texture including gutters (clamped to the chart).
-  SceneDescription build(int resolution, DiffuseModel diffuse) {
+  SceneDescription build(int resolution) {
     const int gutter = 2;
     // Largest texel density whose shelf packing fits.
     double lo = 1e-3, hi = 1e5;
@@ -91,7 +91,6 @@ class SceneBuilder {
     TriangleMesh& m = out.mesh;
     m.objectCount = static_cast<int>(names_.size());
     Appearance a(m.objectCount);
-    a.diffuse = diffuse;
     a.names = names_;
     a.roughness = roughness_;
     a.specular = specular_;
@@ -235,7 +234,7 @@ SceneDescription buildRoom(int resolution, float cellSize = 0.085f) {  // ~35k t
   b.sphere(ball, Vec3(2.6f, 0.95f, 1.7f), 0.2f, false, constant({0.15f, 0.25f, 0.65f}));
   b.box(cube, Vec3(4.0f, 0, 2.8f), Vec3(4.45f, 0.45f, 3.25f), constant({0.75f, 0.70f, 0.25f}));
   b.quad(frame, Vec3(kRoomX - 0.01f, 1.1f, 1.8f), Vec3(0, 0, 1.0f), Vec3(0, 0.7f, 0), painting);
-  return b.build(resolution, DiffuseModel::Disney);
+  return b.build(resolution);
 }
 
 SceneDescription buildCornell(int resolution) {
@@ -254,15 +253,14 @@ SceneDescription buildCornell(int resolution) {
   b.quad(light, Vec3(0.75f, s - 0.005f, 0.8f), Vec3(0.5f, 0, 0), Vec3(0, 0, 0.4f), constant({0.8f, 0.8f, 0.8f}));
   b.box(tall, Vec3(0.35f, 0, 0.5f), Vec3(0.9f, 1.2f, 1.05f), constant({0.73f, 0.73f, 0.73f}));
   b.box(shortBox, Vec3(1.1f, 0, 1.0f), Vec3(1.65f, 0.6f, 1.55f), constant({0.73f, 0.73f, 0.73f}));
-  return b.build(resolution, DiffuseModel::Disney);
+  return b.build(resolution);
 }
 
 SceneDescription buildFurnace(int resolution) {
   SceneBuilder b;
   const int shell = b.addObject("shell", 1.0f, 0.0f, Color::Constant(1.0f));
   b.sphere(shell, Vec3::Zero(), 1.0f, true, constant({0.5f, 0.5f, 0.5f}), 32);
-  SceneDescription d = b.build(resolution, DiffuseModel::Lambert);
-  return d;
+  return b.build(resolution);
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "capture/transforms.h"
+#include "render/path_tracer.h"
 #include "scene/appearance.h"
 
 namespace relume {
@@ -37,7 +38,7 @@ struct SynthCaptureOptions {
   int frames = 24, testFrames = 4;
   int width = 256, height = 192;
   int spp = 16;
-  int maxDepth = 8;
+  int maxDepth = kDefaultMaxDepth;
   uint64_t seed = 1;
   bool withUv = false;
   int atlasResolution = 1024;

@@ -54,49 +54,90 @@ struct Ggx : GgxT<float> {
   }
 };
 
+// Smallest cosD the exact Fresnel sees: at cosD = 0 and s = 0 it is 0/0, and its s-derivative at
+// s = 0 grows as 0.08 / cosD^4 (F ~ 0.04 s (1 + B^2) / cosD^4 until 0.32 s ~ cosD^2), which this
+// bound keeps below 1e11. Half vectors that far from the normal (89.94 degrees) have no weight.
+constexpr float kMinCosD = 1e-3f;
+
+// The model's Fresnel factor and dF/ds.
+// PrincipledV1: exact unpolarised dielectric Fresnel, F = A^2 (1 + B^2) / 2 with g = sqrt(eta^2 - 1 + c^2),
+// A = (g - c) / (g + c), B = (c (g + c) - 1) / (c (g - c) + 1) (Cycles' fresnel_dielectric_cos), and
+// eta = (1 + q) / (1 - q), q = sqrt(F0), F0 = 0.08 s. With x = eta^2 - 1 = 4q / (1 - q)^2,
+// A = x / (g + c)^2 has no cancellation, and dF/dF0 = (dF/dx) (dx/dF0) is formed as
+// [dF/dx / x] [x dx/dF0] with x dx/dF0 = 8 (1 + q) / (1 - q)^5: finite at s = 0, where F ~ F0.
+// Gltf: Schlick with F0 = 0.08 s and F90 = s.
+template <typename T> std::pair<T, T> fresnelT(BsdfModel model, T cosD, T specular) {
+  if (model == BsdfModel::Gltf) {
+    const T w = pow5(T(1) - std::clamp(cosD, T(0), T(1)));
+    return {specular * (T(0.08) + T(0.92) * w), T(0.08) + T(0.92) * w};
+  }
+  const T c = std::clamp(cosD, T(kMinCosD), T(1));
+  const T q = std::sqrt(T(0.08) * specular), oneMinusQ = T(1) - q;
+  const T x = T(4) * q / (oneMinusQ * oneMinusQ);
+  const T g = std::sqrt(x + c * c), gc = g + c;
+  const T a = T(1) / (gc * gc);
+  const T A = x * a;
+  const T bd = c * (g - c) + T(1);
+  const T B = (c * gc - T(1)) / bd;
+  const T dAdx = a - A / (g * gc);
+  const T dBdx = c * (T(1) - c * c) / (bd * bd * g);
+  const T dFdxOverX = a * dAdx * (T(1) + B * B) + A * a * B * dBdx;
+  const T xdxdF0 = T(8) * (T(1) + q) / pow5(oneMinusQ);
+  return {T(0.5) * A * A * (T(1) + B * B), T(0.08) * dFdxOverX * xdxdF0};
+}
+
 // Value of f and its parameter derivatives, shared by the float renderer and the double reference.
 template <typename T>
-BsdfEvalDouble::Of<T> evalValue(const Eigen::Array<T, 3, 1>& albedo, T roughness, T specular, DiffuseModel diffuse,
+BsdfEvalDouble::Of<T> evalValue(const Eigen::Array<T, 3, 1>& albedo, T roughness, T specular, BsdfModel model,
                                 const Eigen::Matrix<T, 3, 1>& wo, const Eigen::Matrix<T, 3, 1>& wi,
                                 const Eigen::Matrix<T, 3, 1>& h, const GgxT<T>& g, T D, T lo, bool derivatives) {
   BsdfEvalDouble::Of<T> e;
   const T muO = wo.z(), muI = wi.z();
   const T cosD = std::clamp(T(wi.dot(h)), T(0), T(1));
-  T diffuseFactor = T(kInvPi), dDiffuseDr = T(0);
-  if (diffuse == DiffuseModel::Disney) {
+  const auto [F, dFds] = fresnelT<T>(model, cosD, specular);
+  // Diffuse factor kd (f_diffuse = albedo kd) and its derivatives.
+  T kd, dKdDr = T(0), dKdDs = T(0);
+  if (model == BsdfModel::PrincipledV1) {  // Burley 2012
     const T fd90 = T(0.5) + T(2) * roughness * cosD * cosD;
     const T a = pow5(T(1) - muI), b = pow5(T(1) - muO);
     const T gi = T(1) + (fd90 - T(1)) * a, go = T(1) + (fd90 - T(1)) * b;
-    diffuseFactor = T(kInvPi) * gi * go;
-    dDiffuseDr = T(kInvPi) * (a * go + b * gi) * T(2) * cosD * cosD;
+    kd = T(kInvPi) * gi * go;
+    dKdDr = T(kInvPi) * (a * go + b * gi) * T(2) * cosD * cosD;
+  } else {  // Lambert weighted by 1 - F (fresnel_mix)
+    kd = T(kInvPi) * (T(1) - F);
+    dKdDs = -T(kInvPi) * dFds;
   }
-  const T w = pow5(T(1) - cosD);
-  const T f0 = T(0.08) * specular;
-  const T F = f0 + (specular - f0) * w;
+  // Specular lobe without its Fresnel factor: separable (Principled v1) or height-correlated (glTF) Smith.
   const T li = g.lambda(muI);
-  const T G = T(1) / (T(1) + li + lo);
+  const bool separable = model == BsdfModel::PrincipledV1;
+  const T G = separable ? T(1) / ((T(1) + li) * (T(1) + lo)) : T(1) / (T(1) + li + lo);
   const T denom = T(4) * muI * muO;
   const T specNoF = D * G / denom;
-  e.f = albedo * diffuseFactor + F * specNoF;
+  e.f = albedo * kd + F * specNoF;
   if (derivatives) {
-    e.dAlbedo = diffuseFactor;
-    e.dSpecular = (T(0.08) + T(0.92) * w) * specNoF;
+    e.dAlbedo = kd;
+    e.dSpecular = albedo * dKdDs + dFds * specNoF;
     T dSpecDr = T(0);
     if (roughness * roughness > T(kAlphaMin)) {  // the alpha clamp has zero derivative
-      const T dG = -G * G * (g.dLambda(muI) + g.dLambda(muO));
+      const T dli = g.dLambda(muI), dlo = g.dLambda(wo.z());
+      const T dG = separable ? -G * (dli / (T(1) + li) + dlo / (T(1) + lo)) : -G * G * (dli + dlo);
       dSpecDr = F * (g.dD(h) * G + D * dG) / denom * (T(2) * roughness);
     }
-    e.dRoughness = albedo * dDiffuseDr + dSpecDr;
+    e.dRoughness = albedo * dKdDr + dSpecDr;
   }
   return e;
 }
 
 }  // namespace
 
+Fresnel specularFresnel(BsdfModel model, float cosD, float specular) {
+  const auto [value, dSpecular] = fresnelT<float>(model, cosD, specular);
+  return {value, dSpecular};
+}
+
 float specularLobeProbability(const BsdfParams& p, const Vec3& wo) {
-  const float f0 = 0.08f * p.specular;
-  const float fs = f0 + (p.specular - f0) * pow5(1.0f - std::clamp(wo.z(), 0.0f, 1.0f));
-  const float fd = luminance(p.albedo);
+  const float fs = fresnelT<float>(p.model, wo.z(), p.specular).first;
+  const float fd = luminance(p.albedo) * (p.model == BsdfModel::Gltf ? 1.0f - fs : 1.0f);
   const float sum = fs + fd;
   return std::clamp(sum > 0 ? fs / sum : 0.5f, 0.1f, 0.9f);
 }
@@ -115,7 +156,7 @@ BsdfEval evalBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi, unsigned 
     e.pdf = (1.0f - ps) * muI * kInvPi + ps * D / ((1.0f + lo) * 4.0f * muO);
   }
   if (!(query & (kBsdfValue | kBsdfDerivatives))) return e;
-  const auto v = evalValue<float>(p.albedo, p.roughness, p.specular, p.diffuse, wo, wi, h, g, D, lo, query & kBsdfDerivatives);
+  const auto v = evalValue<float>(p.albedo, p.roughness, p.specular, p.model, wo, wi, h, g, D, lo, query & kBsdfDerivatives);
   e.f = v.f;
   e.dAlbedo = v.dAlbedo;
   e.dRoughness = v.dRoughness;
@@ -124,12 +165,12 @@ BsdfEval evalBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi, unsigned 
   return e;
 }
 
-BsdfEvalDouble evalBsdfDouble(const Eigen::Array3d& albedo, double roughness, double specular, DiffuseModel diffuse,
+BsdfEvalDouble evalBsdfDouble(const Eigen::Array3d& albedo, double roughness, double specular, BsdfModel model,
                               const Eigen::Vector3d& wo, const Eigen::Vector3d& wi) {
   if (wo.z() <= kMinCos || wi.z() <= kMinCos) return {};
   const Eigen::Vector3d h = (wo + wi).normalized();
   const GgxT<double> g{std::max(roughness * roughness, double(kAlphaMin))};
-  return evalValue<double>(albedo, roughness, specular, diffuse, wo, wi, h, g, g.D(h), g.lambda(wo.z()), true);
+  return evalValue<double>(albedo, roughness, specular, model, wo, wi, h, g, g.D(h), g.lambda(wo.z()), true);
 }
 
 std::optional<BsdfSample> sampleBsdf(const BsdfParams& p, const Vec3& wo, float uLobe, const Vec2& u2) {

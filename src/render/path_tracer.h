@@ -13,8 +13,14 @@
 
 namespace relume {
 
+// Path length: the number of scattering vertices, each with next-event estimation (0 = emission
+// seen directly only, 1 = direct lighting, N = N - 1 indirect bounces). Cycles' "max bounces" B
+// counts indirect bounces, so it equals depth B + 1; the default 9 is Cycles' default 8 (measured
+// against Cycles 3.4: README "Agreement with Blender Cycles").
+inline constexpr int kDefaultMaxDepth = 9;
+
 struct PathSettings {
-  int maxDepth = 8;  // scattering events; 0 = emission seen directly only, 1 = direct lighting
+  int maxDepth = kDefaultMaxDepth;
   bool russianRoulette = false;
   int rouletteDepth = 3;
 };
@@ -33,7 +39,7 @@ struct AppearanceScope {
 };
 
 inline BsdfParams bsdfParamsAt(const Appearance& a, const SurfaceHit& hit) {
-  return {a.albedoAt(hit.object, hit.uv), a.roughness[hit.object], a.specular[hit.object], a.diffuse};
+  return {a.albedoAt(hit.object, hit.uv), a.roughness[hit.object], a.specular[hit.object], a.model};
 }
 
 // Front-facing Lambertian emission of `hit` seen along -dir.
@@ -108,10 +114,15 @@ Color tracePath(const Scene& scene, const LightSampler& lights, const Appearance
         const BsdfEval sampled = evalBsdf(sampleParams, wo, wi, kBsdfValue | kBsdfPdf);
         const Color f = frozen ? evalBsdf(evalParams, wo, wi).f : sampled.f;
         if ((leLight != 0.0f).any() && (f.maxCoeff() > 0.0f || std::decay_t<Observer>::kDifferentiating)) {
+          // Both ends are offset off their surfaces and the shadow ray joins them: a ray from the
+          // offset origin along toLight would cross the light's own plane before a shortened tmax
+          // wherever the light is seen at a slant, and count the light as its own occluder.
           const Vec3 o = Scene::offsetOrigin(*hit, toLight);
-          const float tmax = (ls->hit.p - o).norm() - rayEpsilon(ls->hit.p);
-          obs.traced(o, toLight, tmax, true);
-          if (!scene.occluded(o, toLight, tmax)) {
+          Vec3 shadowDir = Scene::offsetOrigin(ls->hit, -toLight) - o;
+          const float tmax = shadowDir.norm();
+          shadowDir /= tmax;
+          obs.traced(o, shadowDir, tmax, true);
+          if (!scene.occluded(o, shadowDir, tmax)) {
             const float pdfLight = ls->pdfArea * dist2 / cosLight;
             const float mis = powerHeuristic(pdfLight, sampled.pdf);
             const float scale = mis / pdfLight;

@@ -12,6 +12,8 @@ Appearance::Appearance(int n)
   for (int i = 0; i < n; ++i) names[i] = fmt::format("object{}", i);
 }
 
+const char* bsdfModelName(BsdfModel m) { return m == BsdfModel::PrincipledV1 ? "principled-v1" : "gltf"; }
+
 bool Appearance::isEmissive(int object) const { return meanEmission(object).maxCoeff() > 0.0f; }
 
 Color Appearance::meanEmission(int object) const {
@@ -62,10 +64,11 @@ static SceneDescription parseSceneFile(const std::filesystem::path& path) {
   s.mesh = loadMesh(s.meshPath);
   Appearance& a = s.appearance;
   a = Appearance(s.mesh.objectCount);
-  const std::string diffuse = j.value("diffuse", "disney");
-  if (diffuse == "disney") a.diffuse = DiffuseModel::Disney;
-  else if (diffuse == "lambert") a.diffuse = DiffuseModel::Lambert;
-  else fail("{}: 'diffuse' must be disney or lambert, not '{}'", file, diffuse);
+  if (j.contains("diffuse")) fail("{}: 'diffuse' is no longer read; name the appearance 'model' (principled-v1 or gltf)", file);
+  const std::string model = j.value("model", bsdfModelName(BsdfModel::PrincipledV1));
+  if (model == bsdfModelName(BsdfModel::PrincipledV1)) a.model = BsdfModel::PrincipledV1;
+  else if (model == bsdfModelName(BsdfModel::Gltf)) a.model = BsdfModel::Gltf;
+  else fail("{}: 'model' must be principled-v1 or gltf, not '{}'", file, model);
   if (j.contains("albedo_texture")) {
     if (!s.mesh.hasUv()) fail("{}: 'albedo_texture' given but {} has no valid uv", file, s.meshPath.string());
     a.albedo = readTexture(dir / j["albedo_texture"].get<std::string>());
@@ -110,7 +113,7 @@ void saveSceneFile(const std::filesystem::path& path, const SceneDescription& s)
   Json j;
   j["mesh"] = "mesh.ply";
   writePly(dir / "mesh.ply", s.mesh.toData());
-  j["diffuse"] = a.diffuse == DiffuseModel::Disney ? "disney" : "lambert";
+  j["model"] = bsdfModelName(a.model);
   if (!a.albedo.empty()) {
     j["albedo_texture"] = "albedo.exr";
     writeExr(dir / "albedo.exr", textureImage(a.albedo));

@@ -10,13 +10,17 @@
 
 namespace relume {
 
-enum class DiffuseModel { Disney, Lambert };
+// The scene's appearance model, each exactly one published BSDF (README "Scene file"):
+// PrincipledV1 is Blender 2.8-3.x Principled BSDF in Cycles with metallic 0, Gltf the glTF 2.0
+// metallic-roughness BRDF with KHR_materials_specular.
+enum class BsdfModel { PrincipledV1, Gltf };
+const char* bsdfModelName(BsdfModel m);
 
 // alpha = r^2 is clamped at 1e-3 (r = 0.0316), where its gradient is 0: r_min sits just above.
 inline constexpr float kRoughnessMin = 0.035f;
 
 struct Appearance {
-  DiffuseModel diffuse = DiffuseModel::Disney;
+  BsdfModel model = BsdfModel::PrincipledV1;
   std::vector<std::string> names;
   std::vector<float> roughness, specular;
   std::vector<Color> emission;             // Lambertian radiance per object (front side)

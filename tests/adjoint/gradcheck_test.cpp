@@ -74,6 +74,31 @@ INSTANTIATE_TEST_SUITE_P(AllModes, GradcheckModes,
                                   pairingName(std::get<1>(info.param));
                          });
 
+// Every parameter kind under each appearance model, references rendered with the same model.
+class GradcheckModels : public ::testing::TestWithParam<BsdfModel> {};
+
+TEST_P(GradcheckModels, EveryParameterKindOnCornell) {
+  const auto experimentOf = [](BsdfModel model, bool emissionTextures) {
+    ExperimentOptions o;
+    o.rays = 128;
+    o.atlasResolution = 32;
+    o.emissionTextures = emissionTextures;
+    SceneDescription truth = makeSynthScene(SynthSceneKind::Cornell, o.atlasResolution).scene;
+    truth.appearance.model = model;
+    return makeGradientExperiment(std::move(truth), synthCameraPath(SynthSceneKind::Cornell, 8, 160, 120, 0.25), o);
+  };
+  const GradientExperiment e = experimentOf(GetParam(), false);
+  ASSERT_EQ(e.current.model, GetParam());
+  const std::string name = bsdfModelName(GetParam());
+  expectPass(check(e, kConstantKinds, GradientMode::Full, Pairing::Decorrelated), name + " full");
+  expectPass(check(e, kConstantKinds, GradientMode::Direct, Pairing::Crossfit), name + " direct/crossfit");
+  expectPass(check(experimentOf(GetParam(), true), {ParamKind::EmissionTexture}, GradientMode::Full, Pairing::Decorrelated),
+             name + " emission texture");
+}
+
+INSTANTIATE_TEST_SUITE_P(BothModels, GradcheckModels, ::testing::Values(BsdfModel::PrincipledV1, BsdfModel::Gltf),
+                         [](const auto& info) { return std::string(info.param == BsdfModel::Gltf ? "gltf" : "principled_v1"); });
+
 TEST(Gradcheck, RoomAllDepthEmitterGradients) {
   const GradientExperiment e = experiment(SynthSceneKind::Room, false);
   expectPass(check(e, {ParamKind::Emission, ParamKind::Albedo}, GradientMode::Direct, Pairing::Decorrelated,

@@ -20,6 +20,11 @@ TEST(Loss, OneSidedAtClipThresholds) {
   EXPECT_FLOAT_EQ(rayLoss(Color(0.31f, 0.01f, 0.01f), Color::Constant(0.0f), clip), 0.09f);
   EXPECT_FLOAT_EQ(rayLoss(Color(0.3f, 0.3f, 0.3f), Color(0.1f, 0.3f, 0.5f), {}), 0.08f);
   EXPECT_TRUE(rayLossDelta(Color(0.3f, 0.3f, 0.3f), Color(0.1f, 0.3f, 0.5f), {}, 0.5f).isApprox(Color(0.2f, 0.0f, -0.2f)));
+  // Continuous where the estimate crosses a bound: a clipped reference is pulled to the bound.
+  for (const auto& [reference, bound] : {std::pair{1.2f, 1.0f}, std::pair{0.0f, 0.01f}}) {
+    EXPECT_LT(rayLoss(Color::Constant(bound - 1e-4f), Color::Constant(reference), clip), 1e-7f);
+    EXPECT_LT(rayLoss(Color::Constant(bound + 1e-4f), Color::Constant(reference), clip), 1e-7f);
+  }
 }
 
 namespace {

@@ -178,14 +178,15 @@ TEST(SceneFile, RejectsBadFields) {
   writePly(tmpDir() / "scene_mesh.ply", m);
   const std::vector<std::pair<std::string, std::string>> cases = {
       {R"({"objects": []})", "missing 'mesh'"},
-      {R"({"mesh": "scene_mesh.ply", "diffuse": "oren"})", "'diffuse' must be"},
+      {R"({"mesh": "scene_mesh.ply", "model": "oren"})", "'model' must be principled-v1 or gltf, not 'oren'"},
+      {R"({"mesh": "scene_mesh.ply", "diffuse": "disney"})", "'diffuse' is no longer read"},
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 4}]})", "id 4 not in the mesh"},
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "roughness": "rough"}]})", "must be a number"},
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": [1, 2]}]})", "[r,g,b]"},
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": [-1, 0, 0]}]})", "emission must be >= 0"},
       {R"({"mesh": "scene_mesh.ply", "albedo_texture": "a.exr"})", "has no valid uv"},
       {R"({"mesh": "missing.ply"})", "cannot open"},
-      {R"({"mesh": "scene_mesh.ply", "diffuse": 3})", "type must be string"},
+      {R"({"mesh": "scene_mesh.ply", "model": 3})", "type must be string"},
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "name": 7}]})", "type must be string"},
   };
   for (size_t i = 0; i < cases.size(); ++i) {
@@ -194,4 +195,18 @@ TEST(SceneFile, RejectsBadFields) {
     EXPECT_NE(err.find(cases[i].second), std::string::npos) << i << ": " << err;
     EXPECT_NE(err.find(tmpDir().string()), std::string::npos) << "must name the file: " << err;
   }
+}
+
+TEST(SceneFile, ModelDefaultsToPrincipledV1AndRoundTrips) {
+  MeshData m;
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  m.triangles = {{0, 1, 2}};
+  writePly(tmpDir() / "scene_mesh.ply", m);
+  EXPECT_EQ(loadSceneFile(writeBytes("model_default.json", R"({"mesh": "scene_mesh.ply"})")).appearance.model,
+            BsdfModel::PrincipledV1);
+  SceneDescription s = loadSceneFile(writeBytes("model_gltf.json", R"({"mesh": "scene_mesh.ply", "model": "gltf"})"));
+  EXPECT_EQ(s.appearance.model, BsdfModel::Gltf);
+  fs::create_directories(tmpDir() / "roundtrip");
+  saveSceneFile(tmpDir() / "roundtrip" / "scene.json", s);
+  EXPECT_EQ(loadSceneFile(tmpDir() / "roundtrip" / "scene.json").appearance.model, BsdfModel::Gltf);
 }

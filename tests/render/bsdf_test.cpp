@@ -1,4 +1,5 @@
-// BSDF: sampling matches the pdf (chi-square), pdf mass, reciprocity, energy, Disney closed form.
+// BSDF, both models: sampling matches the pdf (chi-square), pdf mass, reciprocity, energy, and the
+// value against each model's published formulas written out independently here.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -6,6 +7,7 @@
 #include "core/rng.h"
 #include "core/warp.h"
 #include "render/bsdf.h"
+#include "bsdf_reference.h"
 
 using namespace relume;
 
@@ -16,8 +18,10 @@ Vec3 dirFromAngle(float thetaDeg, float phiDeg = 0) {
   return {std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t)};
 }
 
-BsdfParams params(float albedo, float roughness, float specular, DiffuseModel d = DiffuseModel::Disney) {
-  return {Color::Constant(albedo), roughness, specular, d};
+const BsdfModel kModels[] = {BsdfModel::PrincipledV1, BsdfModel::Gltf};
+
+BsdfParams params(float albedo, float roughness, float specular, BsdfModel m = BsdfModel::PrincipledV1) {
+  return {Color::Constant(albedo), roughness, specular, m};
 }
 
 // Upper tail of the chi-square distribution (Wilson-Hilferty; accurate for dof >= 10).
@@ -87,13 +91,14 @@ const Config kConfigs[] = {{0.5f, 0.5f, 0.5f, 30}, {0.8f, 0.15f, 1.0f, 10}, {0.2
 
 TEST(Bsdf, SamplingMatchesPdfChiSquare) {
   const int tests = static_cast<int>(std::size(kConfigs));
-  const double alpha = 1.0 - std::pow(1.0 - 0.01, 1.0 / tests);  // Sidak correction
-  for (int i = 0; i < tests; ++i) {
-    const Config& c = kConfigs[i];
-    const auto r = chi2Test(params(c.albedo, c.roughness, c.specular), dirFromAngle(c.thetaDeg, 20), 400000, 100 + i);
-    EXPECT_GT(r.pValue, alpha) << "config " << i << " dof " << r.dof;
-    EXPECT_GT(r.dof, 30);
-  }
+  const double alpha = 1.0 - std::pow(1.0 - 0.01, 1.0 / (2 * tests));  // Sidak correction
+  for (BsdfModel m : kModels)
+    for (int i = 0; i < tests; ++i) {
+      const Config& c = kConfigs[i];
+      const auto r = chi2Test(params(c.albedo, c.roughness, c.specular, m), dirFromAngle(c.thetaDeg, 20), 400000, 100 + i);
+      EXPECT_GT(r.pValue, alpha) << bsdfModelName(m) << " config " << i << " dof " << r.dof;
+      EXPECT_GT(r.dof, 30);
+    }
 }
 
 TEST(Bsdf, ChiSquareDetectsAWrongPdf) {
@@ -120,24 +125,25 @@ TEST(Bsdf, ChiSquareDetectsAWrongPdf) {
 TEST(Bsdf, PdfMassMatchesSamplingSuccess) {
   // The pdf integrates to the probability that sampling succeeds (GGX reflections below the
   // horizon are rejected); the tolerance is 4 standard errors of the uniform-sphere estimate.
-  for (const Config& c : kConfigs) {
-    const BsdfParams p = params(c.albedo, c.roughness, c.specular);
-    const Vec3 wo = dirFromAngle(c.thetaDeg, 10);
-    Pcg32 rng(3);
-    const int n = 400000;
-    double sum = 0, sum2 = 0;
-    int success = 0;
-    for (int i = 0; i < n; ++i) {
-      const Vec3 w = squareToUniformSphere(Vec2(rng.next1D(), rng.next1D()));
-      const double v = pdfBsdf(p, wo, w) * 4 * kPi;
-      sum += v, sum2 += v * v;
-      if (sampleBsdf(p, wo, rng.next1D(), Vec2(rng.next1D(), rng.next1D()))) ++success;
+  for (BsdfModel m : kModels)
+    for (const Config& c : kConfigs) {
+      const BsdfParams p = params(c.albedo, c.roughness, c.specular, m);
+      const Vec3 wo = dirFromAngle(c.thetaDeg, 10);
+      Pcg32 rng(3);
+      const int n = 400000;
+      double sum = 0, sum2 = 0;
+      int success = 0;
+      for (int i = 0; i < n; ++i) {
+        const Vec3 w = squareToUniformSphere(Vec2(rng.next1D(), rng.next1D()));
+        const double v = pdfBsdf(p, wo, w) * 4 * kPi;
+        sum += v, sum2 += v * v;
+        if (sampleBsdf(p, wo, rng.next1D(), Vec2(rng.next1D(), rng.next1D()))) ++success;
+      }
+      const double integral = sum / n, se = std::sqrt((sum2 / n - integral * integral) / n);
+      const double rate = double(success) / n, seRate = std::sqrt(rate * (1 - rate) / n);
+      EXPECT_LE(integral, 1.0 + 4 * se);
+      EXPECT_NEAR(integral, rate, 4 * std::hypot(se, seRate)) << "roughness " << c.roughness << " theta " << c.thetaDeg;
     }
-    const double integral = sum / n, se = std::sqrt((sum2 / n - integral * integral) / n);
-    const double rate = double(success) / n, seRate = std::sqrt(rate * (1 - rate) / n);
-    EXPECT_LE(integral, 1.0 + 4 * se);
-    EXPECT_NEAR(integral, rate, 4 * std::hypot(se, seRate)) << "roughness " << c.roughness << " theta " << c.thetaDeg;
-  }
   // Pure cosine lobe: exactly 1.
   Pcg32 rng(4);
   double integral = 0;
@@ -152,8 +158,8 @@ TEST(Bsdf, Reciprocity) {
   for (int i = 0; i < 2000; ++i) {
     const Vec3 a = squareToCosineHemisphere(Vec2(rng.next1D(), rng.next1D()));
     const Vec3 b = squareToCosineHemisphere(Vec2(rng.next1D(), rng.next1D()));
-    for (DiffuseModel d : {DiffuseModel::Disney, DiffuseModel::Lambert}) {
-      const BsdfParams p = params(0.3f + 0.6f * rng.next1D(), 0.05f + 0.95f * rng.next1D(), rng.next1D(), d);
+    for (BsdfModel m : kModels) {
+      const BsdfParams p = params(0.3f + 0.6f * rng.next1D(), 0.05f + 0.95f * rng.next1D(), rng.next1D(), m);
       const Color fab = evalBsdf(p, a, b).f, fba = evalBsdf(p, b, a).f;
       for (int c = 0; c < 3; ++c) EXPECT_NEAR(fab[c], fba[c], 1e-4f * std::max(1.0f, fab[c]));
     }
@@ -170,36 +176,86 @@ double directionalAlbedo(const BsdfParams& p, const Vec3& wo) {
 }
 
 TEST(Bsdf, DirectionalAlbedoAtMostOne) {
-  // Each lobe conserves energy: GGX with F -> 1 (specular 1) at every roughness and angle, and
-  // Lambert reflects exactly its albedo. (The sum of the two lobes is additive, as in Blender's
-  // Principled v1, and exceeds 1 at grazing angles for bright albedo: see README "Appearance".)
-  for (float r : {kRoughnessMin, 0.2f, 0.5f, 1.0f})
-    for (float theta : {0.0f, 45.0f, 75.0f, 89.0f})
-      EXPECT_LE(directionalAlbedo(params(0.0f, r, 1.0f, DiffuseModel::Lambert), dirFromAngle(theta)), 1.0 + 0.01)
-          << "r " << r << " theta " << theta;
+  // The GGX lobe alone (albedo 0, specular 1, so F <= 1) conserves energy in both models at every
+  // roughness and angle, and glTF at specular 0 is Lambert, which reflects exactly its albedo.
+  // (Principled v1 adds its lobes: the sum exceeds 1 at grazing angles for bright albedo.)
+  for (BsdfModel m : kModels)
+    for (float r : {kRoughnessMin, 0.2f, 0.5f, 1.0f})
+      for (float theta : {0.0f, 45.0f, 75.0f, 89.0f})
+        EXPECT_LE(directionalAlbedo(params(0.0f, r, 1.0f, m), dirFromAngle(theta)), 1.0 + 0.01)
+            << bsdfModelName(m) << " r " << r << " theta " << theta;
   for (float theta : {0.0f, 60.0f, 89.0f})
-    EXPECT_NEAR(directionalAlbedo(params(0.7f, 0.5f, 0.0f, DiffuseModel::Lambert), dirFromAngle(theta)), 0.7, 0.005);
+    EXPECT_NEAR(directionalAlbedo(params(0.7f, 0.5f, 0.0f, BsdfModel::Gltf), dirFromAngle(theta)), 0.7, 0.005);
 }
 
-TEST(Bsdf, DisneyDiffuseClosedForm) {
-  // Burley 2012: f_d = albedo/pi (1 + (F90-1)(1-mu_i)^5)(1 + (F90-1)(1-mu_o)^5), F90 = 0.5 + 2 r cos^2(theta_d).
+using namespace relume::reference;
+
+namespace {
+
+// f of `model` (albedo 0.6) against `expected(r, s, wi, wo, h)` over roughness, specular and
+// directions up to grazing.
+template <class Expected> void expectClosedForm(BsdfModel model, const Expected& expected) {
   for (float r : {0.1f, 0.5f, 1.0f})
-    for (auto [ti, to] : {std::pair{10.0f, 20.0f}, {60.0f, 30.0f}, {80.0f, 85.0f}}) {
-      const Vec3 wi = dirFromAngle(ti, 0), wo = dirFromAngle(to, 120);
-      const double cosD = wi.dot((wi + wo).normalized());
-      const double f90 = 0.5 + 2 * r * cosD * cosD;
-      const double expected = 0.6 / M_PI * (1 + (f90 - 1) * std::pow(1 - wi.z(), 5)) * (1 + (f90 - 1) * std::pow(1 - wo.z(), 5));
-      const float f = evalBsdf(params(0.6f, r, 0.0f), wo, wi).f[0];  // specular 0: no GGX lobe
-      EXPECT_NEAR(f, expected, 1e-5 * expected);
-    }
+    for (float s : {0.0f, 0.3f, 1.0f})
+      for (auto [ti, to] : {std::pair{10.0f, 20.0f}, {60.0f, 30.0f}, {80.0f, 85.0f}, {45.0f, 88.0f}}) {
+        const Vec3 wi = dirFromAngle(ti, 0), wo = dirFromAngle(to, 160);
+        const double e = expected(double(r), double(s), wi.cast<double>(), wo.cast<double>(),
+                                  (wi + wo).normalized().cast<double>());
+        const float f = evalBsdf(params(0.6f, r, s, model), wo, wi).f[0];
+        EXPECT_NEAR(f, e, 2e-5 * e) << bsdfModelName(model) << " r " << r << " s " << s << " theta " << ti << "," << to;
+      }
+}
+
+}  // namespace
+
+TEST(Bsdf, PrincipledV1ClosedForm) {
+  // Cycles' Principled diffuse (1 - FL/2)(1 - FV/2) + RR (FL + FV + FL FV (RR - 1)), RR = 2 r (wi.h)^2,
+  // F = Schlick weight, plus GGX with G1(wi) G1(wo) and the exact Fresnel at Cycles' ior.
+  expectClosedForm(BsdfModel::PrincipledV1, [](double r, double s, const Vec3d& wi, const Vec3d& wo, const Vec3d& h) {
+    const double cosD = wi.dot(h), alpha = r * r;
+    const double fl = std::pow(1 - wi.z(), 5), fv = std::pow(1 - wo.z(), 5), rr = 2 * r * cosD * cosD;
+    const double diffuse = 0.6 / M_PI * ((1 - 0.5 * fl) * (1 - 0.5 * fv) + rr * (fl + fv + fl * fv * (rr - 1)));
+    const double g = 1 / ((1 + smithLambda(alpha, wi.z())) * (1 + smithLambda(alpha, wo.z())));
+    return diffuse + snellFresnel(cosD, cyclesIor(s)) * ggxD(alpha, h.z()) * g / (4 * wi.z() * wo.z());
+  });
+}
+
+TEST(Bsdf, GltfClosedForm) {
+  // glTF 2.0 + KHR_materials_specular, metallic 0: fresnel_mix(Lambert, GGX) with
+  // F = s (F0' + (1 - F0') (1 - V.H)^5), F0' = 0.08, and V = G2 / (4 N.L N.V), height-correlated.
+  expectClosedForm(BsdfModel::Gltf, [](double r, double s, const Vec3d& wi, const Vec3d& wo, const Vec3d& h) {
+    const double alpha = r * r;
+    const double F = s * (0.08 + 0.92 * std::pow(1 - wo.dot(h), 5));
+    const double vis = 1 / ((1 + smithLambda(alpha, wi.z()) + smithLambda(alpha, wo.z())) * 4 * wi.z() * wo.z());
+    return (1 - F) * 0.6 / M_PI + F * ggxD(alpha, h.z()) * vis;
+  });
+}
+
+TEST(Bsdf, PrincipledFresnelIsTheExactDielectricOne) {
+  // F0 = 0.08 s at normal incidence, 1 at grazing for s > 0, 0 everywhere at s = 0, and the Snell form
+  // at Cycles' ior in between; glTF's Schlick instead stops at F90 = s.
+  for (float s : {0.05f, 0.5f, 1.0f}) {
+    EXPECT_NEAR(specularFresnel(BsdfModel::PrincipledV1, 1.0f, s).value, 0.08f * s, 1e-6f);
+    EXPECT_GT(specularFresnel(BsdfModel::PrincipledV1, 2e-3f, s).value, 0.9f);
+    EXPECT_NEAR(specularFresnel(BsdfModel::Gltf, 0.0f, s).value, s, 1e-6f);
+    for (float c : {0.05f, 0.2f, 0.5f, 0.9f})
+      EXPECT_NEAR(specularFresnel(BsdfModel::PrincipledV1, c, s).value, snellFresnel(c, cyclesIor(s)), 1e-6) << s << " " << c;
+  }
+  for (float c : {0.01f, 0.5f, 1.0f}) {
+    EXPECT_EQ(specularFresnel(BsdfModel::PrincipledV1, c, 0.0f).value, 0.0f);
+    EXPECT_NEAR(specularFresnel(BsdfModel::PrincipledV1, c, 0.0f).dSpecular, 0.08 * fresnelSlopeAtZero(c),
+                1e-5 * 0.08 * fresnelSlopeAtZero(c));
+    EXPECT_EQ(specularFresnel(BsdfModel::Gltf, c, 0.0f).value, 0.0f);
+  }
 }
 
 TEST(Bsdf, NoNanAtExtremes) {
-  for (float r : {0.0f, kRoughnessMin, 1.0f})
-    for (float s : {0.0f, 1.0f})
-      for (float ti : {0.0f, 89.99f, 90.0f})
-        for (float to : {0.0f, 89.99f}) {
-          const BsdfEval e = evalBsdf(params(0.5f, r, s), dirFromAngle(to), dirFromAngle(ti, 180), kBsdfValue | kBsdfDerivatives);
-          EXPECT_TRUE(isFinite(e.f) && isFinite(e.dRoughness) && std::isfinite(e.dSpecular));
-        }
+  for (BsdfModel m : kModels)
+    for (float r : {0.0f, kRoughnessMin, 1.0f})
+      for (float s : {0.0f, 1.0f})
+        for (float ti : {0.0f, 89.99f, 90.0f})
+          for (float to : {0.0f, 89.99f}) {
+            const BsdfEval e = evalBsdf(params(0.5f, r, s, m), dirFromAngle(to), dirFromAngle(ti, 180), kBsdfValue | kBsdfDerivatives);
+            EXPECT_TRUE(isFinite(e.f) && isFinite(e.dRoughness) && isFinite(e.dSpecular));
+          }
 }

@@ -30,9 +30,11 @@ Color meanRadiance(const Scene& scene, const Appearance& a, const Vec3& origin, 
 
 TEST(Render, WhiteFurnace) {
   // Closed sphere, Lambert albedo a, specular 0, emission Le everywhere: radiance is
-  // Le (1 - a^(D+1)) / (1 - a) for max depth D, -> Le / (1 - a).
+  // Le (1 - a^(D+1)) / (1 - a) for max depth D, -> Le / (1 - a). glTF at specular 0 is Lambert.
   SynthScene furnace = makeSynthScene(SynthSceneKind::Furnace, 64);
   Appearance& a = furnace.scene.appearance;
+  a.model = BsdfModel::Gltf;
+  ASSERT_EQ(a.specular[0], 0.0f);
   Scene scene(furnace.scene.mesh);
   for (float albedo : {0.3f, 0.8f}) {
     std::fill(a.albedo.rgb.begin(), a.albedo.rgb.end(), albedo);
@@ -53,6 +55,7 @@ TEST(Render, FurnaceFailsWithWrongAlbedo) {
   // Guard against a test that cannot fail: the estimate does separate nearby albedos.
   SynthScene furnace = makeSynthScene(SynthSceneKind::Furnace, 64);
   Appearance& a = furnace.scene.appearance;
+  a.model = BsdfModel::Gltf;
   Scene scene(furnace.scene.mesh);
   std::fill(a.albedo.rgb.begin(), a.albedo.rgb.end(), 0.52f);
   double se = 0;
@@ -60,30 +63,55 @@ TEST(Render, FurnaceFailsWithWrongAlbedo) {
   EXPECT_GT(std::abs(L[0] - 1 / (1 - 0.5)), 8 * se);
 }
 
-TEST(Render, SmallEmitterAnalyticIrradiance) {
-  // Receiver plane y=0 (Lambert albedo rho, no specular); square emitter of half-size h at height d
-  // facing down. Radiance leaving the receiver point below the centre with direct lighting only:
-  // rho/pi * E, E = 4 pi Le F(h/d, h/d) (corner form factor to a parallel rectangle).
+namespace {
+
+// Form factor from a differential area to a parallel rectangle with one corner straight above it at
+// height 1, sides X and Y (signed: the function is odd in each).
+double cornerFormFactor(double X, double Y) {
+  const double a = std::sqrt(1 + X * X), b = std::sqrt(1 + Y * Y);
+  return 1 / (2 * M_PI) * (X / a * std::atan(Y / a) + Y / b * std::atan(X / b));
+}
+
+// Receiver plane y=0 (Lambert albedo rho: glTF with specular 0) around `receiver`; square emitter of
+// half-size h, radiance le, at height d above receiver + (dx, 0, dz), facing down. Returns the
+// radiance leaving the receiver point towards a camera (direct lighting only) against the analytic
+// rho/pi * E, E = pi Le F, F the form factor of the offset rectangle (four signed corner terms).
+void expectDirectLightingMatches(const Vec3& receiver, float dx, float dz) {
   const float h = 0.1f, d = 1.0f, rho = 0.5f, le = 10.0f;
+  const Vec3 c = receiver + Vec3(dx, d, dz);
   MeshData m;
-  m.positions = {{-5, 0, -5}, {5, 0, -5}, {5, 0, 5}, {-5, 0, 5}, {-h, d, -h}, {h, d, -h}, {h, d, h}, {-h, d, h}};
+  m.positions = {receiver + Vec3(-6, 0, -6), receiver + Vec3(6, 0, -6), receiver + Vec3(6, 0, 6), receiver + Vec3(-6, 0, 6),
+                 c + Vec3(-h, 0, -h),        c + Vec3(h, 0, -h),        c + Vec3(h, 0, h),        c + Vec3(-h, 0, h)};
   m.triangles = {{0, 2, 1}, {0, 3, 2}, {4, 5, 6}, {4, 6, 7}};  // receiver normal +y, emitter normal -y
   m.faceObject = {0, 0, 1, 1};
   Scene scene(buildMesh(m, "two planes"));
   Appearance a(2);
-  a.diffuse = DiffuseModel::Lambert;
+  a.model = BsdfModel::Gltf;
   a.albedoConstant = {Color::Constant(rho), Color::Constant(0)};
   a.specular = {0, 0};
   a.emission[1] = Color::Constant(le);
-  const double X = h / d;
-  const double F = 1 / (2 * M_PI) * (2 * X / std::sqrt(1 + X * X) * std::atan(X / std::sqrt(1 + X * X)));
-  const double E = 4 * M_PI * le * F;
-  const double expected = rho / M_PI * E;
-  const Vec3 camera(0.8f, 0.5f, 0.3f);
+  double F = 0;
+  for (int sx : {-1, 1})
+    for (int sz : {-1, 1}) F += sx * sz * cornerFormFactor((dx + sx * h) / d, (dz + sz * h) / d);
+  const double expected = rho / M_PI * (M_PI * le * F);
+  const Vec3 camera = receiver + Vec3(0.8f, 0.5f, 0.3f);
   double se = 0;
-  const Color L = meanRadiance(scene, a, camera, (Vec3::Zero() - camera).normalized(), 200000, 1, &se);
-  EXPECT_NEAR(L[0], expected, 0.01 * expected);
+  const Color L = meanRadiance(scene, a, camera, (receiver - camera).normalized(), 200000, 1, &se);
+  EXPECT_NEAR(L[0], expected, 0.01 * expected) << "emitter offset " << dx << ", " << dz;
   EXPECT_LT(se, 0.003 * expected);
+}
+
+}  // namespace
+
+TEST(Render, SmallEmitterAnalyticIrradiance) {
+  expectDirectLightingMatches(Vec3::Zero(), 0, 0);
+}
+
+TEST(Render, SlantedEmitterIsNotItsOwnOccluder) {
+  // The emitter seen 68 degrees from the receiver's normal, 4 m from the origin: shadow rays that
+  // left the offset origin along the unoffset direction crossed the emitter's plane before their
+  // shortened tmax and were all occluded (only the BSDF-sampled share remained: -99% here).
+  expectDirectLightingMatches(Vec3(3, 0, 3), 2.0f, 1.5f);
 }
 
 TEST(Render, DeterministicAcrossThreadCounts) {

@@ -65,8 +65,8 @@ constexpr float kMinCosD = 1e-3f;
 // eta = (1 + q) / (1 - q), q = sqrt(F0), F0 = 0.08 s. With x = eta^2 - 1 = 4q / (1 - q)^2,
 // A = x / (g + c)^2 has no cancellation, and dF/dF0 = (dF/dx) (dx/dF0) is formed as
 // [dF/dx / x] [x dx/dF0] with x dx/dF0 = 8 (1 + q) / (1 - q)^5: finite at s = 0, where F ~ F0.
-// Gltf: Schlick with F0 = 0.08 s and F90 = s.
-template <typename T> std::pair<T, T> fresnelT(BsdfModel model, T cosD, T specular) {
+// Gltf: Schlick with F0 = 0.08 s and F90 = s. dF/ds is 0 unless `derivative`.
+template <typename T> std::pair<T, T> fresnelT(BsdfModel model, T cosD, T specular, bool derivative) {
   if (model == BsdfModel::Gltf) {
     const T w = pow5(T(1) - std::clamp(cosD, T(0), T(1)));
     return {specular * (T(0.08) + T(0.92) * w), T(0.08) + T(0.92) * w};
@@ -79,11 +79,13 @@ template <typename T> std::pair<T, T> fresnelT(BsdfModel model, T cosD, T specul
   const T A = x * a;
   const T bd = c * (g - c) + T(1);
   const T B = (c * gc - T(1)) / bd;
+  const T F = T(0.5) * A * A * (T(1) + B * B);
+  if (!derivative) return {F, T(0)};
   const T dAdx = a - A / (g * gc);
   const T dBdx = c * (T(1) - c * c) / (bd * bd * g);
   const T dFdxOverX = a * dAdx * (T(1) + B * B) + A * a * B * dBdx;
   const T xdxdF0 = T(8) * (T(1) + q) / pow5(oneMinusQ);
-  return {T(0.5) * A * A * (T(1) + B * B), T(0.08) * dFdxOverX * xdxdF0};
+  return {F, T(0.08) * dFdxOverX * xdxdF0};
 }
 
 // Value of f and its parameter derivatives, shared by the float renderer and the double reference.
@@ -94,7 +96,7 @@ BsdfEvalDouble::Of<T> evalValue(const Eigen::Array<T, 3, 1>& albedo, T roughness
   BsdfEvalDouble::Of<T> e;
   const T muO = wo.z(), muI = wi.z();
   const T cosD = std::clamp(T(wi.dot(h)), T(0), T(1));
-  const auto [F, dFds] = fresnelT<T>(model, cosD, specular);
+  const auto [F, dFds] = fresnelT<T>(model, cosD, specular, derivatives);
   // Diffuse factor kd (f_diffuse = albedo kd) and its derivatives.
   T kd, dKdDr = T(0), dKdDs = T(0);
   if (model == BsdfModel::PrincipledV1) {  // Burley 2012
@@ -131,12 +133,12 @@ BsdfEvalDouble::Of<T> evalValue(const Eigen::Array<T, 3, 1>& albedo, T roughness
 }  // namespace
 
 Fresnel specularFresnel(BsdfModel model, float cosD, float specular) {
-  const auto [value, dSpecular] = fresnelT<float>(model, cosD, specular);
+  const auto [value, dSpecular] = fresnelT<float>(model, cosD, specular, true);
   return {value, dSpecular};
 }
 
 float specularLobeProbability(const BsdfParams& p, const Vec3& wo) {
-  const float fs = fresnelT<float>(p.model, wo.z(), p.specular).first;
+  const float fs = fresnelT<float>(p.model, wo.z(), p.specular, false).first;
   const float fd = luminance(p.albedo) * (p.model == BsdfModel::Gltf ? 1.0f - fs : 1.0f);
   const float sum = fs + fd;
   return std::clamp(sum > 0 ? fs / sum : 0.5f, 0.1f, 0.9f);

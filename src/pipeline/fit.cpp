@@ -233,6 +233,7 @@ struct Stage {
   int resolution = 0;  // albedo resolution during the stage
   int iterations = 0;
   bool pruneAfter = false, emissionTexturesBefore = false;
+  bool settles = false;  // the stage that settles its unknowns: lr decay and Polyak averaging
 };
 
 // The resolution the frames resolve: the smallest stage resolution whose texel is no larger than
@@ -274,24 +275,26 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
     all.bits |= emission.bits;
     int n = c.emissionIterations + c.materialIterations;
     for (int r : resolutions) n += albedoIterations(r);
-    s.push_back({"all", all, finalRes, n, false, false});
+    s.push_back({"all", all, finalRes, n, false, false, true});
     return s;
   }
   s.push_back({"emission", emission, resolutions.front(), c.emissionIterations, c.emitterParameterisation, false});
-  // Roughness and specular are fitted together with the albedo: with the albedo held at its init
-  // the specular lobe of a rough object makes up for a too-dark albedo (measured on the room:
-  // walls went to specular 1.0).
-  ParamMask materials = emission;
+  // Then the albedo at the first resolution, and only then roughness and specular with it: while
+  // the albedo is still near its (too dark) init, the specular lobe of a rough object makes up
+  // for it (measured on the room: the walls' specular went to 1.0 whether it was fitted before or
+  // together with the first albedo steps).
+  ParamMask albedo = emission;
+  albedo.set(K::Albedo, true);
+  s.push_back({fmt::format("albedo@{}", resolutions.front()), albedo, resolutions.front(), albedoIterations(resolutions.front())});
+  ParamMask materials = albedo;
   materials.set(K::Roughness, true);
   materials.set(K::Specular, true);
-  materials.set(K::Albedo, true);
-  s.push_back({"materials", materials, resolutions.front(), c.materialIterations, false, false});
-  const ParamMask albedo = materials;
-  for (int r : resolutions) s.push_back({fmt::format("albedo@{}", r), albedo, r, albedoIterations(r), false, false});
-  if (c.emitterParameterisation && c.emissionTextures && c.emissionTextureIterations > 0) {
-    ParamMask tex = ParamMask::only({K::EmissionTexture, K::Albedo, K::Roughness, K::Specular});
-    s.push_back({"emission_texture", tex, finalRes, c.emissionTextureIterations, false, true});
-  }
+  s.push_back({"materials", materials, resolutions.front(), c.materialIterations});
+  for (size_t i = 1; i < resolutions.size(); ++i)
+    s.push_back({fmt::format("albedo@{}", resolutions[i]), materials, resolutions[i], albedoIterations(resolutions[i])});
+  s.back().settles = true;
+  if (c.emitterParameterisation && c.emissionTextures && c.emissionTextureIterations > 0)
+    s.push_back({"emission_texture", ParamMask::only({K::EmissionTexture}), finalRes, c.emissionTextureIterations, false, true, true});
   return s;
 }
 
@@ -388,7 +391,7 @@ class Fit {
       if (st.emissionTexturesBefore && appearance_.emissionTextures.empty())
         allocateEmissionTextures(appearance_, w_.mesh, space->resolution, [](float, float) { return 1.0f; });
       if (st.name == "materials" && startIteration == 0) decideHighlights(*space);
-      runStage(st, si, si == static_cast<size_t>(startStage) ? startIteration : 0, *space, si + 1 == stages.size(),
+      runStage(st, si, si == static_cast<size_t>(startStage) ? startIteration : 0, *space, st.settles,
                checkpointPath);
       if (stopped_) {
         spdlog::info("fit: stopped after {} iterations as asked; continue with --resume", globalIteration_);
@@ -521,11 +524,11 @@ class Fit {
     return b;
   }
 
-  void runStage(const Stage& st, size_t stageIndex, int firstIteration, const TexelSpace& space, bool finalStage,
+  void runStage(const Stage& st, size_t stageIndex, int firstIteration, const TexelSpace& space, bool settles,
                 const fs::path& checkpointPath) {
     AdjointSettings settings = settings_;
     settings.mask = st.active;
-    const int averageFrom = finalStage && c_.polyakFraction > 0
+    const int averageFrom = settles && c_.polyakFraction > 0
                                 ? st.iterations - std::max(1, static_cast<int>(std::lround(c_.polyakFraction * st.iterations)))
                                 : st.iterations;
     Progress progress(st.name, static_cast<size_t>(st.iterations));
@@ -533,9 +536,9 @@ class Fit {
     PhaseTimes times;
     for (int it = firstIteration; it < st.iterations; ++it) {
       const uint64_t iteration = static_cast<uint64_t>(globalIteration_);
-      // Constant, except over the second half of the final stage: linear down to lr_final_fraction.
+      // Constant, except over the second half of a settling stage: linear down to lr_final_fraction.
       const float half = 0.5f * st.iterations;
-      const float lrScale = !finalStage || it < half ? 1.0f : 1.0f - (1.0f - c_.lrFinalFraction) * (it - half) / std::max(1.0f, half);
+      const float lrScale = !settles || it < half ? 1.0f : 1.0f - (1.0f - c_.lrFinalFraction) * (it - half) / std::max(1.0f, half);
       Timer ts;
       const Batch batch = sampleBatch(space, iteration);
       times.sample += ts.seconds();
@@ -578,7 +581,7 @@ class Fit {
         return;
       }
     }
-    if (finalStage)
+    if (settles)
       for (ParamGroup& g : paramGroups(appearance_))
         if (auto p = polyak_.find(g.name()); p != polyak_.end() && p->second.mean.size() == g.values.size())
           std::copy(p->second.mean.begin(), p->second.mean.end(), g.values.begin());

@@ -23,7 +23,7 @@ struct FitConfig {
   int framesPerTexel = 4;           // K: frames connected per texel
   int imageRays = 16384;            // rays per iteration (image sampler)
   int samplesPerRay = 1;            // independent (primal, adjoint) pairs per connection
-  int maxDepth = 8;
+  int maxDepth = kDefaultMaxDepth;  // scattering vertices (9 = Cycles' max bounces 8), as synth renders
   std::string gradients = "direct", emitterGradients = "strict", pairing = "decorrelated";
   bool russianRoulette = false;
   // Optimiser
@@ -35,7 +35,8 @@ struct FitConfig {
   float lrEmission = 0.2f;          // relative: a step is lr * max(E, emissionFloor * brightest observation)
   float emissionFloor = 0.02f;
   float lrEmissionTexture = 0.02f;  // relative, per texel: texels are touched rarely, so smaller steps
-  float lrFinalFraction = 0.1f;     // final stage: constant lr for its first half, then linear down to this
+  float lrFinalFraction = 0.1f;     // last albedo stage and emission-texture stage: constant lr for
+                                    // their first half, then linear down to this
   bool maskedAdam = true, perEntrySteps = true;
   float gradientClamp = 10.0f;      // x the median nonzero gradient magnitude of the group; 0 = off
   float polyakFraction = 0.1f;      // of the final stage; 0 = off

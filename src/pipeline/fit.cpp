@@ -283,8 +283,10 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   // the albedo is still near its (too dark) init, the specular lobe of a rough object makes up
   // for it (measured on the room: the walls' specular went to 1.0 whether it was fitted before or
   // together with the first albedo steps).
-  ParamMask albedo = emission;
-  albedo.set(K::Albedo, true);
+  // Emission stays where stage 1 put it: there the emitters are pinned by the frames that see them
+  // (I = E), while fitted together with the albedo it drifts along the near-null direction
+  // "brighter lights, darker albedo" (room: 3% after stage 1, 10% after the albedo stages).
+  const ParamMask albedo = ParamMask::only({K::Albedo});
   s.push_back({fmt::format("albedo@{}", resolutions.front()), albedo, resolutions.front(), albedoIterations(resolutions.front())});
   ParamMask materials = albedo;
   materials.set(K::Roughness, true);

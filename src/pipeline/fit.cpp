@@ -536,6 +536,7 @@ class Fit {
     Progress progress(st.name, static_cast<size_t>(st.iterations));
     progress.advance(static_cast<size_t>(firstIteration));
     PhaseTimes times;
+    Gradients grads(appearance_);  // one buffer per stage, cleared every iteration
     for (int it = firstIteration; it < st.iterations; ++it) {
       const uint64_t iteration = static_cast<uint64_t>(globalIteration_);
       // Constant, except over the second half of a settling stage: linear down to lr_final_fraction.
@@ -551,7 +552,7 @@ class Fit {
       Timer tl;
       const LightSampler lights(*w_.scene, appearance_);
       times.lights += tl.seconds();
-      Gradients grads(appearance_);
+      grads.clear();
       const GradientResult gr = computeGradients(*w_.scene, appearance_, lights, batch.rays, settings, iteration, grads);
       times.primal += gr.times.primal, times.loss += gr.times.loss, times.adjoint += gr.times.adjoint;
       Timer to;

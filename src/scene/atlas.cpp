@@ -8,6 +8,8 @@
 #include <queue>
 #include <unordered_map>
 
+#include <tbb/parallel_for.h>
+
 #include "core/error.h"
 #include "core/system.h"
 
@@ -83,6 +85,7 @@ struct Chart {
   std::unordered_map<int, int> local;        // original vertex -> index in vertices
   std::vector<Vec2d> uv;                     // per local vertex, metres
   bool lscm = false;
+  float cone = 0;                            // the normal cone it was grown with
 };
 
 void collectVertices(const TriangleMesh& m, Chart& c) {
@@ -179,6 +182,32 @@ bool lscm(const TriangleMesh& m, Chart& c) {
   return true;
 }
 
+// Maps a chart to the plane in metres: projection on its mean plane when it is near-planar by area
+// (noisy scans have a few steep faces on flat walls, which a projection handles with less
+// distortion than a conformal map with two pins), a least-squares conformal map otherwise, and the
+// projection again if that map flips a face and every face is within 78 degrees of the mean normal
+// (so the projection cannot flip one). False when the chart has no map without flips or overlaps.
+bool parameterise(const TriangleMesh& m, const std::vector<Vec3>& normals, float cosPlanar, Chart& c) {
+  collectVertices(m, c);
+  Vec3 sum = Vec3::Zero();
+  double area = 0;
+  for (uint32_t f : c.faces) sum += m.faceArea[f] * normals[f], area += m.faceArea[f];
+  const Vec3 axis = sum.normalized();
+  double alignedArea = 0;
+  float minCos = 1;
+  for (uint32_t f : c.faces) alignedArea += m.faceArea[f] * normals[f].dot(axis), minCos = std::min(minCos, normals[f].dot(axis));
+  c.lscm = false;
+  if (alignedArea < cosPlanar * area && lscm(m, c)) {
+    c.lscm = true;
+  } else if (minCos >= 0.2f) {
+    planarProjection(m, c, axis);
+  } else {
+    return false;
+  }
+  return c.faces.size() == 1 ||
+         countOverlaps(c.faces, [&](uint32_t f, int k) { return c.uv[c.local.at(m.triangles[f][k])]; }, 1) == 0;
+}
+
 // Rotates the chart to its minimum-area bounding rectangle (rotating calipers on the hull), puts
 // it at the origin, and makes it wider than tall.
 void orientChart(Chart& c) {
@@ -215,109 +244,304 @@ void orientChart(Chart& c) {
   }
 }
 
-struct Placement {
-  int x = 0, y = 0;
+// A chart's footprint on the packing grid at one density: the texels its triangles touch, grown
+// by `ring` texels (the texel map's dilation ring plus half the gutter), as a bitmap with, per
+// column, the first and one-past-last occupied row. Local texel coordinates of a chart point are
+// shiftOf(ring) + uv * density, so the footprint is exactly what the texel map will rasterise there.
+struct Footprint {
+  int w = 0, h = 0;
+  std::vector<uint8_t> bits;  // h rows of w
+  std::vector<int> bottom, top;  // per column: first occupied row, one past the last (bottom = h if empty)
+  bool at(int x, int y) const { return bits[static_cast<size_t>(y) * w + x] != 0; }
 };
 
-// Skyline bottom-left packing of w x h rectangles (texels) into size x size; false if they do not fit.
-bool skylinePack(const std::vector<std::pair<int, int>>& sizes, int size, std::vector<Placement>& out) {
-  std::vector<size_t> order(sizes.size());
+double shiftOf(int ring) { return ring + 0.25; }  // the ring, then a quarter texel off the grid lines
+
+Footprint footprintOf(const TriangleMesh& m, const Chart& c, const Eigen::AlignedBox2d& box, double density, int ring) {
+  const double shift = shiftOf(ring);
+  Footprint fp;
+  fp.w = static_cast<int>(std::floor(shift + box.sizes().x() * density + 1e-3)) + 1 + ring;
+  fp.h = static_cast<int>(std::floor(shift + box.sizes().y() * density + 1e-3)) + 1 + ring;
+  std::vector<uint8_t> touched(static_cast<size_t>(fp.w) * fp.h, 0);
+  for (uint32_t f : c.faces) {
+    Vec2d v[3];
+    for (int k = 0; k < 3; ++k) v[k] = Vec2d(shift, shift) + c.uv[c.local.at(m.triangles[f][k])] * density;
+    const double orient = cross2(v[0], v[1], v[2]) >= 0 ? 1.0 : -1.0;
+    const int x0 = static_cast<int>(std::floor(std::min({v[0].x(), v[1].x(), v[2].x()}) - 1e-3));
+    const int x1 = static_cast<int>(std::floor(std::max({v[0].x(), v[1].x(), v[2].x()}) + 1e-3));
+    const int y0 = static_cast<int>(std::floor(std::min({v[0].y(), v[1].y(), v[2].y()}) - 1e-3));
+    const int y1 = static_cast<int>(std::floor(std::max({v[0].y(), v[1].y(), v[2].y()}) + 1e-3));
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) {
+        bool touches = true;  // separating axis with a 1e-3-texel margin: conservative for float uvs
+        for (int e = 0; e < 3 && touches; ++e) {
+          const Vec2d d = v[(e + 1) % 3] - v[e];
+          const Vec2d inward = orient * Vec2d(-d.y(), d.x());
+          const Vec2d corner(inward.x() >= 0 ? x + 1.0 : double(x), inward.y() >= 0 ? y + 1.0 : double(y));
+          touches = inward.dot(corner - v[e]) >= -1e-3 * inward.norm();
+        }
+        if (touches) touched[static_cast<size_t>(y) * fp.w + x] = 1;
+      }
+  }
+  fp.bits.assign(touched.size(), 0);
+  for (int y = 0; y < fp.h; ++y)
+    for (int x = 0; x < fp.w; ++x) {
+      if (!touched[static_cast<size_t>(y) * fp.w + x]) continue;
+      for (int dy = -ring; dy <= ring; ++dy)
+        for (int dx = -ring; dx <= ring; ++dx) fp.bits[static_cast<size_t>(y + dy) * fp.w + x + dx] = 1;
+    }
+  return fp;
+}
+
+// The footprint turned by k quarter turns: texel (x, y) goes to (h-1-y, x) per turn.
+Footprint rotated(const Footprint& in, int k) {
+  Footprint fp = in;
+  for (int t = 0; t < k; ++t) {
+    Footprint r;
+    r.w = fp.h, r.h = fp.w;
+    r.bits.assign(fp.bits.size(), 0);
+    for (int y = 0; y < fp.h; ++y)
+      for (int x = 0; x < fp.w; ++x) r.bits[static_cast<size_t>(x) * r.w + (fp.h - 1 - y)] = fp.at(x, y);
+    fp = std::move(r);
+  }
+  fp.bottom.assign(fp.w, fp.h);
+  fp.top.assign(fp.w, 0);
+  for (int y = 0; y < fp.h; ++y)
+    for (int x = 0; x < fp.w; ++x)
+      if (fp.at(x, y)) fp.bottom[x] = std::min(fp.bottom[x], y), fp.top[x] = y + 1;
+  return fp;
+}
+
+// Local texel coordinates of a chart point after k quarter turns of a w x h footprint.
+Vec2d turn(Vec2d q, int k, int w, int h) {
+  for (int t = 0; t < k; ++t) {
+    q = Vec2d(h - q.y(), q.x());
+    std::swap(w, h);
+  }
+  return q;
+}
+
+struct Placement {
+  int x = 0, y = 0, turns = 0;
+};
+
+// Profile packing: footprints (longest side first) drop onto a per-column height map of a
+// `size`-wide strip, resting their bottom profile on it (so a chart nests into the steps left by
+// the ones before it, not only on their bounding boxes: two single-triangle charts, common where
+// T-junctions cut a flat wall into unconnected faces, fill one rectangle), at the column and
+// quarter turn with the least (top x width + area left empty under the chart). Returns the strip
+// height used.
+int profilePack(const std::vector<std::array<Footprint, 4>>& fps, int size, std::vector<Placement>& out) {
+  std::vector<size_t> order(fps.size());
   std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
-    return sizes[a].second != sizes[b].second ? sizes[a].second > sizes[b].second : sizes[a].first > sizes[b].first;
-  });
-  struct Segment { int x, y, w; };
-  std::vector<Segment> sky{{0, 0, size}};
-  out.assign(sizes.size(), {});
-  for (size_t idx : order) {
-    const auto [w, h] = sizes[idx];
-    int bestY = INT32_MAX, bestX = 0, bestWaste = INT32_MAX;
-    size_t bestI = 0;
-    for (size_t i = 0; i < sky.size(); ++i) {
-      if (sky[i].x + w > size) break;
-      int y = 0, covered = 0, waste = 0;
-      for (size_t j = i; j < sky.size() && covered < w; ++j) {
-        y = std::max(y, sky[j].y);
-        covered += sky[j].w;
+  auto occupied = [&](size_t i) { return static_cast<size_t>(std::max(fps[i][0].w, fps[i][0].h)); };
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return occupied(a) > occupied(b); });
+  std::vector<int> height(size, 0);
+  out.assign(fps.size(), {});
+  int used = 0;
+  for (size_t i : order) {
+    long bestScore = LONG_MAX;
+    Placement best{-1, 0, 0};
+    for (int k = 0; k < 4; ++k) {
+      const Footprint& fp = fps[i][k];
+      const int lastTop = *std::max_element(fp.top.begin(), fp.top.end());
+      for (int x = 0; x + fp.w <= size; ++x) {
+        int y = 0;
+        for (int c = 0; c < fp.w; ++c)
+          if (fp.top[c] > 0) y = std::max(y, height[x + c] - fp.bottom[c]);
+        const long top = y + lastTop;
+        long gap = 0;
+        for (int c = 0; c < fp.w; ++c)
+          if (fp.top[c] > 0) gap += y + fp.bottom[c] - height[x + c];
+        const long score = top * fp.w + gap;
+        if (score < bestScore) bestScore = score, best = {x, y, k};
       }
-      if (covered < w || y + h > size) continue;
-      covered = 0;
-      for (size_t j = i; j < sky.size() && covered < w; ++j) {
-        const int span = std::min(sky[j].w, w - covered);
-        waste += span * (y - sky[j].y);
-        covered += span;
+    }
+    if (best.x < 0) return INT32_MAX;  // wider than the strip
+    const Footprint& fp = fps[i][best.turns];
+    for (int c = 0; c < fp.w; ++c)
+      if (fp.top[c] > 0) height[best.x + c] = best.y + fp.top[c];
+    used = std::max(used, best.y + *std::max_element(fp.top.begin(), fp.top.end()));
+    out[i] = best;
+  }
+  return used;
+}
+
+// MaxRects (Jylanki 2010, best short side fit) on the footprints' bounding boxes, turned by 0 or
+// 1 quarter turn, largest box first: holes left between large charts stay available as free
+// rectangles, which a skyline loses. Only rectangles created by a placement are checked for
+// containment (against all), which keeps each placement linear in the free list. True if all fit
+// in size x size.
+bool maxRectsPack(const std::vector<std::array<Footprint, 4>>& fps, int size, std::vector<Placement>& out) {
+  struct Rect {
+    int x, y, w, h;
+    bool contains(const Rect& o) const { return o.x >= x && o.y >= y && o.x + o.w <= x + w && o.y + o.h <= y + h; }
+  };
+  std::vector<size_t> order(fps.size());
+  std::iota(order.begin(), order.end(), 0);
+  auto boxArea = [&](size_t i) { return static_cast<long>(fps[i][0].w) * fps[i][0].h; };
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return boxArea(a) > boxArea(b); });
+  std::vector<Rect> free{{0, 0, size, size}};
+  out.assign(fps.size(), {});
+  for (size_t i : order) {
+    long bestShort = LONG_MAX, bestLong = LONG_MAX;
+    Rect placed{-1, -1, 0, 0};
+    int turns = 0;
+    for (int k = 0; k < 2; ++k) {
+      const int w = fps[i][k].w, h = fps[i][k].h;
+      for (const Rect& f : free) {
+        if (f.w < w || f.h < h) continue;
+        const long shortSide = std::min(f.w - w, f.h - h), longSide = std::max(f.w - w, f.h - h);
+        if (shortSide < bestShort || (shortSide == bestShort && longSide < bestLong))
+          bestShort = shortSide, bestLong = longSide, placed = {f.x, f.y, w, h}, turns = k;
       }
-      if (y < bestY || (y == bestY && waste < bestWaste)) bestY = y, bestX = sky[i].x, bestWaste = waste, bestI = i;
     }
-    if (bestY == INT32_MAX) return false;
-    out[idx] = {bestX, bestY};
-    // Replace the covered span of the skyline by the new top.
-    std::vector<Segment> next(sky.begin(), sky.begin() + static_cast<long>(bestI));
-    next.push_back({bestX, bestY + h, w});
-    int end = bestX + w;
-    for (size_t j = bestI; j < sky.size(); ++j) {
-      const int segEnd = sky[j].x + sky[j].w;
-      if (segEnd <= end) continue;
-      const int start = std::max(sky[j].x, end);
-      next.push_back({start, sky[j].y, segEnd - start});
+    if (placed.x < 0) return false;
+    out[i] = {placed.x, placed.y, turns};
+    // Split every free rectangle the placement cuts into the up to four maximal pieces around it.
+    std::vector<Rect> kept, fresh;
+    for (const Rect& f : free) {
+      if (placed.x >= f.x + f.w || placed.x + placed.w <= f.x || placed.y >= f.y + f.h || placed.y + placed.h <= f.y) {
+        kept.push_back(f);
+        continue;
+      }
+      if (placed.x > f.x) fresh.push_back({f.x, f.y, placed.x - f.x, f.h});
+      if (placed.x + placed.w < f.x + f.w) fresh.push_back({placed.x + placed.w, f.y, f.x + f.w - placed.x - placed.w, f.h});
+      if (placed.y > f.y) fresh.push_back({f.x, f.y, f.w, placed.y - f.y});
+      if (placed.y + placed.h < f.y + f.h) fresh.push_back({f.x, placed.y + placed.h, f.w, f.y + f.h - placed.y - placed.h});
     }
-    sky.clear();
-    for (const Segment& s : next)
-      if (!sky.empty() && sky.back().y == s.y) sky.back().w += s.w;
-      else sky.push_back(s);
+    // Drop fresh rectangles contained in another (kept or fresh, the earlier of two equal ones
+    // stays); kept ones are maximal among themselves already, so only fresh ones can contain them.
+    std::vector<char> dropFresh(fresh.size(), 0);
+    for (size_t a = 0; a < fresh.size(); ++a) {
+      for (const Rect& k : kept)
+        if (k.contains(fresh[a])) dropFresh[a] = 1;
+      for (size_t b = 0; b < fresh.size() && !dropFresh[a]; ++b)
+        if (a != b && !dropFresh[b] && fresh[b].contains(fresh[a]) && (!fresh[a].contains(fresh[b]) || b < a)) dropFresh[a] = 1;
+    }
+    free.clear();
+    for (const Rect& k : kept) {
+      bool inside = false;
+      for (size_t a = 0; a < fresh.size() && !inside; ++a) inside = !dropFresh[a] && fresh[a].contains(k);
+      if (!inside) free.push_back(k);
+    }
+    for (size_t a = 0; a < fresh.size(); ++a)
+      if (!dropFresh[a]) free.push_back(fresh[a]);
   }
   return true;
 }
 
-std::vector<std::vector<uint32_t>> faceAdjacency(const TriangleMesh& m) {
-  std::vector<std::pair<uint64_t, uint32_t>> edges;
-  edges.reserve(m.triangles.size() * 3);
-  for (uint32_t f = 0; f < m.triangles.size(); ++f)
+// Face adjacency on the welded mesh: vertices at the same position are one vertex (real meshes
+// split vertices at every normal or uv seam), and two faces are neighbours across an edge only when
+// exactly two faces of one object share it with opposite directions (manifold, consistently
+// wound). Non-manifold edges, winding flips and object borders are chart borders.
+struct Topology {
+  std::vector<std::array<int32_t, 3>> neighbour;  // across edge k = (corner k, corner k+1); -1: border
+  std::vector<std::array<float, 3>> edgeLength;
+};
+
+Topology buildTopology(const TriangleMesh& m) {
+  const size_t nv = m.positions.size(), nf = m.triangles.size();
+  std::vector<uint32_t> order(nv);
+  std::iota(order.begin(), order.end(), 0u);
+  auto less = [&](uint32_t a, uint32_t b) {
+    const Vec3 &p = m.positions[a], &q = m.positions[b];
+    return std::lexicographical_compare(p.data(), p.data() + 3, q.data(), q.data() + 3);
+  };
+  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return less(a, b) || (!less(b, a) && a < b); });
+  std::vector<uint32_t> weld(nv);
+  for (size_t i = 0, id = 0; i < nv; ++i) {
+    if (i > 0 && less(order[i - 1], order[i])) ++id;
+    weld[order[i]] = static_cast<uint32_t>(id);
+  }
+  struct HalfEdge {
+    uint64_t key;
+    uint32_t face;
+    uint8_t corner, forward;
+  };
+  std::vector<HalfEdge> edges;
+  edges.reserve(nf * 3);
+  Topology t;
+  t.neighbour.assign(nf, {-1, -1, -1});
+  t.edgeLength.resize(nf);
+  for (uint32_t f = 0; f < nf; ++f)
     for (int k = 0; k < 3; ++k) {
-      const uint64_t a = static_cast<uint32_t>(m.triangles[f][k]), b = static_cast<uint32_t>(m.triangles[f][(k + 1) % 3]);
-      edges.push_back({std::min(a, b) << 32 | std::max(a, b), f});
+      const uint64_t a = weld[m.triangles[f][k]], b = weld[m.triangles[f][(k + 1) % 3]];
+      edges.push_back({std::min(a, b) << 32 | std::max(a, b), f, static_cast<uint8_t>(k), static_cast<uint8_t>(a < b)});
+      t.edgeLength[f][k] = (m.positions[m.triangles[f][(k + 1) % 3]] - m.positions[m.triangles[f][k]]).norm();
     }
-  std::sort(edges.begin(), edges.end());
-  std::vector<std::vector<uint32_t>> adj(m.triangles.size());
+  std::sort(edges.begin(), edges.end(), [](const HalfEdge& a, const HalfEdge& b) { return a.key != b.key ? a.key < b.key : a.face < b.face; });
   for (size_t i = 0; i < edges.size();) {
     size_t j = i;
-    while (j < edges.size() && edges[j].first == edges[i].first) ++j;
-    for (size_t a = i; a < j; ++a)
-      for (size_t b = i; b < j; ++b)
-        if (a != b) adj[edges[a].second].push_back(edges[b].second);
+    while (j < edges.size() && edges[j].key == edges[i].key) ++j;
+    if (j - i != 2) {
+      i = j;
+      continue;
+    }
+    const HalfEdge &a = edges[i], &b = edges[i + 1];
+    if (a.face != b.face && a.forward != b.forward && m.faceObject[a.face] == m.faceObject[b.face]) {
+      t.neighbour[a.face][a.corner] = static_cast<int32_t>(b.face);
+      t.neighbour[b.face][b.corner] = static_cast<int32_t>(a.face);
+    }
     i = j;
   }
-  return adj;
+  return t;
 }
 
-// Region growing by normal cone around each seed's normal, within one object and one region.
-std::vector<std::vector<uint32_t>> growCharts(const TriangleMesh& m, const std::vector<Vec3>& normals,
-                                              const std::vector<std::vector<uint32_t>>& adj,
-                                              const std::vector<uint32_t>& region, float coneDegrees) {
+// Grows charts over `region` one at a time from the largest unassigned face (ties: lower index).
+// Candidates are taken in order of a cost that weighs the normal's deviation from the chart's
+// area-weighted mean normal and how much the face lengthens the chart's boundary (a face closing
+// a notch costs less than one sticking out), so charts grow compact; a face joins while its normal
+// stays within `coneDegrees` of the chart's mean normal. `state` holds -1 for the region's faces on
+// entry (-2 elsewhere) and is restored.
+std::vector<std::vector<uint32_t>> growCharts(const TriangleMesh& m, const std::vector<Vec3>& normals, const Topology& topo,
+                                              const std::vector<uint32_t>& region, float coneDegrees, std::vector<int32_t>& state) {
   const float cosCone = std::cos(coneDegrees * kPi / 180.0f);
-  std::unordered_map<uint32_t, int> inRegion;
-  for (uint32_t f : region) inRegion[f] = -1;
+  constexpr float kBoundaryWeight = 0.5f;
+  std::vector<uint32_t> seeds = region;
+  std::sort(seeds.begin(), seeds.end(), [&](uint32_t a, uint32_t b) { return m.faceArea[a] != m.faceArea[b] ? m.faceArea[a] > m.faceArea[b] : a < b; });
+  for (uint32_t f : region) state[f] = -1;
   std::vector<std::vector<uint32_t>> charts;
-  for (uint32_t seed : region) {
-    if (inRegion[seed] >= 0) continue;
-    const int id = static_cast<int>(charts.size());
+  using Entry = std::pair<float, uint32_t>;
+  std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> heap;
+  for (uint32_t seed : seeds) {
+    if (state[seed] != -1) continue;
+    const int32_t id = static_cast<int32_t>(charts.size());
     charts.emplace_back();
-    std::queue<uint32_t> q;
-    q.push(seed);
-    inRegion[seed] = id;
-    while (!q.empty()) {
-      const uint32_t f = q.front();
-      q.pop();
-      charts[id].push_back(f);
-      for (uint32_t g : adj[f]) {
-        auto it = inRegion.find(g);
-        if (it == inRegion.end() || it->second >= 0 || m.faceObject[g] != m.faceObject[seed]) continue;
-        if (normals[g].dot(normals[seed]) < cosCone) continue;
-        it->second = id;
-        q.push(g);
+    Vec3 sum = Vec3::Zero();
+    auto cost = [&](uint32_t f, const Vec3& mean) {
+      float shared = 0, perimeter = 0;
+      for (int k = 0; k < 3; ++k) {
+        perimeter += topo.edgeLength[f][k];
+        if (topo.neighbour[f][k] >= 0 && state[topo.neighbour[f][k]] == id) shared += topo.edgeLength[f][k];
       }
+      return (1.0f - normals[f].dot(mean)) + kBoundaryWeight * (1.0f - 2.0f * shared / std::max(perimeter, 1e-30f));
+    };
+    auto add = [&](uint32_t f) {
+      state[f] = id;
+      charts[id].push_back(f);
+      sum += m.faceArea[f] * normals[f];
+      const Vec3 mean = sum.normalized();
+      for (int k = 0; k < 3; ++k) {
+        const int32_t g = topo.neighbour[f][k];
+        if (g >= 0 && state[g] == -1) heap.push({cost(g, mean), static_cast<uint32_t>(g)});
+      }
+    };
+    add(seed);
+    while (!heap.empty()) {
+      const auto [queued, f] = heap.top();
+      heap.pop();
+      if (state[f] != -1) continue;
+      const Vec3 mean = sum.normalized();
+      if (normals[f].dot(mean) < cosCone) continue;  // may come back through another neighbour
+      if (const float now = cost(f, mean); now > queued + 1e-6f) {
+        heap.push({now, f});  // the chart moved since this entry was queued
+        continue;
+      }
+      add(f);
     }
   }
+  for (uint32_t f : region) state[f] = -2;
   return charts;
 }
 
@@ -358,75 +582,114 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
   }
   std::vector<Vec3> normals(mesh.triangles.size());
   for (size_t f = 0; f < normals.size(); ++f) normals[f] = mesh.faceNormal(f);
-  const auto adj = faceAdjacency(mesh);
+  const Topology topo = buildTopology(mesh);
+  std::vector<int32_t> state(mesh.triangles.size(), -2);
 
-  // Chart, parameterise, and split any chart whose map overlaps itself with a narrower cone.
-  std::vector<Chart> charts;
-  std::vector<std::pair<std::vector<uint32_t>, float>> work;
-  std::vector<uint32_t> all(mesh.triangles.size());
-  std::iota(all.begin(), all.end(), 0);
-  work.push_back({all, o.coneDegrees});
+  // Chart, parameterise, and re-chart any chart whose map overlaps itself (or has no valid map)
+  // with half the cone. Below kMinConeDegrees its faces become one chart each, which always map
+  // (a single non-degenerate triangle), so this terminates on any input.
+  constexpr float kMinConeDegrees = 1.0f;
   const float cosPlanar = std::cos(o.planarDegrees * kPi / 180.0f);
-  while (!work.empty()) {
-    auto [region, cone] = std::move(work.back());
-    work.pop_back();
-    for (auto& faces : growCharts(mesh, normals, adj, region, cone)) {
-      Chart c;
-      c.faces = std::move(faces);
-      collectVertices(mesh, c);
-      Vec3 axis = Vec3::Zero();
-      for (uint32_t f : c.faces) axis += mesh.faceArea[f] * normals[f];
-      axis.normalize();
-      // Near-planar by area: noisy scans have a few steep faces on flat walls, which a planar
-      // projection handles with less distortion than a conformal map with two pins.
-      double area = 0, alignedArea = 0;
-      for (uint32_t f : c.faces) area += mesh.faceArea[f], alignedArea += mesh.faceArea[f] * normals[f].dot(axis);
-      const bool planar = alignedArea >= cosPlanar * area;
-      if (planar || !lscm(mesh, c)) {
-        // Every face is within the cone of the seed normal, so projecting along it never flips.
-        planarProjection(mesh, c, planar ? axis : normals[c.faces.front()]);
-      } else {
-        c.lscm = true;
+  std::vector<Chart> charts;
+  auto chartRegion = [&](std::vector<uint32_t> faces, float startCone) {
+    std::vector<std::pair<std::vector<uint32_t>, float>> work;
+    work.push_back({std::move(faces), startCone});
+    while (!work.empty()) {
+      auto [region, cone] = std::move(work.back());
+      work.pop_back();
+      std::vector<std::vector<uint32_t>> grown;
+      if (cone < kMinConeDegrees)
+        for (uint32_t f : region) grown.push_back({f});
+      else
+        grown = growCharts(mesh, normals, topo, region, cone, state);
+      for (auto& g : grown) {
+        Chart c;
+        c.faces = std::move(g);
+        c.cone = cone;
+        if (!parameterise(mesh, normals, cosPlanar, c)) {
+          ++r.splitCharts;
+          work.push_back({std::move(c.faces), cone * 0.5f});
+          continue;
+        }
+        orientChart(c);
+        charts.push_back(std::move(c));
       }
-      const bool overlaps = c.faces.size() > 1 &&
-          countOverlaps(c.faces, [&](uint32_t f, int k) { return c.uv[c.local.at(mesh.triangles[f][k])]; }, 1) > 0;
-      if (overlaps) {
-        ++r.splitCharts;
-        work.push_back({std::move(c.faces), cone * 0.5f});
-        continue;
-      }
-      r.lscmCharts += c.lscm;
-      orientChart(c);
-      charts.push_back(std::move(c));
     }
-  }
-  // Deterministic order whatever the work-queue order was: by first face.
-  std::sort(charts.begin(), charts.end(), [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
-  r.charts = charts.size();
-
-  // Largest density (texels per metre at the gutter resolution) at which everything packs.
-  const int pad = (o.gutterTexels + 1) / 2;  // per side: at least `gutterTexels` between charts
-  std::vector<Eigen::AlignedBox2d> extent(charts.size());
-  for (size_t i = 0; i < charts.size(); ++i)
-    for (const Vec2d& p : charts[i].uv) extent[i].extend(p);
-  std::vector<Placement> placement;
-  auto sizesAt = [&](double density) {
-    std::vector<std::pair<int, int>> s(charts.size());
-    for (size_t i = 0; i < charts.size(); ++i)
-      s[i] = {static_cast<int>(std::ceil(extent[i].sizes().x() * density)) + 1 + 2 * pad,
-              static_cast<int>(std::ceil(extent[i].sizes().y() * density)) + 1 + 2 * pad};
-    return s;
   };
+  {
+    std::vector<uint32_t> all(mesh.triangles.size());
+    std::iota(all.begin(), all.end(), 0);
+    chartRegion(std::move(all), o.coneDegrees);
+  }
+
+  const int G = o.gutterResolution;
+  // Disjoint footprints grown by r texels leave 2r >= gutterTexels empty texels between two charts.
+  const int ring = (o.gutterTexels + 1) / 2;
   double totalArea = 0;
   for (float a : mesh.faceArea) totalArea += a;
-  double lo = 0, hi = std::sqrt(static_cast<double>(o.gutterResolution) * o.gutterResolution / std::max(totalArea, 1e-12)) * 1.01;
-  for (int it = 0; it < 40; ++it) {
-    const double mid = 0.5 * (lo + hi);
-    (skylinePack(sizesAt(mid), o.gutterResolution, placement) ? lo : hi) = mid;
+  std::vector<std::array<Footprint, 4>> fps;
+  std::vector<Placement> placement;
+  std::vector<std::vector<Vec2>> chartUv;  // per chart and local vertex: the atlas uv as stored (float)
+  double density = 0;
+  for (;;) {
+    // Deterministic order whatever the work-queue order was: by first face.
+    std::sort(charts.begin(), charts.end(), [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
+    // Largest density (texels per metre at the gutter resolution) at which everything packs: a few
+    // secant-like steps on the strip height, then bisection between the best fit and the first miss.
+    std::vector<Eigen::AlignedBox2d> extent(charts.size());
+    for (size_t i = 0; i < charts.size(); ++i)
+      for (const Vec2d& p : charts[i].uv) extent[i].extend(p);
+    fps.assign(charts.size(), {});
+    std::vector<Placement> trial;
+    auto packAt = [&](double d) {
+      tbb::parallel_for(size_t{0}, charts.size(), [&](size_t i) {
+        const Footprint base = footprintOf(mesh, charts[i], extent[i], d, ring);
+        for (int k = 0; k < 4; ++k) fps[i][k] = rotated(base, k);
+      });
+      if (maxRectsPack(fps, G, trial)) return G;
+      return profilePack(fps, G, trial);
+    };
+    double fit = 0, miss = std::sqrt(static_cast<double>(G) * G / std::max(totalArea, 1e-12));
+    double d = miss * 0.9;
+    for (int it = 0; it < 24 && miss > fit * 1.002; ++it) {
+      const int used = packAt(d);
+      if (used <= G) fit = d, placement = trial;
+      else miss = d;
+      const double next = d * std::sqrt(static_cast<double>(G) / std::max(used, 1)) * (used <= G ? 1.0 : 0.995);
+      d = (it < 6 && next > fit && next < miss) ? next : 0.5 * (fit + miss);
+      if (fit == 0 && it >= 6) d = miss * 0.5;  // nothing fitted yet: halve
+    }
+    if (!(fit > 0)) fail("uv atlas: {} charts do not fit a {}^2 atlas with {}-texel gutters", charts.size(), G, o.gutterTexels);
+    packAt(fit);  // footprints at the chosen density (the same placement as `placement`)
+    density = fit;
+    // The uvs as they will be stored, in float: a chart of micro-triangles that maps without
+    // overlap in double can fold by a rounding; such charts are re-charted and everything repacked.
+    chartUv.assign(charts.size(), {});
+    std::vector<char> bad(charts.size(), 0);
+    tbb::parallel_for(size_t{0}, charts.size(), [&](size_t i) {
+      const Chart& c = charts[i];
+      for (const Vec2d& p : c.uv) {
+        const Vec2d q = turn(Vec2d::Constant(shiftOf(ring)) + p * density, placement[i].turns, fps[i][0].w, fps[i][0].h);
+        chartUv[i].push_back(((Vec2d(placement[i].x, placement[i].y) + q) / G).cast<float>());
+      }
+      if (c.faces.size() == 1) return;
+      auto uvOf = [&](uint32_t f, int k) { return Vec2d(chartUv[i][c.local.at(mesh.triangles[f][k])].cast<double>()); };
+      int positive = 0;
+      for (uint32_t f : c.faces) positive += cross2(uvOf(f, 0), uvOf(f, 1), uvOf(f, 2)) > 0;
+      bad[i] = (positive != 0 && positive != static_cast<int>(c.faces.size())) || countOverlaps(c.faces, uvOf, 1) > 0;
+    });
+    if (std::find(bad.begin(), bad.end(), 1) == bad.end()) break;
+    std::vector<Chart> keep;
+    std::vector<std::pair<std::vector<uint32_t>, float>> redo;
+    for (size_t i = 0; i < charts.size(); ++i)
+      if (bad[i]) ++r.splitCharts, redo.push_back({std::move(charts[i].faces), 0.0f});
+      else keep.push_back(std::move(charts[i]));
+    charts = std::move(keep);
+    for (auto& [faces, cone] : redo) chartRegion(std::move(faces), cone);  // one chart per face: rounding cannot fold those
   }
-  if (!(lo > 0) || !skylinePack(sizesAt(lo), o.gutterResolution, placement))
-    fail("uv atlas: {} charts do not fit a {}^2 atlas with {}-texel gutters", charts.size(), o.gutterResolution, o.gutterTexels);
-  r.texelsPerMetre = lo;
+  r.charts = charts.size();
+  for (const Chart& c : charts) r.lscmCharts += c.lscm;
+  r.texelsPerMetre = density;
 
   TriangleMesh out = mesh;
   out.positions.clear();
@@ -441,15 +704,14 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
     for (size_t v = 0; v < c.vertices.size(); ++v) {
       out.positions.push_back(mesh.positions[c.vertices[v]]);
       if (!mesh.normals.empty()) out.normals.push_back(mesh.normals[c.vertices[v]]);
-      const Vec2d uv = (Vec2d(placement[i].x + pad + 0.5, placement[i].y + pad + 0.5) + c.uv[v] * lo) / R;
-      out.uvs.push_back(uv.cast<float>());
+      out.uvs.push_back(chartUv[i][v]);
     }
     for (uint32_t f : c.faces) {
       for (int k = 0; k < 3; ++k) out.triangles[f][k] = base + c.local.at(mesh.triangles[f][k]);
       const auto& t = out.triangles[f];
       const double a = 0.5 * std::abs(cross2(out.uvs[t[0]].cast<double>(), out.uvs[t[1]].cast<double>(), out.uvs[t[2]].cast<double>()));
       uvArea += a;
-      stretch.push_back(std::sqrt(a * R * R / (lo * lo) / std::max<double>(mesh.faceArea[f], 1e-30)));
+      stretch.push_back(std::sqrt(a * R * R / (density * density) / std::max<double>(mesh.faceArea[f], 1e-30)));
     }
   }
   r.packingEfficiency = uvArea;

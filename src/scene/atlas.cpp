@@ -3,6 +3,7 @@
 #include <Eigen/SparseCholesky>
 #include <fmt/format.h>
 
+#include <cassert>
 #include <map>
 #include <numeric>
 #include <queue>
@@ -175,6 +176,15 @@ bool lscm(const TriangleMesh& m, Chart& c) {
     area += m.faceArea[f];
   }
   if (positive != 0 && positive != static_cast<int>(c.faces.size())) return false;
+  // An ill-conditioned solve can spread a chart over a huge area while keeping every face unflipped:
+  // reject maps whose faces' uv-to-3D area ratios differ by more than 1e4.
+  double minRatio = INFINITY, maxRatio = 0;
+  for (uint32_t f : c.faces) {
+    const auto& tri = m.triangles[f];
+    const double ratio = std::abs(cross2(c.uv[c.local.at(tri[0])], c.uv[c.local.at(tri[1])], c.uv[c.local.at(tri[2])])) / m.faceArea[f];
+    minRatio = std::min(minRatio, ratio), maxRatio = std::max(maxRatio, ratio);
+  }
+  if (!(maxRatio <= 1e4 * minRatio)) return false;
   if (positive == 0)
     for (Vec2d& p : c.uv) p.y() = -p.y();
   const double scale = std::sqrt(area / std::max(uvArea, 1e-300));
@@ -257,9 +267,15 @@ struct Footprint {
 
 double shiftOf(int ring) { return ring + 0.25; }  // the ring, then a quarter texel off the grid lines
 
-Footprint footprintOf(const TriangleMesh& m, const Chart& c, const Eigen::AlignedBox2d& box, double density, int ring) {
+// A chart larger than `limit` texels gets a stand-in footprint wider than the strip (no bits).
+Footprint footprintOf(const TriangleMesh& m, const Chart& c, const Eigen::AlignedBox2d& box, double density, int ring, int limit) {
   const double shift = shiftOf(ring);
   Footprint fp;
+  if (!(std::max(box.sizes().x(), box.sizes().y()) * density < limit)) {  // cannot fit: say so without allocating it
+    fp.w = fp.h = limit + 1;
+    fp.bottom.assign(1, 0), fp.top.assign(1, 1);
+    return fp;
+  }
   fp.w = static_cast<int>(std::floor(shift + box.sizes().x() * density + 1e-3)) + 1 + ring;
   fp.h = static_cast<int>(std::floor(shift + box.sizes().y() * density + 1e-3)) + 1 + ring;
   std::vector<uint8_t> touched(static_cast<size_t>(fp.w) * fp.h, 0);
@@ -295,6 +311,7 @@ Footprint footprintOf(const TriangleMesh& m, const Chart& c, const Eigen::Aligne
 
 // The footprint turned by k quarter turns: texel (x, y) goes to (h-1-y, x) per turn.
 Footprint rotated(const Footprint& in, int k) {
+  if (in.bits.empty()) return in;  // the stand-in for a chart too large to fit
   Footprint fp = in;
   for (int t = 0; t < k; ++t) {
     Footprint r;
@@ -334,14 +351,20 @@ struct Placement {
 int profilePack(const std::vector<std::array<Footprint, 4>>& fps, int size, std::vector<Placement>& out) {
   std::vector<size_t> order(fps.size());
   std::iota(order.begin(), order.end(), 0);
-  auto occupied = [&](size_t i) { return static_cast<size_t>(std::max(fps[i][0].w, fps[i][0].h)); };
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return occupied(a) > occupied(b); });
+  auto key = [&](size_t i) { return std::max(fps[i][0].w, fps[i][0].h); };
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return key(a) > key(b); });
   std::vector<int> height(size, 0);
   out.assign(fps.size(), {});
   int used = 0;
+  struct Best {
+    long score = LONG_MAX;
+    Placement at{-1, 0, 0};
+    bool operator<(const Best& o) const {  // ties: the first found (fewer turns, then leftmost)
+      return score != o.score ? score < o.score : at.turns != o.at.turns ? at.turns < o.at.turns : at.x < o.at.x;
+    }
+  };
   for (size_t i : order) {
-    long bestScore = LONG_MAX;
-    Placement best{-1, 0, 0};
+    Best best;
     for (int k = 0; k < 4; ++k) {
       const Footprint& fp = fps[i][k];
       const int lastTop = *std::max_element(fp.top.begin(), fp.top.end());
@@ -349,86 +372,22 @@ int profilePack(const std::vector<std::array<Footprint, 4>>& fps, int size, std:
         int y = 0;
         for (int c = 0; c < fp.w; ++c)
           if (fp.top[c] > 0) y = std::max(y, height[x + c] - fp.bottom[c]);
-        const long top = y + lastTop;
         long gap = 0;
         for (int c = 0; c < fp.w; ++c)
           if (fp.top[c] > 0) gap += y + fp.bottom[c] - height[x + c];
-        const long score = top * fp.w + gap;
-        if (score < bestScore) bestScore = score, best = {x, y, k};
+        const Best here{static_cast<long>(y + lastTop) * fp.w + gap, {x, y, k}};
+        if (here < best) best = here;
       }
     }
-    if (best.x < 0) return INT32_MAX;  // wider than the strip
-    const Footprint& fp = fps[i][best.turns];
+    if (best.at.x < 0) return INT32_MAX;  // wider than the strip
+    const Footprint& fp = fps[i][best.at.turns];
     for (int c = 0; c < fp.w; ++c)
-      if (fp.top[c] > 0) height[best.x + c] = best.y + fp.top[c];
-    used = std::max(used, best.y + *std::max_element(fp.top.begin(), fp.top.end()));
-    out[i] = best;
+      if (fp.top[c] > 0) height[best.at.x + c] = best.at.y + fp.top[c];
+    used = std::max(used, best.at.y + *std::max_element(fp.top.begin(), fp.top.end()));
+    out[i] = best.at;
+    if (used > size) return used;  // does not fit: the caller only needs to know that
   }
   return used;
-}
-
-// MaxRects (Jylanki 2010, best short side fit) on the footprints' bounding boxes, turned by 0 or
-// 1 quarter turn, largest box first: holes left between large charts stay available as free
-// rectangles, which a skyline loses. Only rectangles created by a placement are checked for
-// containment (against all), which keeps each placement linear in the free list. True if all fit
-// in size x size.
-bool maxRectsPack(const std::vector<std::array<Footprint, 4>>& fps, int size, std::vector<Placement>& out) {
-  struct Rect {
-    int x, y, w, h;
-    bool contains(const Rect& o) const { return o.x >= x && o.y >= y && o.x + o.w <= x + w && o.y + o.h <= y + h; }
-  };
-  std::vector<size_t> order(fps.size());
-  std::iota(order.begin(), order.end(), 0);
-  auto boxArea = [&](size_t i) { return static_cast<long>(fps[i][0].w) * fps[i][0].h; };
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return boxArea(a) > boxArea(b); });
-  std::vector<Rect> free{{0, 0, size, size}};
-  out.assign(fps.size(), {});
-  for (size_t i : order) {
-    long bestShort = LONG_MAX, bestLong = LONG_MAX;
-    Rect placed{-1, -1, 0, 0};
-    int turns = 0;
-    for (int k = 0; k < 2; ++k) {
-      const int w = fps[i][k].w, h = fps[i][k].h;
-      for (const Rect& f : free) {
-        if (f.w < w || f.h < h) continue;
-        const long shortSide = std::min(f.w - w, f.h - h), longSide = std::max(f.w - w, f.h - h);
-        if (shortSide < bestShort || (shortSide == bestShort && longSide < bestLong))
-          bestShort = shortSide, bestLong = longSide, placed = {f.x, f.y, w, h}, turns = k;
-      }
-    }
-    if (placed.x < 0) return false;
-    out[i] = {placed.x, placed.y, turns};
-    // Split every free rectangle the placement cuts into the up to four maximal pieces around it.
-    std::vector<Rect> kept, fresh;
-    for (const Rect& f : free) {
-      if (placed.x >= f.x + f.w || placed.x + placed.w <= f.x || placed.y >= f.y + f.h || placed.y + placed.h <= f.y) {
-        kept.push_back(f);
-        continue;
-      }
-      if (placed.x > f.x) fresh.push_back({f.x, f.y, placed.x - f.x, f.h});
-      if (placed.x + placed.w < f.x + f.w) fresh.push_back({placed.x + placed.w, f.y, f.x + f.w - placed.x - placed.w, f.h});
-      if (placed.y > f.y) fresh.push_back({f.x, f.y, f.w, placed.y - f.y});
-      if (placed.y + placed.h < f.y + f.h) fresh.push_back({f.x, placed.y + placed.h, f.w, f.y + f.h - placed.y - placed.h});
-    }
-    // Drop fresh rectangles contained in another (kept or fresh, the earlier of two equal ones
-    // stays); kept ones are maximal among themselves already, so only fresh ones can contain them.
-    std::vector<char> dropFresh(fresh.size(), 0);
-    for (size_t a = 0; a < fresh.size(); ++a) {
-      for (const Rect& k : kept)
-        if (k.contains(fresh[a])) dropFresh[a] = 1;
-      for (size_t b = 0; b < fresh.size() && !dropFresh[a]; ++b)
-        if (a != b && !dropFresh[b] && fresh[b].contains(fresh[a]) && (!fresh[a].contains(fresh[b]) || b < a)) dropFresh[a] = 1;
-    }
-    free.clear();
-    for (const Rect& k : kept) {
-      bool inside = false;
-      for (size_t a = 0; a < fresh.size() && !inside; ++a) inside = !dropFresh[a] && fresh[a].contains(k);
-      if (!inside) free.push_back(k);
-    }
-    for (size_t a = 0; a < fresh.size(); ++a)
-      if (!dropFresh[a]) free.push_back(fresh[a]);
-  }
-  return true;
 }
 
 // Face adjacency on the welded mesh: vertices at the same position are one vertex (real meshes
@@ -623,6 +582,42 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
   }
 
   const int G = o.gutterResolution;
+  // Faces narrower in uv than 1/1000 texel at the largest density possible (every texel covered),
+  // 16 float roundings at 1024^2, could fold when their uvs are stored as float: they become charts
+  // of their own before packing.
+  {
+    double area = 0;
+    for (float a : mesh.faceArea) area += a;
+    const double maxDensity = std::sqrt(static_cast<double>(G) * G / std::max(area, 1e-12));
+    std::vector<Chart> singles;
+    for (Chart& c : charts) {
+      if (c.faces.size() == 1) continue;
+      std::vector<uint32_t> keep;
+      for (uint32_t f : c.faces) {
+        Vec2d p[3];
+        for (int k = 0; k < 3; ++k) p[k] = c.uv[c.local.at(mesh.triangles[f][k])];
+        const double longest = std::max({(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()});
+        const double altitude = std::abs(cross2(p[0], p[1], p[2])) / std::max(longest, 1e-300);
+        if (altitude * maxDensity < 1e-3) singles.emplace_back().faces = {f};
+        else keep.push_back(f);
+      }
+      if (keep.size() == c.faces.size()) continue;
+      const auto old = c.local;
+      const std::vector<Vec2d> oldUv = c.uv;
+      c.faces = std::move(keep);
+      collectVertices(mesh, c);
+      c.uv.resize(c.vertices.size());
+      for (size_t v = 0; v < c.vertices.size(); ++v) c.uv[v] = oldUv[old.at(c.vertices[v])];
+      if (!c.faces.empty()) orientChart(c);  // its box starts at the origin again
+    }
+    for (Chart& c : singles) {
+      [[maybe_unused]] const bool mapped = parameterise(mesh, normals, cosPlanar, c);
+      assert(mapped && "a single triangle projects on its own plane");
+      orientChart(c);
+      charts.push_back(std::move(c));
+    }
+    std::erase_if(charts, [](const Chart& c) { return c.faces.empty(); });
+  }
   // Disjoint footprints grown by r texels leave 2r >= gutterTexels empty texels between two charts.
   const int ring = (o.gutterTexels + 1) / 2;
   double totalArea = 0;
@@ -643,21 +638,25 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
     std::vector<Placement> trial;
     auto packAt = [&](double d) {
       tbb::parallel_for(size_t{0}, charts.size(), [&](size_t i) {
-        const Footprint base = footprintOf(mesh, charts[i], extent[i], d, ring);
+        const Footprint base = footprintOf(mesh, charts[i], extent[i], d, ring, G);
         for (int k = 0; k < 4; ++k) fps[i][k] = rotated(base, k);
       });
-      if (maxRectsPack(fps, G, trial)) return G;
       return profilePack(fps, G, trial);
     };
+    // Secant-like steps while packings fit (a fitting pass reports its height), bisection once one
+    // has failed (a failing pass stops early, so its height says little), to 0.5%.
     double fit = 0, miss = std::sqrt(static_cast<double>(G) * G / std::max(totalArea, 1e-12));
     double d = miss * 0.9;
-    for (int it = 0; it < 24 && miss > fit * 1.002; ++it) {
+    for (int it = 0; it < 30 && miss > fit * 1.005; ++it) {
       const int used = packAt(d);
-      if (used <= G) fit = d, placement = trial;
-      else miss = d;
-      const double next = d * std::sqrt(static_cast<double>(G) / std::max(used, 1)) * (used <= G ? 1.0 : 0.995);
-      d = (it < 6 && next > fit && next < miss) ? next : 0.5 * (fit + miss);
-      if (fit == 0 && it >= 6) d = miss * 0.5;  // nothing fitted yet: halve
+      if (used <= G) {
+        fit = d, placement = trial;
+        const double next = d * std::sqrt(static_cast<double>(G) / std::max(used, 1));
+        d = next > d * 1.001 && next < miss ? next : 0.5 * (fit + miss);
+      } else {
+        miss = d;
+        d = fit > 0 ? 0.5 * (fit + miss) : 0.7 * miss;
+      }
     }
     if (!(fit > 0)) fail("uv atlas: {} charts do not fit a {}^2 atlas with {}-texel gutters", charts.size(), G, o.gutterTexels);
     packAt(fit);  // footprints at the chosen density (the same placement as `placement`)

@@ -249,6 +249,28 @@ def reflectance(bsdf, bsdfs):
     return None
 
 
+def write_cameras(args, sensor):
+    """transforms.json (nerfstudio: camera-to-world with x right, y up, z back) for a yaw sweep
+    around the Mitsuba sensor (x left, y up, z forward), images/NN.exr to be rendered by relume."""
+    m = np.array(sensor["to_world"])
+    rot = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)
+    up = rot[:, 1]
+    frames = []
+    for i in range(args.frames):
+        t = i / max(args.frames - 1, 1) - 0.5
+        ang = math.radians(args.sweep * t)
+        k = np.array([[0, -up[2], up[1]], [up[2], 0, -up[0]], [-up[1], up[0], 0]])
+        yaw = np.eye(3) + math.sin(ang) * k + (1 - math.cos(ang)) * k @ k
+        c2w = np.eye(4)
+        c2w[:3, :3] = yaw @ rot @ np.diag([-1.0, 1.0, -1.0])
+        c2w[:3, 3] = m[:3, 3] + 0.2 * t * rot[:, 0]
+        frames.append({"file_path": f"images/{i:02d}.exr", "transform_matrix": c2w.tolist()})
+    fl = 0.5 * args.width / math.tan(math.radians(sensor["fov"]) / 2)
+    with open(os.path.join(args.out, "transforms.json"), "w") as f:
+        json.dump({"camera_model": "PINHOLE", "fl_x": fl, "fl_y": fl, "cx": args.width / 2, "cy": args.height / 2,
+                   "w": args.width, "h": args.height, "frames": frames}, f, indent=1)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--git", help="git directory of a mirror (files read from HEAD)")
@@ -256,6 +278,10 @@ def main():
     ap.add_argument("--xml", required=True, help="scene file, relative to the mirror/folder")
     ap.add_argument("--scale", type=float, default=1.0, help="multiply positions (e.g. 0.01 for centimetres)")
     ap.add_argument("--out", required=True)
+    ap.add_argument("--frames", type=int, default=12, help="cameras in transforms.json: a sweep around the scene's sensor")
+    ap.add_argument("--width", type=int, default=160)
+    ap.add_argument("--height", type=int, default=120)
+    ap.add_argument("--sweep", type=float, default=40.0, help="total yaw of the sweep, degrees")
     args = ap.parse_args()
     src = Source(args.git, args.root)
     xml = src.read(args.xml)
@@ -355,6 +381,8 @@ def main():
             "sensors": [{"to_world": scaled_translation(c["to_world"], args.scale), "fov": c["fov"]} for c in cameras], "missing": missing}
     with open(os.path.join(args.out, "source.json"), "w") as f:
         json.dump(info, f, indent=1)
+    if info["sensors"]:
+        write_cameras(args, info["sensors"][0])
     print(f"{args.xml}: {len(tri)} triangles, {len(objects)} objects, {info['emitters']} emitters, "
           f"bounds {np.round(lo, 2).tolist()} .. {np.round(hi, 2).tolist()}, {len(missing)} shapes missing")
     for m in missing:

@@ -106,7 +106,10 @@ void planarProjection(const TriangleMesh& m, Chart& c, const Vec3& axis) {
   }
 }
 
-// Least-squares conformal map (Levy et al. 2002) with the two farthest vertices pinned.
+constexpr double kMaxStretch = 1.1;
+
+// Least-squares conformal map (Levy et al. 2002) with the two farthest vertices pinned; false if
+// it flips a face, spreads absurdly, or stretches more than kMaxStretch at its 95th percentile.
 bool lscm(const TriangleMesh& m, Chart& c) {
   const int nv = static_cast<int>(c.vertices.size());
   if (nv < 3) return false;
@@ -185,6 +188,17 @@ bool lscm(const TriangleMesh& m, Chart& c) {
     minRatio = std::min(minRatio, ratio), maxRatio = std::max(maxRatio, ratio);
   }
   if (!(maxRatio <= 1e4 * minRatio)) return false;
+  // Conformal maps stretch area on curved charts: keep the chart's 95th percentile of the per-face
+  // stretch (as AtlasReport measures it) within kMaxStretch, or let the caller project or split.
+  const double meanRatio = uvArea / area;
+  std::vector<double> stretch;
+  for (uint32_t f : c.faces) {
+    const auto& tri = m.triangles[f];
+    const double ratio = std::abs(cross2(c.uv[c.local.at(tri[0])], c.uv[c.local.at(tri[1])], c.uv[c.local.at(tri[2])])) / (2 * m.faceArea[f]);
+    stretch.push_back(std::sqrt(ratio / meanRatio));
+  }
+  std::nth_element(stretch.begin(), stretch.begin() + static_cast<long>(stretch.size() * 19 / 20), stretch.end());
+  if (stretch[stretch.size() * 19 / 20] > kMaxStretch) return false;
   if (positive == 0)
     for (Vec2d& p : c.uv) p.y() = -p.y();
   const double scale = std::sqrt(area / std::max(uvArea, 1e-300));

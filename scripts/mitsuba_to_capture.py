@@ -228,6 +228,18 @@ def scaled_translation(m, scale):
     return m.tolist()
 
 
+def transparent(bsdf, bsdfs):
+    """True for (rough/thin) dielectrics, directly or under twosided/ref: relume is opaque-only, so
+    such shapes (lamp glass, bottles' glass) are left out instead of becoming opaque occluders."""
+    if bsdf is None:
+        return False
+    if bsdf.tag == "ref":
+        return transparent(bsdfs.get(bsdf.attrib.get("id")), bsdfs)
+    if bsdf.attrib.get("type") in ("dielectric", "roughdielectric", "thindielectric"):
+        return True
+    return any(transparent(c, bsdfs) for c in bsdf if c.tag in ("bsdf", "ref"))
+
+
 def reflectance(bsdf, bsdfs):
     """A diffuse colour for the shape's bsdf (nested twosided etc.), else None."""
     if bsdf is None:
@@ -291,7 +303,7 @@ def main():
     base = os.path.dirname(args.xml)
     bsdfs = {b.attrib["id"]: b for b in root.iter("bsdf") if "id" in b.attrib}
     all_pos, all_nrm, all_tri, all_obj = [], [], [], []
-    objects, missing, nv = [], [], 0
+    objects, missing, skipped, nv = [], [], [], 0
     any_normals = False
     cameras = []
     for s in root.iter("sensor"):
@@ -305,6 +317,12 @@ def main():
         if kind not in ("obj", "ply", "serialized") or fn is None:
             continue
         path = os.path.join(base, fn.attrib["value"])
+        bsdf = shape.find("bsdf")
+        if bsdf is None:
+            bsdf = shape.find("ref")
+        if transparent(bsdf, bsdfs):
+            skipped.append(path)
+            continue
         data = src.read(path)
         if data is None:
             missing.append(path)
@@ -329,9 +347,6 @@ def main():
             nrm = nrm @ np.linalg.inv(m[:3, :3])  # normals by the inverse transpose
             any_normals = True
         oid = len(objects)
-        bsdf = shape.find("bsdf")
-        if bsdf is None:
-            bsdf = shape.find("ref")
         em = shape.find("emitter")
         radiance = None
         if em is not None:
@@ -378,13 +393,14 @@ def main():
     lo, hi = pos.min(0), pos.max(0)
     info = {"source": args.xml, "triangles": int(len(tri)), "vertices": int(len(pos)), "objects": len(objects),
             "emitters": sum(1 for o in objects if o["emission"]), "bounds": [lo.tolist(), hi.tolist()],
-            "sensors": [{"to_world": scaled_translation(c["to_world"], args.scale), "fov": c["fov"]} for c in cameras], "missing": missing}
+            "transparent_skipped": skipped, "sensors": [{"to_world": scaled_translation(c["to_world"], args.scale), "fov": c["fov"]} for c in cameras], "missing": missing}
     with open(os.path.join(args.out, "source.json"), "w") as f:
         json.dump(info, f, indent=1)
     if info["sensors"]:
         write_cameras(args, info["sensors"][0])
     print(f"{args.xml}: {len(tri)} triangles, {len(objects)} objects, {info['emitters']} emitters, "
-          f"bounds {np.round(lo, 2).tolist()} .. {np.round(hi, 2).tolist()}, {len(missing)} shapes missing")
+          f"bounds {np.round(lo, 2).tolist()} .. {np.round(hi, 2).tolist()}, {len(missing)} shapes missing, "
+          f"{len(skipped)} transparent shapes left out")
     for m in missing:
         print(f"  missing: {m}")
 

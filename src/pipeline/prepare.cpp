@@ -269,6 +269,7 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
                 {"kept_input_uv", ar.keptInputUv}, {"charts", ar.charts}, {"lscm_charts", ar.lscmCharts},
                 {"split_charts", ar.splitCharts}, {"packing_efficiency", ar.packingEfficiency},
                 {"texels_per_metre", ar.texelsPerMetre}, {"stretch_p05_median_p95", {ar.stretchP05, ar.stretchMedian, ar.stretchP95}},
+                {"uv_overlaps", ar.uvOverlaps}, {"atlas_seconds", ar.seconds},
                 {"object_names", names}};
   });
   const TriangleMesh mesh = loadMesh(work / "atlas_mesh.ply");

@@ -540,8 +540,9 @@ bool hasValidUvAtlas(const TriangleMesh& mesh) {
 std::string AtlasReport::summary() const {
   if (keptInputUv) return "kept the mesh's own uv atlas (valid, no overlaps)";
   return fmt::format("{} charts ({} least-squares conformal, {} split for overlaps), packing efficiency {:.3f}, {:.1f} texels/m, "
-                     "stretch p05/median/p95 {:.3f}/{:.3f}/{:.3f}, {:.1f}s",
-                     charts, lscmCharts, splitCharts, packingEfficiency, texelsPerMetre, stretchP05, stretchMedian, stretchP95, seconds);
+                     "stretch p05/median/p95 {:.3f}/{:.3f}/{:.3f}, {} uv overlaps, {:.1f}s",
+                     charts, lscmCharts, splitCharts, packingEfficiency, texelsPerMetre, stretchP05, stretchMedian, stretchP95,
+                     uvOverlaps, seconds);
 }
 
 TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasReport* report) {
@@ -735,6 +736,7 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
     r.stretchP95 = stretch[stretch.size() * 19 / 20];
   }
   r.seconds = timer.seconds();
+  r.uvOverlaps = countUvOverlaps(out, SIZE_MAX);
   return out;
 }
 

@@ -29,7 +29,8 @@ struct AtlasReport {
   double texelsPerMetre = 0;     // at AtlasOptions::gutterResolution
   // Stretch: sqrt(uv area / 3D area), normalised by the atlas density; 1 = no distortion.
   double stretchP05 = 0, stretchMedian = 0, stretchP95 = 0;
-  double seconds = 0;
+  size_t uvOverlaps = 0;         // pairs of triangles overlapping in the output (countUvOverlaps): 0
+  double seconds = 0;            // charting and packing (the overlap count is not timed)
   std::string summary() const;
 };
 

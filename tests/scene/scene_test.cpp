@@ -23,7 +23,7 @@ TriangleMesh opposedNormals() {
 TEST(Scene, ShadingNormalThatVanishesFallsBackToTheGeometricNormal) {
   const TriangleMesh mesh = opposedNormals();
   // Exactly where the interpolation is zero (the old code normalised it to NaN) and next to it.
-  for (const Vec3 b : {Vec3(0.25f, 0.5f, 0.25f), Vec3(0.3f, 0.45f, 0.25f)}) {
+  for (const Vec3& b : {Vec3(0.25f, 0.5f, 0.25f), Vec3(0.3f, 0.45f, 0.25f)}) {
     EXPECT_FALSE(mesh.shadingNormal(0, b)) << b.transpose();
   }
   ASSERT_TRUE(mesh.shadingNormal(0, Vec3(0.9f, 0.05f, 0.05f)));

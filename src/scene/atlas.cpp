@@ -4,18 +4,19 @@
 #include <fmt/format.h>
 
 #include <cassert>
-#include <map>
 #include <numeric>
-#include <queue>
 #include <unordered_map>
 
 #include <tbb/parallel_for.h>
 
 #include "core/error.h"
 #include "core/system.h"
+#include "scene/atlas_internal.h"
 
 namespace relume {
 namespace {
+
+using namespace atlas_detail;
 
 using Vec2d = Eigen::Vector2d;
 
@@ -268,18 +269,8 @@ void orientChart(Chart& c) {
   }
 }
 
-// A chart's footprint on the packing grid at one density: the texels its triangles touch, grown
-// by `ring` texels (the texel map's dilation ring plus half the gutter), as a bitmap with, per
-// column, the first and one-past-last occupied row. Local texel coordinates of a chart point are
-// shiftOf(ring) + uv * density, so the footprint is exactly what the texel map will rasterise there.
-struct Footprint {
-  int w = 0, h = 0;
-  std::vector<uint8_t> bits;  // h rows of w
-  std::vector<int> bottom, top;  // per column: first occupied row, one past the last (bottom = h if empty)
-  bool at(int x, int y) const { return bits[static_cast<size_t>(y) * w + x] != 0; }
-};
-
 double shiftOf(int ring) { return ring + 0.25; }  // the ring, then a quarter texel off the grid lines
+
 
 // A chart larger than `limit` texels gets a stand-in footprint wider than the strip (no bits).
 Footprint footprintOf(const TriangleMesh& m, const Chart& c, const Eigen::AlignedBox2d& box, double density, int ring, int limit) {
@@ -321,201 +312,6 @@ Footprint footprintOf(const TriangleMesh& m, const Chart& c, const Eigen::Aligne
         for (int dx = -ring; dx <= ring; ++dx) fp.bits[static_cast<size_t>(y + dy) * fp.w + x + dx] = 1;
     }
   return fp;
-}
-
-// The footprint turned by k quarter turns: texel (x, y) goes to (h-1-y, x) per turn.
-Footprint rotated(const Footprint& in, int k) {
-  if (in.bits.empty()) return in;  // the stand-in for a chart too large to fit
-  Footprint fp = in;
-  for (int t = 0; t < k; ++t) {
-    Footprint r;
-    r.w = fp.h, r.h = fp.w;
-    r.bits.assign(fp.bits.size(), 0);
-    for (int y = 0; y < fp.h; ++y)
-      for (int x = 0; x < fp.w; ++x) r.bits[static_cast<size_t>(x) * r.w + (fp.h - 1 - y)] = fp.at(x, y);
-    fp = std::move(r);
-  }
-  fp.bottom.assign(fp.w, fp.h);
-  fp.top.assign(fp.w, 0);
-  for (int y = 0; y < fp.h; ++y)
-    for (int x = 0; x < fp.w; ++x)
-      if (fp.at(x, y)) fp.bottom[x] = std::min(fp.bottom[x], y), fp.top[x] = y + 1;
-  return fp;
-}
-
-// Local texel coordinates of a chart point after k quarter turns of a w x h footprint.
-Vec2d turn(Vec2d q, int k, int w, int h) {
-  for (int t = 0; t < k; ++t) {
-    q = Vec2d(h - q.y(), q.x());
-    std::swap(w, h);
-  }
-  return q;
-}
-
-struct Placement {
-  int x = 0, y = 0, turns = 0;
-};
-
-// Profile packing: footprints (longest side first) drop onto a per-column height map of a
-// `size`-wide strip, resting their bottom profile on it (so a chart nests into the steps left by
-// the ones before it, not only on their bounding boxes: two single-triangle charts, common where
-// T-junctions cut a flat wall into unconnected faces, fill one rectangle), at the column and
-// quarter turn with the least (top x width + area left empty under the chart). Returns the strip
-// height used.
-int profilePack(const std::vector<std::array<Footprint, 4>>& fps, int size, std::vector<Placement>& out) {
-  std::vector<size_t> order(fps.size());
-  std::iota(order.begin(), order.end(), 0);
-  auto key = [&](size_t i) { return std::max(fps[i][0].w, fps[i][0].h); };
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return key(a) > key(b); });
-  std::vector<int> height(size, 0);
-  out.assign(fps.size(), {});
-  int used = 0;
-  struct Best {
-    long score = LONG_MAX;
-    Placement at{-1, 0, 0};
-    bool operator<(const Best& o) const {  // ties: the first found (fewer turns, then leftmost)
-      return score != o.score ? score < o.score : at.turns != o.at.turns ? at.turns < o.at.turns : at.x < o.at.x;
-    }
-  };
-  for (size_t i : order) {
-    Best best;
-    for (int k = 0; k < 4; ++k) {
-      const Footprint& fp = fps[i][k];
-      const int lastTop = *std::max_element(fp.top.begin(), fp.top.end());
-      for (int x = 0; x + fp.w <= size; ++x) {
-        int y = 0;
-        for (int c = 0; c < fp.w; ++c)
-          if (fp.top[c] > 0) y = std::max(y, height[x + c] - fp.bottom[c]);
-        long gap = 0;
-        for (int c = 0; c < fp.w; ++c)
-          if (fp.top[c] > 0) gap += y + fp.bottom[c] - height[x + c];
-        const Best here{static_cast<long>(y + lastTop) * fp.w + gap, {x, y, k}};
-        if (here < best) best = here;
-      }
-    }
-    if (best.at.x < 0) return INT32_MAX;  // wider than the strip
-    const Footprint& fp = fps[i][best.at.turns];
-    for (int c = 0; c < fp.w; ++c)
-      if (fp.top[c] > 0) height[best.at.x + c] = best.at.y + fp.top[c];
-    used = std::max(used, best.at.y + *std::max_element(fp.top.begin(), fp.top.end()));
-    out[i] = best.at;
-    if (used > size) return used;  // does not fit: the caller only needs to know that
-  }
-  return used;
-}
-
-// Face adjacency on the welded mesh: vertices at the same position are one vertex (real meshes
-// split vertices at every normal or uv seam), and two faces are neighbours across an edge only when
-// exactly two faces of one object share it with opposite directions (manifold, consistently
-// wound). Non-manifold edges, winding flips and object borders are chart borders.
-struct Topology {
-  std::vector<std::array<int32_t, 3>> neighbour;  // across edge k = (corner k, corner k+1); -1: border
-  std::vector<std::array<float, 3>> edgeLength;
-};
-
-Topology buildTopology(const TriangleMesh& m) {
-  const size_t nv = m.positions.size(), nf = m.triangles.size();
-  std::vector<uint32_t> order(nv);
-  std::iota(order.begin(), order.end(), 0u);
-  auto less = [&](uint32_t a, uint32_t b) {
-    const Vec3 &p = m.positions[a], &q = m.positions[b];
-    return std::lexicographical_compare(p.data(), p.data() + 3, q.data(), q.data() + 3);
-  };
-  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return less(a, b) || (!less(b, a) && a < b); });
-  std::vector<uint32_t> weld(nv);
-  for (size_t i = 0, id = 0; i < nv; ++i) {
-    if (i > 0 && less(order[i - 1], order[i])) ++id;
-    weld[order[i]] = static_cast<uint32_t>(id);
-  }
-  struct HalfEdge {
-    uint64_t key;
-    uint32_t face;
-    uint8_t corner, forward;
-  };
-  std::vector<HalfEdge> edges;
-  edges.reserve(nf * 3);
-  Topology t;
-  t.neighbour.assign(nf, {-1, -1, -1});
-  t.edgeLength.resize(nf);
-  for (uint32_t f = 0; f < nf; ++f)
-    for (int k = 0; k < 3; ++k) {
-      const uint64_t a = weld[m.triangles[f][k]], b = weld[m.triangles[f][(k + 1) % 3]];
-      edges.push_back({std::min(a, b) << 32 | std::max(a, b), f, static_cast<uint8_t>(k), static_cast<uint8_t>(a < b)});
-      t.edgeLength[f][k] = (m.positions[m.triangles[f][(k + 1) % 3]] - m.positions[m.triangles[f][k]]).norm();
-    }
-  std::sort(edges.begin(), edges.end(), [](const HalfEdge& a, const HalfEdge& b) { return a.key != b.key ? a.key < b.key : a.face < b.face; });
-  for (size_t i = 0; i < edges.size();) {
-    size_t j = i;
-    while (j < edges.size() && edges[j].key == edges[i].key) ++j;
-    if (j - i != 2) {
-      i = j;
-      continue;
-    }
-    const HalfEdge &a = edges[i], &b = edges[i + 1];
-    if (a.face != b.face && a.forward != b.forward && m.faceObject[a.face] == m.faceObject[b.face]) {
-      t.neighbour[a.face][a.corner] = static_cast<int32_t>(b.face);
-      t.neighbour[b.face][b.corner] = static_cast<int32_t>(a.face);
-    }
-    i = j;
-  }
-  return t;
-}
-
-// Grows charts over `region` one at a time from the largest unassigned face (ties: lower index).
-// Candidates are taken in order of a cost that weighs the normal's deviation from the chart's
-// area-weighted mean normal and how much the face lengthens the chart's boundary (a face closing
-// a notch costs less than one sticking out), so charts grow compact; a face joins while its normal
-// stays within `coneDegrees` of the chart's mean normal. `state` holds -1 for the region's faces on
-// entry (-2 elsewhere) and is restored.
-std::vector<std::vector<uint32_t>> growCharts(const TriangleMesh& m, const std::vector<Vec3>& normals, const Topology& topo,
-                                              const std::vector<uint32_t>& region, float coneDegrees, std::vector<int32_t>& state) {
-  const float cosCone = std::cos(coneDegrees * kPi / 180.0f);
-  constexpr float kBoundaryWeight = 0.5f;
-  std::vector<uint32_t> seeds = region;
-  std::sort(seeds.begin(), seeds.end(), [&](uint32_t a, uint32_t b) { return m.faceArea[a] != m.faceArea[b] ? m.faceArea[a] > m.faceArea[b] : a < b; });
-  for (uint32_t f : region) state[f] = -1;
-  std::vector<std::vector<uint32_t>> charts;
-  using Entry = std::pair<float, uint32_t>;
-  std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> heap;
-  for (uint32_t seed : seeds) {
-    if (state[seed] != -1) continue;
-    const int32_t id = static_cast<int32_t>(charts.size());
-    charts.emplace_back();
-    Vec3 sum = Vec3::Zero();
-    auto cost = [&](uint32_t f, const Vec3& mean) {
-      float shared = 0, perimeter = 0;
-      for (int k = 0; k < 3; ++k) {
-        perimeter += topo.edgeLength[f][k];
-        if (topo.neighbour[f][k] >= 0 && state[topo.neighbour[f][k]] == id) shared += topo.edgeLength[f][k];
-      }
-      return (1.0f - normals[f].dot(mean)) + kBoundaryWeight * (1.0f - 2.0f * shared / std::max(perimeter, 1e-30f));
-    };
-    auto add = [&](uint32_t f) {
-      state[f] = id;
-      charts[id].push_back(f);
-      sum += m.faceArea[f] * normals[f];
-      const Vec3 mean = sum.normalized();
-      for (int k = 0; k < 3; ++k) {
-        const int32_t g = topo.neighbour[f][k];
-        if (g >= 0 && state[g] == -1) heap.push({cost(g, mean), static_cast<uint32_t>(g)});
-      }
-    };
-    add(seed);
-    while (!heap.empty()) {
-      const auto [queued, f] = heap.top();
-      heap.pop();
-      if (state[f] != -1) continue;
-      const Vec3 mean = sum.normalized();
-      if (normals[f].dot(mean) < cosCone) continue;  // may come back through another neighbour
-      if (const float now = cost(f, mean); now > queued + 1e-6f) {
-        heap.push({now, f});  // the chart moved since this entry was queued
-        continue;
-      }
-      add(f);
-    }
-  }
-  for (uint32_t f : region) state[f] = -2;
-  return charts;
 }
 
 }  // namespace

@@ -110,8 +110,12 @@ Color tracePath(const Scene& scene, const LightSampler& lights, const Appearance
         if ((leLight != 0.0f).any() && (f.maxCoeff() > 0.0f || std::decay_t<Observer>::kDifferentiating)) {
           const Vec3 o = Scene::offsetOrigin(*hit, toLight);
           const float tmax = (ls->hit.p - o).norm() - rayEpsilon(ls->hit.p);
-          obs.traced(o, toLight, tmax, true);
-          if (!scene.occluded(o, toLight, tmax)) {
+          bool visible = true;  // a light point within one ray epsilon: nothing lies between, no ray to trace
+          if (tmax > 0.0f) {
+            obs.traced(o, toLight, tmax, true);
+            visible = !scene.occluded(o, toLight, tmax);
+          }
+          if (visible) {
             const float pdfLight = ls->pdfArea * dist2 / cosLight;
             const float mis = powerHeuristic(pdfLight, sampled.pdf);
             const float scale = mis / pdfLight;

@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <cassert>
+#include <map>
 #include <numeric>
 #include <unordered_map>
 
@@ -335,9 +336,9 @@ bool hasValidUvAtlas(const TriangleMesh& mesh) {
 
 std::string AtlasReport::summary() const {
   if (keptInputUv) return "kept the mesh's own uv atlas (valid, no overlaps)";
-  return fmt::format("{} charts ({} least-squares conformal, {} split for overlaps), packing efficiency {:.3f}, {:.1f} texels/m, "
+  return fmt::format("{} charts ({} least-squares conformal, {} split for overlaps, {} small ones merged), packing efficiency {:.3f}, {:.1f} texels/m, "
                      "stretch p05/median/p95 {:.3f}/{:.3f}/{:.3f}, {} uv overlaps, {:.1f}s",
-                     charts, lscmCharts, splitCharts, packingEfficiency, texelsPerMetre, stretchP05, stretchMedian, stretchP95,
+                     charts, lscmCharts, splitCharts, mergedCharts, packingEfficiency, texelsPerMetre, stretchP05, stretchMedian, stretchP95,
                      uvOverlaps, seconds);
 }
 
@@ -393,13 +394,62 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
   }
 
   const int G = o.gutterResolution;
+  double meshArea = 0;
+  for (float a : mesh.faceArea) meshArea += a;
+  const double maxDensity = std::sqrt(static_cast<double>(G) * G / std::max(meshArea, 1e-12));  // every texel covered
+  // Small charts (under kSmallChartTexels at maxDensity) each pay a whole footprint: merge each,
+  // smallest first, into the neighbour it shares the longest border with, when the union still maps
+  // (no flip or overlap, conformal stretch p95 <= kMaxStretch) and none of its faces is stretched
+  // below kMinMergedStretch. Targets above kMaxMergeTarget faces are left alone (each attempt
+  // re-maps the whole union).
+  {
+    constexpr double kSmallChartTexels = 16, kMinMergedStretch = 0.5;
+    constexpr size_t kMaxMergeTarget = 500;
+    std::sort(charts.begin(), charts.end(), [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
+    std::vector<int32_t> chartOf(mesh.triangles.size());
+    std::vector<double> chartArea(charts.size(), 0);
+    for (size_t i = 0; i < charts.size(); ++i)
+      for (uint32_t f : charts[i].faces) chartOf[f] = static_cast<int32_t>(i), chartArea[i] += mesh.faceArea[f];
+    std::vector<size_t> order;
+    for (size_t i = 0; i < charts.size(); ++i)
+      if (chartArea[i] * maxDensity * maxDensity < kSmallChartTexels) order.push_back(i);
+    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return chartArea[a] != chartArea[b] ? chartArea[a] < chartArea[b] : a < b; });
+    for (size_t small : order) {
+      if (charts[small].faces.empty() || chartArea[small] * maxDensity * maxDensity >= kSmallChartTexels) continue;
+      std::map<int32_t, float> border;
+      for (uint32_t f : charts[small].faces)
+        for (int k = 0; k < 3; ++k)
+          if (const int32_t g = topo.neighbour[f][k]; g >= 0 && chartOf[g] != static_cast<int32_t>(small)) border[chartOf[g]] += topo.edgeLength[f][k];
+      int32_t target = -1;
+      float longest = 0;
+      for (const auto& [c, length] : border)
+        if (length > longest) longest = length, target = c;
+      if (target < 0 || charts[target].faces.size() > kMaxMergeTarget) continue;
+      Chart merged;
+      merged.faces = charts[target].faces;
+      merged.faces.insert(merged.faces.end(), charts[small].faces.begin(), charts[small].faces.end());
+      merged.cone = charts[target].cone;
+      if (!parameterise(mesh, normals, cosPlanar, merged)) continue;
+      bool squashed = false;
+      for (uint32_t f : merged.faces) {
+        const auto& t = mesh.triangles[f];
+        const double a = 0.5 * std::abs(cross2(merged.uv[merged.local.at(t[0])], merged.uv[merged.local.at(t[1])], merged.uv[merged.local.at(t[2])]));
+        squashed = squashed || !(std::sqrt(a / mesh.faceArea[f]) >= kMinMergedStretch);
+      }
+      if (squashed) continue;
+      orientChart(merged);
+      for (uint32_t f : charts[small].faces) chartOf[f] = target;
+      chartArea[target] += chartArea[small];
+      charts[target] = std::move(merged);
+      charts[small].faces.clear();
+      ++r.mergedCharts;
+    }
+    std::erase_if(charts, [](const Chart& c) { return c.faces.empty(); });
+  }
   // Faces narrower in uv than 1/1000 texel at the largest density possible (every texel covered),
   // 16 float roundings at 1024^2, could fold when their uvs are stored as float: they become charts
   // of their own before packing.
   {
-    double area = 0;
-    for (float a : mesh.faceArea) area += a;
-    const double maxDensity = std::sqrt(static_cast<double>(G) * G / std::max(area, 1e-12));
     std::vector<Chart> singles;
     for (Chart& c : charts) {
       if (c.faces.size() == 1) continue;
@@ -431,8 +481,6 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
   }
   // Disjoint footprints grown by r texels leave 2r >= gutterTexels empty texels between two charts.
   const int ring = (o.gutterTexels + 1) / 2;
-  double totalArea = 0;
-  for (float a : mesh.faceArea) totalArea += a;
   std::vector<std::array<Footprint, 4>> fps;
   std::vector<Placement> placement;
   std::vector<std::vector<Vec2>> chartUv;  // per chart and local vertex: the atlas uv as stored (float)
@@ -456,7 +504,7 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
     };
     // Secant-like steps while packings fit (a fitting pass reports its height), bisection once one
     // has failed (a failing pass stops early, so its height says little), to 0.5%.
-    double fit = 0, miss = std::sqrt(static_cast<double>(G) * G / std::max(totalArea, 1e-12));
+    double fit = 0, miss = std::sqrt(static_cast<double>(G) * G / std::max(meshArea, 1e-12));
     double d = miss * 0.9;
     for (int it = 0; it < 30 && miss > fit * 1.005; ++it) {
       const int used = packAt(d);

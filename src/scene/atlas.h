@@ -24,7 +24,7 @@ struct AtlasOptions {
 
 struct AtlasReport {
   bool keptInputUv = false;
-  size_t charts = 0, lscmCharts = 0, splitCharts = 0;
+  size_t charts = 0, lscmCharts = 0, splitCharts = 0, mergedCharts = 0;
   double packingEfficiency = 0;  // charted uv area / atlas area
   double texelsPerMetre = 0;     // at AtlasOptions::gutterResolution
   // Stretch: sqrt(uv area / 3D area), normalised by the atlas density; 1 = no distortion.

@@ -171,4 +171,8 @@ TEST(Atlas, FurnishedLikeMeshPacksAtLeast60Percent) {
   expectSound(boxes, a);
   EXPECT_GE(r.packingEfficiency, 0.6) << r.summary();
   EXPECT_GE(r.charts, 2000u) << r.summary();
+  // A box's six sides are six charts at a 60-degree cone; the small ones fold into their neighbours.
+  EXPECT_GT(r.mergedCharts, 2000u) << r.summary();
+  EXPECT_LE(r.stretchP95, 1.1) << r.summary();
+  std::printf("room + 2000 boxes: %s\n", r.summary().c_str());
 }

@@ -251,7 +251,8 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   };
 
   // Atlas.
-  const std::string atlasPrint = fingerprintOf({meshPath}, fmt::format("atlas {} {} {} {}", o.atlas.gutterResolution,
+  // "atlas2": the charting/packing version, so work folders made by an older atlas are re-charted.
+  const std::string atlasPrint = fingerprintOf({meshPath}, fmt::format("atlas2 {} {} {} {}", o.atlas.gutterResolution,
                                                                        o.atlas.gutterTexels, o.atlas.coneDegrees, o.atlas.planarDegrees));
   runPhase("atlas", atlasPrint, {work / "atlas_mesh.ply"}, [&] {
     TriangleMesh mesh = loadMesh(meshPath);
@@ -267,7 +268,7 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
     return Json{{"triangles", atlas.triangles.size()}, {"objects", atlas.objectCount}, {"dropped_degenerate", mesh.droppedDegenerate},
                 {"dropped_coincident", mesh.droppedCoincident},
                 {"kept_input_uv", ar.keptInputUv}, {"charts", ar.charts}, {"lscm_charts", ar.lscmCharts},
-                {"split_charts", ar.splitCharts}, {"packing_efficiency", ar.packingEfficiency},
+                {"split_charts", ar.splitCharts}, {"merged_charts", ar.mergedCharts}, {"packing_efficiency", ar.packingEfficiency},
                 {"texels_per_metre", ar.texelsPerMetre}, {"stretch_p05_median_p95", {ar.stretchP05, ar.stretchMedian, ar.stretchP95}},
                 {"uv_overlaps", ar.uvOverlaps}, {"atlas_seconds", ar.seconds},
                 {"object_names", names}};

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 #include <tbb/parallel_for.h>
 
+#include <atomic>
 #include <cstring>
 #include <fstream>
 #include <map>
@@ -92,7 +93,8 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   };
 
   // Atlas.
-  const std::string atlasPrint = fingerprintOf({meshPath}, fmt::format("atlas {} {} {} {}", o.atlas.gutterResolution,
+  // "atlas2": the charting/packing version, so work folders made by an older atlas are re-charted.
+  const std::string atlasPrint = fingerprintOf({meshPath}, fmt::format("atlas2 {} {} {} {}", o.atlas.gutterResolution,
                                                                        o.atlas.gutterTexels, o.atlas.coneDegrees, o.atlas.planarDegrees));
   runPhase("atlas", atlasPrint, {work / "atlas_mesh.ply"}, [&] {
     TriangleMesh mesh = loadMesh(meshPath);
@@ -106,9 +108,12 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
     if (fs::exists(capture / "objects.json"))
       for (const auto& [id, name] : readObjectNames(capture / "objects.json")) names[std::to_string(id)] = name;
     return Json{{"triangles", atlas.triangles.size()}, {"objects", atlas.objectCount}, {"dropped_degenerate", mesh.droppedDegenerate},
+                {"dropped_coincident", mesh.droppedCoincident},
                 {"kept_input_uv", ar.keptInputUv}, {"charts", ar.charts}, {"lscm_charts", ar.lscmCharts},
-                {"split_charts", ar.splitCharts}, {"packing_efficiency", ar.packingEfficiency},
-                {"texels_per_metre", ar.texelsPerMetre}, {"gutter_resolution", o.atlas.gutterResolution}, {"stretch_p05_median_p95", {ar.stretchP05, ar.stretchMedian, ar.stretchP95}},
+                {"split_charts", ar.splitCharts}, {"merged_charts", ar.mergedCharts}, {"packing_efficiency", ar.packingEfficiency},
+                {"texels_per_metre", ar.texelsPerMetre}, {"gutter_resolution", o.atlas.gutterResolution},
+                {"stretch_p05_median_p95", {ar.stretchP05, ar.stretchMedian, ar.stretchP95}},
+                {"uv_overlaps", ar.uvOverlaps}, {"atlas_seconds", ar.seconds},
                 {"object_names", names}};
   });
   const TriangleMesh mesh = loadMesh(work / "atlas_mesh.ply");
@@ -165,6 +170,7 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   const std::string visPrint = fingerprintOf({}, fmt::format("vis {} {} {} {} {}", atlasPrint, framesPrint, initRes, o.tileTexels,
                                                              o.samplesPerTile));
   runPhase("visibility", visPrint, {work / "visibility.bin"}, [&] {
+    const size_t skippedBefore = scene.skippedRays();
     const VisibilityIndex vis = buildVisibilityIndex(scene, initMap, cap.frames, kept, o.tileTexels, o.samplesPerTile);
     const size_t tiles = vis.offsets.size() - 1;
     vis.write(work / "visibility.bin");
@@ -179,13 +185,14 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
         blind.push_back(k);
       }
     return Json{{"tiles", tiles}, {"tiles_seen", seen}, {"entries", vis.frames.size()}, {"bytes", vis.bytes()},
-                {"frames_seeing_nothing", blind},
+                {"frames_seeing_nothing", blind}, {"skipped_rays", scene.skippedRays() - skippedBefore},
                 {"mean_frames_per_seen_tile", seen ? double(vis.frames.size()) / seen : 0.0}};
   });
 
   // Initial albedo (streaming median of observed radiance) and coverage.
   const std::string initPrint = fingerprintOf({}, fmt::format("init {} {}", visPrint, static_cast<int>(o.init)));
   runPhase("init", initPrint, {work / "albedo_init.exr", work / "coverage.exr", work / "coverage.png"}, [&] {
+    const size_t skippedBefore = scene.skippedRays();
     const VisibilityIndex vis = VisibilityIndex::read(work / "visibility.bin");
     const FrameStore store(work / "frames.bin");
     // For each frame, its tiles and its position in each tile's frame list.
@@ -201,10 +208,13 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
     const size_t texels = initMap.texelCount();
     // Each texel's surface point and normal, computed once rather than once per frame.
     std::vector<Vec3> texelPoint(texels), texelNormal(texels);
+    std::atomic<size_t> fellBack{0};
     tbb::parallel_for(size_t{0}, texels, [&](size_t t) {
       if (!initMap.valid(t)) return;
+      bool geometric = false;
       texelPoint[t] = initMap.point(mesh, t);
-      texelNormal[t] = mesh.faceNormal(initMap.triangle(t));
+      texelNormal[t] = initMap.normal(mesh, t, &geometric);
+      if (geometric) fellBack.fetch_add(1, std::memory_order_relaxed);
     });
     MedianSketch sketch(texels);
     std::vector<Eigen::Array3d> sum(o.init == InitStatistic::Mean ? texels : 0, Eigen::Array3d::Zero());
@@ -281,7 +291,8 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
     const double fraction = valid ? double(unobserved) / valid : 0.0;
     spdlog::info("init: {} valid texels at {}^2, {:.2f}% never observed", valid, initRes, 100 * fraction);
     return Json{{"resolution", initRes}, {"statistic", o.init == InitStatistic::Median ? "median" : "mean"},
-                {"valid_texels", valid}, {"unobserved_texels", unobserved}, {"fraction_unobserved", fraction}};
+                {"valid_texels", valid}, {"unobserved_texels", unobserved}, {"fraction_unobserved", fraction},
+                {"texels_geometric_normal", fellBack.load()}, {"skipped_rays", scene.skippedRays() - skippedBefore}};
   });
 
   PrepareSummary s;

@@ -120,9 +120,13 @@ Color tracePath(const Scene& scene, const LightSampler& lights, const Appearance
           const Vec3 o = Scene::offsetOrigin(*hit, toLight);
           Vec3 shadowDir = Scene::offsetOrigin(ls->hit, -toLight) - o;
           const float tmax = shadowDir.norm();
-          shadowDir /= tmax;
-          obs.traced(o, shadowDir, tmax, true);
-          if (!scene.occluded(o, shadowDir, tmax)) {
+          bool visible = true;  // ends within an epsilon of each other: nothing between, no ray to trace
+          if (tmax > 0.0f) {
+            shadowDir /= tmax;
+            obs.traced(o, shadowDir, tmax, true);
+            visible = !scene.occluded(o, shadowDir, tmax);
+          }
+          if (visible) {
             const float pdfLight = ls->pdfArea * dist2 / cosLight;
             const float mis = powerHeuristic(pdfLight, sampled.pdf);
             const float scale = mis / pdfLight;

@@ -57,7 +57,7 @@ Batch TextureSpaceSampler::sample(uint64_t seed, uint64_t iteration, const Textu
     const uint32_t texel = texels_[rng.nextU32() % texels_.size()];
     const uint32_t tri = map_.triangle(texel);
     out.object = mesh.faceObject[tri];
-    const Vec3 p = map_.point(mesh, texel), n = mesh.faceNormal(tri);
+    const Vec3 p = map_.point(mesh, texel), n = map_.normal(mesh, texel);  // as prepare tested visibility
     const size_t tile = vis_.tileOf(texel, map_.resolution());
     // Up to K distinct candidate frames, drawn without replacement (partial Fisher-Yates).
     const uint32_t* list = vis_.framesOf(tile);

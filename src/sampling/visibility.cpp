@@ -54,7 +54,7 @@ VisibilityIndex buildVisibilityIndex(const Scene& scene, const TexelMap& map, co
       const int n = std::min<int>(samplesPerTile, static_cast<int>(texels.size()));
       for (int s = 0; s < n; ++s) {
         const size_t texel = texels[(texels.size() * (2 * s + 1)) / (2 * n)];
-        samples.push_back({map.point(mesh, texel), mesh.faceNormal(map.triangle(texel))});
+        samples.push_back({map.point(mesh, texel), map.normal(mesh, texel)});
       }
       for (size_t k : use)
         for (const auto& [p, nrm] : samples)

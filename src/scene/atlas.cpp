@@ -3,16 +3,21 @@
 #include <Eigen/SparseCholesky>
 #include <fmt/format.h>
 
+#include <cassert>
 #include <map>
 #include <numeric>
-#include <queue>
 #include <unordered_map>
+
+#include <tbb/parallel_for.h>
 
 #include "core/error.h"
 #include "core/system.h"
+#include "scene/atlas_internal.h"
 
 namespace relume {
 namespace {
+
+using namespace atlas_detail;
 
 using Vec2d = Eigen::Vector2d;
 
@@ -83,6 +88,7 @@ struct Chart {
   std::unordered_map<int, int> local;        // original vertex -> index in vertices
   std::vector<Vec2d> uv;                     // per local vertex, metres
   bool lscm = false;
+  float cone = 0;                            // the normal cone it was grown with
 };
 
 void collectVertices(const TriangleMesh& m, Chart& c) {
@@ -102,7 +108,10 @@ void planarProjection(const TriangleMesh& m, Chart& c, const Vec3& axis) {
   }
 }
 
-// Least-squares conformal map (Levy et al. 2002) with the two farthest vertices pinned.
+constexpr double kMaxStretch = 1.1;
+
+// Least-squares conformal map (Levy et al. 2002) with the two farthest vertices pinned; false if
+// it flips a face, spreads absurdly, or stretches more than kMaxStretch at its 95th percentile.
 bool lscm(const TriangleMesh& m, Chart& c) {
   const int nv = static_cast<int>(c.vertices.size());
   if (nv < 3) return false;
@@ -172,11 +181,57 @@ bool lscm(const TriangleMesh& m, Chart& c) {
     area += m.faceArea[f];
   }
   if (positive != 0 && positive != static_cast<int>(c.faces.size())) return false;
+  // An ill-conditioned solve can spread a chart over a huge area while keeping every face unflipped:
+  // reject maps whose faces' uv-to-3D area ratios differ by more than 1e4.
+  double minRatio = INFINITY, maxRatio = 0;
+  for (uint32_t f : c.faces) {
+    const auto& tri = m.triangles[f];
+    const double ratio = std::abs(cross2(c.uv[c.local.at(tri[0])], c.uv[c.local.at(tri[1])], c.uv[c.local.at(tri[2])])) / m.faceArea[f];
+    minRatio = std::min(minRatio, ratio), maxRatio = std::max(maxRatio, ratio);
+  }
+  if (!(maxRatio <= 1e4 * minRatio)) return false;
+  // Conformal maps stretch area on curved charts: keep the chart's 95th percentile of the per-face
+  // stretch (as AtlasReport measures it) within kMaxStretch, or let the caller project or split.
+  const double meanRatio = uvArea / area;
+  std::vector<double> stretch;
+  for (uint32_t f : c.faces) {
+    const auto& tri = m.triangles[f];
+    const double ratio = std::abs(cross2(c.uv[c.local.at(tri[0])], c.uv[c.local.at(tri[1])], c.uv[c.local.at(tri[2])])) / (2 * m.faceArea[f]);
+    stretch.push_back(std::sqrt(ratio / meanRatio));
+  }
+  std::nth_element(stretch.begin(), stretch.begin() + static_cast<long>(stretch.size() * 19 / 20), stretch.end());
+  if (stretch[stretch.size() * 19 / 20] > kMaxStretch) return false;
   if (positive == 0)
     for (Vec2d& p : c.uv) p.y() = -p.y();
   const double scale = std::sqrt(area / std::max(uvArea, 1e-300));
   for (Vec2d& p : c.uv) p *= scale;
   return true;
+}
+
+// Maps a chart to the plane in metres: projection on its mean plane when it is near-planar by area
+// (noisy scans have a few steep faces on flat walls, which a projection handles with less
+// distortion than a conformal map with two pins), a least-squares conformal map otherwise, and the
+// projection again if that map flips a face and every face is within 78 degrees of the mean normal
+// (so the projection cannot flip one). False when the chart has no map without flips or overlaps.
+bool parameterise(const TriangleMesh& m, const std::vector<Vec3>& normals, float cosPlanar, Chart& c) {
+  collectVertices(m, c);
+  Vec3 sum = Vec3::Zero();
+  double area = 0;
+  for (uint32_t f : c.faces) sum += m.faceArea[f] * normals[f], area += m.faceArea[f];
+  const Vec3 axis = sum.normalized();
+  double alignedArea = 0;
+  float minCos = 1;
+  for (uint32_t f : c.faces) alignedArea += m.faceArea[f] * normals[f].dot(axis), minCos = std::min(minCos, normals[f].dot(axis));
+  c.lscm = false;
+  if (alignedArea < cosPlanar * area && lscm(m, c)) {
+    c.lscm = true;
+  } else if (minCos >= 0.2f) {
+    planarProjection(m, c, axis);
+  } else {
+    return false;
+  }
+  return c.faces.size() == 1 ||
+         countOverlaps(c.faces, [&](uint32_t f, int k) { return c.uv[c.local.at(m.triangles[f][k])]; }, 1) == 0;
 }
 
 // Rotates the chart to its minimum-area bounding rectangle (rotating calipers on the hull), puts
@@ -215,110 +270,49 @@ void orientChart(Chart& c) {
   }
 }
 
-struct Placement {
-  int x = 0, y = 0;
-};
+double shiftOf(int ring) { return ring + 0.25; }  // the ring, then a quarter texel off the grid lines
 
-// Skyline bottom-left packing of w x h rectangles (texels) into size x size; false if they do not fit.
-bool skylinePack(const std::vector<std::pair<int, int>>& sizes, int size, std::vector<Placement>& out) {
-  std::vector<size_t> order(sizes.size());
-  std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
-    return sizes[a].second != sizes[b].second ? sizes[a].second > sizes[b].second : sizes[a].first > sizes[b].first;
-  });
-  struct Segment { int x, y, w; };
-  std::vector<Segment> sky{{0, 0, size}};
-  out.assign(sizes.size(), {});
-  for (size_t idx : order) {
-    const auto [w, h] = sizes[idx];
-    int bestY = INT32_MAX, bestX = 0, bestWaste = INT32_MAX;
-    size_t bestI = 0;
-    for (size_t i = 0; i < sky.size(); ++i) {
-      if (sky[i].x + w > size) break;
-      int y = 0, covered = 0, waste = 0;
-      for (size_t j = i; j < sky.size() && covered < w; ++j) {
-        y = std::max(y, sky[j].y);
-        covered += sky[j].w;
-      }
-      if (covered < w || y + h > size) continue;
-      covered = 0;
-      for (size_t j = i; j < sky.size() && covered < w; ++j) {
-        const int span = std::min(sky[j].w, w - covered);
-        waste += span * (y - sky[j].y);
-        covered += span;
-      }
-      if (y < bestY || (y == bestY && waste < bestWaste)) bestY = y, bestX = sky[i].x, bestWaste = waste, bestI = i;
-    }
-    if (bestY == INT32_MAX) return false;
-    out[idx] = {bestX, bestY};
-    // Replace the covered span of the skyline by the new top.
-    std::vector<Segment> next(sky.begin(), sky.begin() + static_cast<long>(bestI));
-    next.push_back({bestX, bestY + h, w});
-    int end = bestX + w;
-    for (size_t j = bestI; j < sky.size(); ++j) {
-      const int segEnd = sky[j].x + sky[j].w;
-      if (segEnd <= end) continue;
-      const int start = std::max(sky[j].x, end);
-      next.push_back({start, sky[j].y, segEnd - start});
-    }
-    sky.clear();
-    for (const Segment& s : next)
-      if (!sky.empty() && sky.back().y == s.y) sky.back().w += s.w;
-      else sky.push_back(s);
-  }
-  return true;
-}
 
-std::vector<std::vector<uint32_t>> faceAdjacency(const TriangleMesh& m) {
-  std::vector<std::pair<uint64_t, uint32_t>> edges;
-  edges.reserve(m.triangles.size() * 3);
-  for (uint32_t f = 0; f < m.triangles.size(); ++f)
-    for (int k = 0; k < 3; ++k) {
-      const uint64_t a = static_cast<uint32_t>(m.triangles[f][k]), b = static_cast<uint32_t>(m.triangles[f][(k + 1) % 3]);
-      edges.push_back({std::min(a, b) << 32 | std::max(a, b), f});
-    }
-  std::sort(edges.begin(), edges.end());
-  std::vector<std::vector<uint32_t>> adj(m.triangles.size());
-  for (size_t i = 0; i < edges.size();) {
-    size_t j = i;
-    while (j < edges.size() && edges[j].first == edges[i].first) ++j;
-    for (size_t a = i; a < j; ++a)
-      for (size_t b = i; b < j; ++b)
-        if (a != b) adj[edges[a].second].push_back(edges[b].second);
-    i = j;
+// A chart larger than `limit` texels gets a stand-in footprint wider than the strip (no bits).
+Footprint footprintOf(const TriangleMesh& m, const Chart& c, const Eigen::AlignedBox2d& box, double density, int ring, int limit) {
+  const double shift = shiftOf(ring);
+  Footprint fp;
+  if (!(std::max(box.sizes().x(), box.sizes().y()) * density < limit)) {  // cannot fit: say so without allocating it
+    fp.w = fp.h = limit + 1;
+    fp.bottom.assign(1, 0), fp.top.assign(1, 1);
+    return fp;
   }
-  return adj;
-}
-
-// Region growing by normal cone around each seed's normal, within one object and one region.
-std::vector<std::vector<uint32_t>> growCharts(const TriangleMesh& m, const std::vector<Vec3>& normals,
-                                              const std::vector<std::vector<uint32_t>>& adj,
-                                              const std::vector<uint32_t>& region, float coneDegrees) {
-  const float cosCone = std::cos(coneDegrees * kPi / 180.0f);
-  std::unordered_map<uint32_t, int> inRegion;
-  for (uint32_t f : region) inRegion[f] = -1;
-  std::vector<std::vector<uint32_t>> charts;
-  for (uint32_t seed : region) {
-    if (inRegion[seed] >= 0) continue;
-    const int id = static_cast<int>(charts.size());
-    charts.emplace_back();
-    std::queue<uint32_t> q;
-    q.push(seed);
-    inRegion[seed] = id;
-    while (!q.empty()) {
-      const uint32_t f = q.front();
-      q.pop();
-      charts[id].push_back(f);
-      for (uint32_t g : adj[f]) {
-        auto it = inRegion.find(g);
-        if (it == inRegion.end() || it->second >= 0 || m.faceObject[g] != m.faceObject[seed]) continue;
-        if (normals[g].dot(normals[seed]) < cosCone) continue;
-        it->second = id;
-        q.push(g);
+  fp.w = static_cast<int>(std::floor(shift + box.sizes().x() * density + 1e-3)) + 1 + ring;
+  fp.h = static_cast<int>(std::floor(shift + box.sizes().y() * density + 1e-3)) + 1 + ring;
+  std::vector<uint8_t> touched(static_cast<size_t>(fp.w) * fp.h, 0);
+  for (uint32_t f : c.faces) {
+    Vec2d v[3];
+    for (int k = 0; k < 3; ++k) v[k] = Vec2d(shift, shift) + c.uv[c.local.at(m.triangles[f][k])] * density;
+    const double orient = cross2(v[0], v[1], v[2]) >= 0 ? 1.0 : -1.0;
+    const int x0 = static_cast<int>(std::floor(std::min({v[0].x(), v[1].x(), v[2].x()}) - 1e-3));
+    const int x1 = static_cast<int>(std::floor(std::max({v[0].x(), v[1].x(), v[2].x()}) + 1e-3));
+    const int y0 = static_cast<int>(std::floor(std::min({v[0].y(), v[1].y(), v[2].y()}) - 1e-3));
+    const int y1 = static_cast<int>(std::floor(std::max({v[0].y(), v[1].y(), v[2].y()}) + 1e-3));
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) {
+        bool touches = true;  // separating axis with a 1e-3-texel margin: conservative for float uvs
+        for (int e = 0; e < 3 && touches; ++e) {
+          const Vec2d d = v[(e + 1) % 3] - v[e];
+          const Vec2d inward = orient * Vec2d(-d.y(), d.x());
+          const Vec2d corner(inward.x() >= 0 ? x + 1.0 : double(x), inward.y() >= 0 ? y + 1.0 : double(y));
+          touches = inward.dot(corner - v[e]) >= -1e-3 * inward.norm();
+        }
+        if (touches) touched[static_cast<size_t>(y) * fp.w + x] = 1;
       }
-    }
   }
-  return charts;
+  fp.bits.assign(touched.size(), 0);
+  for (int y = 0; y < fp.h; ++y)
+    for (int x = 0; x < fp.w; ++x) {
+      if (!touched[static_cast<size_t>(y) * fp.w + x]) continue;
+      for (int dy = -ring; dy <= ring; ++dy)
+        for (int dx = -ring; dx <= ring; ++dx) fp.bits[static_cast<size_t>(y + dy) * fp.w + x + dx] = 1;
+    }
+  return fp;
 }
 
 }  // namespace
@@ -342,9 +336,10 @@ bool hasValidUvAtlas(const TriangleMesh& mesh) {
 
 std::string AtlasReport::summary() const {
   if (keptInputUv) return "kept the mesh's own uv atlas (valid, no overlaps)";
-  return fmt::format("{} charts ({} least-squares conformal, {} split for overlaps), packing efficiency {:.3f}, {:.1f} texels/m, "
-                     "stretch p05/median/p95 {:.3f}/{:.3f}/{:.3f}, {:.1f}s",
-                     charts, lscmCharts, splitCharts, packingEfficiency, texelsPerMetre, stretchP05, stretchMedian, stretchP95, seconds);
+  return fmt::format("{} charts ({} least-squares conformal, {} split for overlaps, {} small ones merged), packing efficiency {:.3f}, {:.1f} texels/m, "
+                     "stretch p05/median/p95 {:.3f}/{:.3f}/{:.3f}, {} uv overlaps, {:.1f}s",
+                     charts, lscmCharts, splitCharts, mergedCharts, packingEfficiency, texelsPerMetre, stretchP05, stretchMedian, stretchP95,
+                     uvOverlaps, seconds);
 }
 
 TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasReport* report) {
@@ -358,75 +353,201 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
   }
   std::vector<Vec3> normals(mesh.triangles.size());
   for (size_t f = 0; f < normals.size(); ++f) normals[f] = mesh.faceNormal(f);
-  const auto adj = faceAdjacency(mesh);
+  const Topology topo = buildTopology(mesh);
+  std::vector<int32_t> state(mesh.triangles.size(), -2);
 
-  // Chart, parameterise, and split any chart whose map overlaps itself with a narrower cone.
-  std::vector<Chart> charts;
-  std::vector<std::pair<std::vector<uint32_t>, float>> work;
-  std::vector<uint32_t> all(mesh.triangles.size());
-  std::iota(all.begin(), all.end(), 0);
-  work.push_back({all, o.coneDegrees});
+  // Chart, parameterise, and re-chart any chart whose map overlaps itself (or has no valid map)
+  // with half the cone. Below kMinConeDegrees its faces become one chart each, which always map
+  // (a single non-degenerate triangle), so this terminates on any input.
+  constexpr float kMinConeDegrees = 1.0f;
   const float cosPlanar = std::cos(o.planarDegrees * kPi / 180.0f);
-  while (!work.empty()) {
-    auto [region, cone] = std::move(work.back());
-    work.pop_back();
-    for (auto& faces : growCharts(mesh, normals, adj, region, cone)) {
-      Chart c;
-      c.faces = std::move(faces);
+  std::vector<Chart> charts;
+  auto chartRegion = [&](std::vector<uint32_t> faces, float startCone) {
+    std::vector<std::pair<std::vector<uint32_t>, float>> work;
+    work.push_back({std::move(faces), startCone});
+    while (!work.empty()) {
+      auto [region, cone] = std::move(work.back());
+      work.pop_back();
+      std::vector<std::vector<uint32_t>> grown;
+      if (cone < kMinConeDegrees)
+        for (uint32_t f : region) grown.push_back({f});
+      else
+        grown = growCharts(mesh, normals, topo, region, cone, state);
+      for (auto& g : grown) {
+        Chart c;
+        c.faces = std::move(g);
+        c.cone = cone;
+        if (!parameterise(mesh, normals, cosPlanar, c)) {
+          ++r.splitCharts;
+          work.push_back({std::move(c.faces), cone * 0.5f});
+          continue;
+        }
+        orientChart(c);
+        charts.push_back(std::move(c));
+      }
+    }
+  };
+  {
+    std::vector<uint32_t> all(mesh.triangles.size());
+    std::iota(all.begin(), all.end(), 0);
+    chartRegion(std::move(all), o.coneDegrees);
+  }
+
+  const int G = o.gutterResolution;
+  double meshArea = 0;
+  for (float a : mesh.faceArea) meshArea += a;
+  const double maxDensity = std::sqrt(static_cast<double>(G) * G / std::max(meshArea, 1e-12));  // every texel covered
+  // Small charts (under kSmallChartTexels at maxDensity) each pay a whole footprint: merge each,
+  // smallest first, into the neighbour it shares the longest border with, when the union still maps
+  // (no flip or overlap, conformal stretch p95 <= kMaxStretch) and none of its faces is stretched
+  // below kMinMergedStretch. Targets above kMaxMergeTarget faces are left alone (each attempt
+  // re-maps the whole union).
+  {
+    constexpr double kSmallChartTexels = 16, kMinMergedStretch = 0.5;
+    constexpr size_t kMaxMergeTarget = 500;
+    std::sort(charts.begin(), charts.end(), [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
+    std::vector<int32_t> chartOf(mesh.triangles.size());
+    std::vector<double> chartArea(charts.size(), 0);
+    for (size_t i = 0; i < charts.size(); ++i)
+      for (uint32_t f : charts[i].faces) chartOf[f] = static_cast<int32_t>(i), chartArea[i] += mesh.faceArea[f];
+    std::vector<size_t> order;
+    for (size_t i = 0; i < charts.size(); ++i)
+      if (chartArea[i] * maxDensity * maxDensity < kSmallChartTexels) order.push_back(i);
+    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return chartArea[a] != chartArea[b] ? chartArea[a] < chartArea[b] : a < b; });
+    for (size_t small : order) {
+      if (charts[small].faces.empty() || chartArea[small] * maxDensity * maxDensity >= kSmallChartTexels) continue;
+      std::map<int32_t, float> border;
+      for (uint32_t f : charts[small].faces)
+        for (int k = 0; k < 3; ++k)
+          if (const int32_t g = topo.neighbour[f][k]; g >= 0 && chartOf[g] != static_cast<int32_t>(small)) border[chartOf[g]] += topo.edgeLength[f][k];
+      int32_t target = -1;
+      float longest = 0;
+      for (const auto& [c, length] : border)
+        if (length > longest) longest = length, target = c;
+      if (target < 0 || charts[target].faces.size() > kMaxMergeTarget) continue;
+      Chart merged;
+      merged.faces = charts[target].faces;
+      merged.faces.insert(merged.faces.end(), charts[small].faces.begin(), charts[small].faces.end());
+      merged.cone = charts[target].cone;
+      if (!parameterise(mesh, normals, cosPlanar, merged)) continue;
+      bool squashed = false;
+      for (uint32_t f : merged.faces) {
+        const auto& t = mesh.triangles[f];
+        const double a = 0.5 * std::abs(cross2(merged.uv[merged.local.at(t[0])], merged.uv[merged.local.at(t[1])], merged.uv[merged.local.at(t[2])]));
+        squashed = squashed || !(std::sqrt(a / mesh.faceArea[f]) >= kMinMergedStretch);
+      }
+      if (squashed) continue;
+      orientChart(merged);
+      for (uint32_t f : charts[small].faces) chartOf[f] = target;
+      chartArea[target] += chartArea[small];
+      charts[target] = std::move(merged);
+      charts[small].faces.clear();
+      ++r.mergedCharts;
+    }
+    std::erase_if(charts, [](const Chart& c) { return c.faces.empty(); });
+  }
+  // Faces narrower in uv than 1/1000 texel at the largest density possible (every texel covered),
+  // 16 float roundings at 1024^2, could fold when their uvs are stored as float: they become charts
+  // of their own before packing.
+  {
+    std::vector<Chart> singles;
+    for (Chart& c : charts) {
+      if (c.faces.size() == 1) continue;
+      std::vector<uint32_t> keep;
+      for (uint32_t f : c.faces) {
+        Vec2d p[3];
+        for (int k = 0; k < 3; ++k) p[k] = c.uv[c.local.at(mesh.triangles[f][k])];
+        const double longest = std::max({(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()});
+        const double altitude = std::abs(cross2(p[0], p[1], p[2])) / std::max(longest, 1e-300);
+        if (altitude * maxDensity < 1e-3) singles.emplace_back().faces = {f};
+        else keep.push_back(f);
+      }
+      if (keep.size() == c.faces.size()) continue;
+      const auto old = c.local;
+      const std::vector<Vec2d> oldUv = c.uv;
+      c.faces = std::move(keep);
       collectVertices(mesh, c);
-      Vec3 axis = Vec3::Zero();
-      for (uint32_t f : c.faces) axis += mesh.faceArea[f] * normals[f];
-      axis.normalize();
-      // Near-planar by area: noisy scans have a few steep faces on flat walls, which a planar
-      // projection handles with less distortion than a conformal map with two pins.
-      double area = 0, alignedArea = 0;
-      for (uint32_t f : c.faces) area += mesh.faceArea[f], alignedArea += mesh.faceArea[f] * normals[f].dot(axis);
-      const bool planar = alignedArea >= cosPlanar * area;
-      if (planar || !lscm(mesh, c)) {
-        // Every face is within the cone of the seed normal, so projecting along it never flips.
-        planarProjection(mesh, c, planar ? axis : normals[c.faces.front()]);
-      } else {
-        c.lscm = true;
-      }
-      const bool overlaps = c.faces.size() > 1 &&
-          countOverlaps(c.faces, [&](uint32_t f, int k) { return c.uv[c.local.at(mesh.triangles[f][k])]; }, 1) > 0;
-      if (overlaps) {
-        ++r.splitCharts;
-        work.push_back({std::move(c.faces), cone * 0.5f});
-        continue;
-      }
-      r.lscmCharts += c.lscm;
+      c.uv.resize(c.vertices.size());
+      for (size_t v = 0; v < c.vertices.size(); ++v) c.uv[v] = oldUv[old.at(c.vertices[v])];
+      if (!c.faces.empty()) orientChart(c);  // its box starts at the origin again
+    }
+    for (Chart& c : singles) {
+      [[maybe_unused]] const bool mapped = parameterise(mesh, normals, cosPlanar, c);
+      assert(mapped && "a single triangle projects on its own plane");
       orientChart(c);
       charts.push_back(std::move(c));
     }
+    std::erase_if(charts, [](const Chart& c) { return c.faces.empty(); });
   }
-  // Deterministic order whatever the work-queue order was: by first face.
-  std::sort(charts.begin(), charts.end(), [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
-  r.charts = charts.size();
-
-  // Largest density (texels per metre at the gutter resolution) at which everything packs.
-  const int pad = (o.gutterTexels + 1) / 2;  // per side: at least `gutterTexels` between charts
-  std::vector<Eigen::AlignedBox2d> extent(charts.size());
-  for (size_t i = 0; i < charts.size(); ++i)
-    for (const Vec2d& p : charts[i].uv) extent[i].extend(p);
+  // Disjoint footprints grown by r texels leave 2r >= gutterTexels empty texels between two charts.
+  const int ring = (o.gutterTexels + 1) / 2;
+  std::vector<std::array<Footprint, 4>> fps;
   std::vector<Placement> placement;
-  auto sizesAt = [&](double density) {
-    std::vector<std::pair<int, int>> s(charts.size());
+  std::vector<std::vector<Vec2>> chartUv;  // per chart and local vertex: the atlas uv as stored (float)
+  double density = 0;
+  for (;;) {
+    // Deterministic order whatever the work-queue order was: by first face.
+    std::sort(charts.begin(), charts.end(), [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
+    // Largest density (texels per metre at the gutter resolution) at which everything packs: a few
+    // secant-like steps on the strip height, then bisection between the best fit and the first miss.
+    std::vector<Eigen::AlignedBox2d> extent(charts.size());
     for (size_t i = 0; i < charts.size(); ++i)
-      s[i] = {static_cast<int>(std::ceil(extent[i].sizes().x() * density)) + 1 + 2 * pad,
-              static_cast<int>(std::ceil(extent[i].sizes().y() * density)) + 1 + 2 * pad};
-    return s;
-  };
-  double totalArea = 0;
-  for (float a : mesh.faceArea) totalArea += a;
-  double lo = 0, hi = std::sqrt(static_cast<double>(o.gutterResolution) * o.gutterResolution / std::max(totalArea, 1e-12)) * 1.01;
-  for (int it = 0; it < 40; ++it) {
-    const double mid = 0.5 * (lo + hi);
-    (skylinePack(sizesAt(mid), o.gutterResolution, placement) ? lo : hi) = mid;
+      for (const Vec2d& p : charts[i].uv) extent[i].extend(p);
+    fps.assign(charts.size(), {});
+    std::vector<Placement> trial;
+    auto packAt = [&](double d) {
+      tbb::parallel_for(size_t{0}, charts.size(), [&](size_t i) {
+        const Footprint base = footprintOf(mesh, charts[i], extent[i], d, ring, G);
+        for (int k = 0; k < 4; ++k) fps[i][k] = rotated(base, k);
+      });
+      return profilePack(fps, G, trial);
+    };
+    // Secant-like steps while packings fit (a fitting pass reports its height), bisection once one
+    // has failed (a failing pass stops early, so its height says little), to 0.5%.
+    double fit = 0, miss = std::sqrt(static_cast<double>(G) * G / std::max(meshArea, 1e-12));
+    double d = miss * 0.9;
+    for (int it = 0; it < 30 && miss > fit * 1.005; ++it) {
+      const int used = packAt(d);
+      if (used <= G) {
+        fit = d, placement = trial;
+        const double next = d * std::sqrt(static_cast<double>(G) / std::max(used, 1));
+        d = next > d * 1.001 && next < miss ? next : 0.5 * (fit + miss);
+      } else {
+        miss = d;
+        d = fit > 0 ? 0.5 * (fit + miss) : 0.7 * miss;
+      }
+    }
+    if (!(fit > 0)) fail("uv atlas: {} charts do not fit a {}^2 atlas with {}-texel gutters", charts.size(), G, o.gutterTexels);
+    packAt(fit);  // footprints at the chosen density (the same placement as `placement`)
+    density = fit;
+    // The uvs as they will be stored, in float: a chart of micro-triangles that maps without
+    // overlap in double can fold by a rounding; such charts are re-charted and everything repacked.
+    chartUv.assign(charts.size(), {});
+    std::vector<char> bad(charts.size(), 0);
+    tbb::parallel_for(size_t{0}, charts.size(), [&](size_t i) {
+      const Chart& c = charts[i];
+      for (const Vec2d& p : c.uv) {
+        const Vec2d q = turn(Vec2d::Constant(shiftOf(ring)) + p * density, placement[i].turns, fps[i][0].w, fps[i][0].h);
+        chartUv[i].push_back(((Vec2d(placement[i].x, placement[i].y) + q) / G).cast<float>());
+      }
+      if (c.faces.size() == 1) return;
+      auto uvOf = [&](uint32_t f, int k) { return Vec2d(chartUv[i][c.local.at(mesh.triangles[f][k])].cast<double>()); };
+      int positive = 0;
+      for (uint32_t f : c.faces) positive += cross2(uvOf(f, 0), uvOf(f, 1), uvOf(f, 2)) > 0;
+      bad[i] = (positive != 0 && positive != static_cast<int>(c.faces.size())) || countOverlaps(c.faces, uvOf, 1) > 0;
+    });
+    if (std::find(bad.begin(), bad.end(), 1) == bad.end()) break;
+    std::vector<Chart> keep;
+    std::vector<std::pair<std::vector<uint32_t>, float>> redo;
+    for (size_t i = 0; i < charts.size(); ++i)
+      if (bad[i]) ++r.splitCharts, redo.push_back({std::move(charts[i].faces), 0.0f});
+      else keep.push_back(std::move(charts[i]));
+    charts = std::move(keep);
+    for (auto& [faces, cone] : redo) chartRegion(std::move(faces), cone);  // one chart per face: rounding cannot fold those
   }
-  if (!(lo > 0) || !skylinePack(sizesAt(lo), o.gutterResolution, placement))
-    fail("uv atlas: {} charts do not fit a {}^2 atlas with {}-texel gutters", charts.size(), o.gutterResolution, o.gutterTexels);
-  r.texelsPerMetre = lo;
+  r.charts = charts.size();
+  for (const Chart& c : charts) r.lscmCharts += c.lscm;
+  r.texelsPerMetre = density;
 
   TriangleMesh out = mesh;
   out.positions.clear();
@@ -441,15 +562,14 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
     for (size_t v = 0; v < c.vertices.size(); ++v) {
       out.positions.push_back(mesh.positions[c.vertices[v]]);
       if (!mesh.normals.empty()) out.normals.push_back(mesh.normals[c.vertices[v]]);
-      const Vec2d uv = (Vec2d(placement[i].x + pad + 0.5, placement[i].y + pad + 0.5) + c.uv[v] * lo) / R;
-      out.uvs.push_back(uv.cast<float>());
+      out.uvs.push_back(chartUv[i][v]);
     }
     for (uint32_t f : c.faces) {
       for (int k = 0; k < 3; ++k) out.triangles[f][k] = base + c.local.at(mesh.triangles[f][k]);
       const auto& t = out.triangles[f];
       const double a = 0.5 * std::abs(cross2(out.uvs[t[0]].cast<double>(), out.uvs[t[1]].cast<double>(), out.uvs[t[2]].cast<double>()));
       uvArea += a;
-      stretch.push_back(std::sqrt(a * R * R / (lo * lo) / std::max<double>(mesh.faceArea[f], 1e-30)));
+      stretch.push_back(std::sqrt(a * R * R / (density * density) / std::max<double>(mesh.faceArea[f], 1e-30)));
     }
   }
   r.packingEfficiency = uvArea;
@@ -460,6 +580,7 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
     r.stretchP95 = stretch[stretch.size() * 19 / 20];
   }
   r.seconds = timer.seconds();
+  r.uvOverlaps = countUvOverlaps(out, SIZE_MAX);
   return out;
 }
 

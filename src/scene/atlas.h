@@ -24,12 +24,13 @@ struct AtlasOptions {
 
 struct AtlasReport {
   bool keptInputUv = false;
-  size_t charts = 0, lscmCharts = 0, splitCharts = 0;
+  size_t charts = 0, lscmCharts = 0, splitCharts = 0, mergedCharts = 0;
   double packingEfficiency = 0;  // charted uv area / atlas area
   double texelsPerMetre = 0;     // at AtlasOptions::gutterResolution
   // Stretch: sqrt(uv area / 3D area), normalised by the atlas density; 1 = no distortion.
   double stretchP05 = 0, stretchMedian = 0, stretchP95 = 0;
-  double seconds = 0;
+  size_t uvOverlaps = 0;         // pairs of triangles overlapping in the output (countUvOverlaps): 0
+  double seconds = 0;            // charting and packing (the overlap count is not timed)
   std::string summary() const;
 };
 

@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <cassert>
+
 #include "core/error.h"
 
 namespace relume {
@@ -53,12 +55,8 @@ SurfaceHit Scene::hitFromFace(uint32_t prim, float b1, float b2) const {
   h.ng = face.ng;
   h.ns = face.ng;
   h.uv = b0 * face.uv[0] + b1 * face.uv[1] + b2 * face.uv[2];
-  if (!mesh_.normals.empty()) {
-    const auto& tri = mesh_.triangles[prim];
-    const Vec3 n = b0 * mesh_.normals[tri[0]] + b1 * mesh_.normals[tri[1]] + b2 * mesh_.normals[tri[2]];
-    const float len = n.norm();
-    if (len > 1e-6f) h.ns = n.dot(h.ng) >= 0 ? Vec3(n / len) : Vec3(-n / len);
-  }
+  // A degenerate interpolation (vertex normals that cancel out) falls back to the geometric normal.
+  if (const auto n = mesh_.shadingNormal(prim, Vec3(b0, b1, b2))) h.ns = n->dot(h.ng) >= 0 ? *n : Vec3(-*n);
   return h;
 }
 
@@ -88,12 +86,21 @@ RTCRayHit traceClosest(RTCScene scene, const Vec3& o, const Vec3& d, float tmax)
 }
 }  // namespace
 
+bool Scene::traceable(const Vec3& o, const Vec3& d, float tmax) const {
+  const bool ok = o.allFinite() && d.allFinite() && tmax >= 0.0f;  // false for a NaN tmax too
+  assert(ok && "non-finite or inverted ray");
+  if (!ok) skippedRays_.fetch_add(1, std::memory_order_relaxed);
+  return ok;
+}
+
 float Scene::hitDistance(const Vec3& o, const Vec3& d, float tmax) const {
+  if (!traceable(o, d, tmax)) return INFINITY;
   const RTCRayHit rh = traceClosest(scene_, o, d, tmax);
   return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? INFINITY : rh.ray.tfar;
 }
 
 std::optional<SurfaceHit> Scene::intersect(const Vec3& o, const Vec3& d, float tmax) const {
+  if (!traceable(o, d, tmax)) return std::nullopt;
   const RTCRayHit rh = traceClosest(scene_, o, d, tmax);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
   // The hit point from the ray (no vertex fetch); Embree's t is accurate to a few ulps.
@@ -104,6 +111,7 @@ std::optional<SurfaceHit> Scene::intersect(const Vec3& o, const Vec3& d, float t
 }
 
 bool Scene::occluded(const Vec3& o, const Vec3& d, float tmax) const {
+  if (!traceable(o, d, tmax)) return true;
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRay r;

@@ -2,6 +2,7 @@
 #pragma once
 #include <embree3/rtcore.h>
 
+#include <atomic>
 #include <memory>
 #include <optional>
 
@@ -31,6 +32,9 @@ class Scene {
   Scene& operator=(const Scene&) = delete;
 
   const TriangleMesh& mesh() const { return mesh_; }
+  // Every ray entry point checks its ray first: a non-finite origin or direction, or a tmax that is
+  // NaN or negative (an inverted segment), never reaches Embree. Debug builds assert; release builds
+  // skip the ray (intersect: no hit, occluded: true, hitDistance: infinity) and count it.
   std::optional<SurfaceHit> intersect(const Vec3& origin, const Vec3& dir, float tmax = INFINITY) const;
   bool occluded(const Vec3& origin, const Vec3& dir, float tmax) const;
   // Closest-hit distance only (no surface attributes): Embree's cost alone, for profiling.
@@ -38,6 +42,7 @@ class Scene {
   SurfaceHit surfacePoint(uint32_t prim, float b1, float b2) const;  // barycentrics of vertices 1 and 2
   // Origin nudged off the surface towards `dir`, scaled to the coordinate magnitude.
   static Vec3 offsetOrigin(const SurfaceHit& hit, const Vec3& dir);
+  size_t skippedRays() const { return skippedRays_.load(std::memory_order_relaxed); }
 
  private:
   TriangleMesh mesh_;
@@ -49,10 +54,12 @@ class Scene {
     Vec2 uv[3];
   };
   SurfaceHit hitFromFace(uint32_t prim, float b1, float b2) const;
+  bool traceable(const Vec3& origin, const Vec3& dir, float tmax) const;
   std::vector<float> vertexBuffer_;
   std::vector<FaceRecord> faces_;  // xyz + padding so Embree can read 16 bytes at the end
   RTCDevice device_ = nullptr;
   RTCScene scene_ = nullptr;
+  mutable std::atomic<size_t> skippedRays_{0};
 };
 
 inline float rayEpsilon(const Vec3& p) { return 1e-4f * (1.0f + p.cwiseAbs().maxCoeff()); }

@@ -9,8 +9,11 @@
 namespace relume {
 namespace {
 
+// Barycentrics of p in the uv triangle (a, b, c); the centroid when the triangle has no uv area
+// (never NaN, whatever the uvs).
 Vec3 barycentricOf(const Vec2& p, const Vec2& a, const Vec2& b, const Vec2& c) {
   const double d = (double(b.x()) - a.x()) * (double(c.y()) - a.y()) - (double(b.y()) - a.y()) * (double(c.x()) - a.x());
+  if (!(std::abs(d) > 0.0) || !std::isfinite(d)) return Vec3::Constant(1.0f / 3.0f);
   const double b1 = ((double(p.x()) - a.x()) * (double(c.y()) - a.y()) - (double(p.y()) - a.y()) * (double(c.x()) - a.x())) / d;
   const double b2 = ((double(b.x()) - a.x()) * (double(p.y()) - a.y()) - (double(b.y()) - a.y()) * (double(p.x()) - a.x())) / d;
   return Vec3d(1.0 - b1 - b2, b1, b2).cast<float>();
@@ -86,9 +89,17 @@ Vec3 TexelMap::barycentrics(const TriangleMesh& mesh, size_t texel) const {
   Vec3 bc = barycentricOf(texelCentreUv(texel), mesh.uvs[t[0]], mesh.uvs[t[1]], mesh.uvs[t[2]]);
   if (!covered(texel)) {
     bc = bc.cwiseMax(0.0f);
-    bc /= bc.sum();
+    const float sum = bc.sum();
+    bc = sum > 0.0f ? Vec3(bc / sum) : Vec3::Constant(1.0f / 3.0f);
   }
   return bc;
+}
+
+Vec3 TexelMap::normal(const TriangleMesh& mesh, size_t texel, bool* fellBack) const {
+  const size_t f = triangle(texel);
+  const auto n = mesh.shadingNormal(f, barycentrics(mesh, texel));
+  if (fellBack) *fellBack = !n && !mesh.normals.empty();
+  return n ? *n : mesh.faceNormal(f);
 }
 
 Vec3 TexelMap::point(const TriangleMesh& mesh, size_t texel) const {

@@ -30,6 +30,10 @@ class TexelMap {
   // dilated texels.
   Vec3 barycentrics(const TriangleMesh& mesh, size_t texel) const;
   Vec3 point(const TriangleMesh& mesh, size_t texel) const;
+  // The surface normal at the texel's point: the mesh's shading normal there (on the side its vertex
+  // normals give), or, when the mesh has none or it is unreliable (TriangleMesh::shadingNormal), the
+  // triangle's geometric normal; `fellBack` says whether a shading normal existed but was unreliable.
+  Vec3 normal(const TriangleMesh& mesh, size_t texel, bool* fellBack = nullptr) const;
   Vec2 texelCentreUv(size_t texel) const {
     return {(static_cast<float>(texel % resolution_) + 0.5f) / resolution_,
             (static_cast<float>(texel / resolution_) + 0.5f) / resolution_};

@@ -1,5 +1,11 @@
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <array>
+#include <functional>
+#include <map>
+#include <numeric>
+
 #include "core/rng.h"
 #include "core/system.h"
 #include "core/warp.h"
@@ -15,7 +21,7 @@ TriangleMesh roomAtlas() {
   mesh.uvs.clear();
   return buildAtlas(mesh, {});
 }
-}  // namespace
+
 
 TEST(TexelMap, CoveredTexelPointsMapBackIntoTheirTexel) {
   const TriangleMesh mesh = roomAtlas();
@@ -38,17 +44,40 @@ TEST(TexelMap, CoveredTexelPointsMapBackIntoTheirTexel) {
   EXPECT_GT(checked, 10000u);
 }
 
-TEST(TexelMap, PointsOnTheSurfaceLandOnValidTexelsOfTheirOwnChart) {
-  const TriangleMesh mesh = roomAtlas();
-  for (int res : {1024, 2048}) {
+// Chart of every face: the connected components of the uv mesh, where two vertices are one when
+// they have the same position and the same uv (a chart keeps the mesh's own vertex splits, e.g.
+// along normal seams; the atlas splits vertices along chart seams).
+std::vector<int> chartOfFace(const TriangleMesh& mesh) {
+  std::map<std::array<float, 5>, int> weld;
+  std::vector<int> id(mesh.positions.size());
+  for (size_t v = 0; v < id.size(); ++v) {
+    const Vec3& p = mesh.positions[v];
+    const Vec2& uv = mesh.uvs[v];
+    id[v] = weld.emplace(std::array<float, 5>{p.x(), p.y(), p.z(), uv.x(), uv.y()}, static_cast<int>(weld.size())).first->second;
+  }
+  std::vector<int> parent(weld.size());
+  std::iota(parent.begin(), parent.end(), 0);
+  std::function<int(int)> root = [&](int v) { return parent[v] == v ? v : parent[v] = root(parent[v]); };
+  for (const auto& t : mesh.triangles)
+    for (int k = 1; k < 3; ++k) parent[root(id[t[k]])] = root(id[t[0]]);
+  std::vector<int> chart(mesh.triangles.size());
+  for (size_t f = 0; f < chart.size(); ++f) chart[f] = root(id[mesh.triangles[f][0]]);
+  return chart;
+}
+
+// The gutter at every stage resolution: every texel of the bilinear footprint of every surface point
+// is valid and holds a triangle of the point's own chart, so lookups and gradient scatters never mix
+// two charts.
+void expectFootprintsInsideTheirChart(const TriangleMesh& mesh, int samples) {
+  const std::vector<int> chart = chartOfFace(mesh);
+  for (int res : {1024, 2048, 4096}) {
     const TexelMap map(mesh, res);
     Pcg32 rng(5);
-    for (int i = 0; i < 20000; ++i) {
+    for (int i = 0; i < samples; ++i) {
       const uint32_t f = rng.nextU32() % mesh.triangles.size();
       const Vec2 b = squareToTriangle(Vec2(rng.next1D(), rng.next1D()));
       const auto& t = mesh.triangles[f];
       const Vec2 uv = (1 - b.x() - b.y()) * mesh.uvs[t[0]] + b.x() * mesh.uvs[t[1]] + b.y() * mesh.uvs[t[2]];
-      // Every texel of the bilinear footprint is valid and belongs to the same object: no bleed.
       const float x = uv.x() * res - 0.5f, y = uv.y() * res - 0.5f;
       for (int dy = 0; dy <= 1; ++dy)
         for (int dx = 0; dx <= 1; ++dx) {
@@ -56,10 +85,18 @@ TEST(TexelMap, PointsOnTheSurfaceLandOnValidTexelsOfTheirOwnChart) {
           const int ty = std::clamp(static_cast<int>(std::floor(y)) + dy, 0, res - 1);
           const size_t texel = static_cast<size_t>(ty) * res + tx;
           ASSERT_TRUE(map.valid(texel)) << "res " << res;
-          ASSERT_EQ(mesh.faceObject[map.triangle(texel)], mesh.faceObject[f]) << "res " << res;
+          ASSERT_EQ(chart[map.triangle(texel)], chart[f]) << "res " << res << " face " << f;
         }
     }
   }
+}
+}  // namespace
+
+TEST(TexelMap, PointsOnTheSurfaceLandOnValidTexelsOfTheirOwnChart) { expectFootprintsInsideTheirChart(roomAtlas(), 20000); }
+
+TEST(TexelMap, GutterHoldsOnARealMeshAtEveryStage) {
+  const TriangleMesh mesh = loadMesh(std::filesystem::path(RELUME_TEST_DATA) / "furnished_cut.ply");
+  expectFootprintsInsideTheirChart(buildAtlas(mesh, {}), 20000);
 }
 
 TEST(TexelMap, BuildTimeAndSizeAt4096) {

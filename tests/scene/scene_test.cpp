@@ -1,0 +1,94 @@
+#include <gtest/gtest.h>
+
+#include "scene/atlas.h"
+#include "scene/scene.h"
+#include "scene/texel_map.h"
+
+using namespace relume;
+
+namespace {
+// One triangle in z = 0 (geometric normal +z) whose vertex normals cancel out on the segment
+// b0 = b2, b1 = 1/2 (vertex 1's normal is the opposite of the other two), like the real meshes'
+// triangles with two vertex normals more than 150 degrees apart; and one whose three vertex normals
+// all face away from its geometric normal.
+TriangleMesh opposedNormals() {
+  MeshData d;
+  d.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {2, 0, 0}, {3, 0, 0}, {2, 1, 0}};
+  d.normals = {{0, 0, 1}, {0, 0, -1}, {0, 0, 1}, {0, 0, -1}, {0, 0, -1}, {0, 0, -1}};
+  d.triangles = {{0, 1, 2}, {3, 4, 5}};
+  return buildMesh(d, "opposed normals");
+}
+}  // namespace
+
+TEST(Scene, ShadingNormalThatVanishesFallsBackToTheGeometricNormal) {
+  const TriangleMesh mesh = opposedNormals();
+  // Exactly where the interpolation is zero (the old code normalised it to NaN) and next to it.
+  for (const Vec3& b : {Vec3(0.25f, 0.5f, 0.25f), Vec3(0.3f, 0.45f, 0.25f)}) {
+    EXPECT_FALSE(mesh.shadingNormal(0, b)) << b.transpose();
+  }
+  ASSERT_TRUE(mesh.shadingNormal(0, Vec3(0.9f, 0.05f, 0.05f)));
+  const Scene scene(mesh);
+  const SurfaceHit h = scene.surfacePoint(0, 0.5f, 0.25f);  // b0 = 0.25, b1 = 0.5, b2 = 0.25
+  ASSERT_TRUE(h.ns.allFinite());
+  EXPECT_TRUE(h.ns.isApprox(h.ng)) << h.ns.transpose();
+  // All three normals facing away: a reliable normal on the other side; the renderer's frame is
+  // put on the winding side, the authored side is kept by shadingNormal.
+  const auto away = mesh.shadingNormal(1, Vec3::Constant(1.0f / 3));
+  ASSERT_TRUE(away);
+  EXPECT_LT(away->z(), -0.99f);
+  EXPECT_GT(scene.surfacePoint(1, 0.3f, 0.3f).ns.z(), 0.99f);
+}
+
+TEST(Scene, TexelNormalsAreFiniteAndCountFallbacks) {
+  TriangleMesh mesh = buildAtlas(opposedNormals(), {});
+  const TexelMap map(mesh, 256);
+  size_t fellBack = 0, valid = 0;
+  for (size_t t = 0; t < map.texelCount(); ++t) {
+    if (!map.valid(t)) continue;
+    ++valid;
+    bool geometric = false;
+    const Vec3 n = map.normal(mesh, t, &geometric);
+    ASSERT_TRUE(n.allFinite());
+    ASSERT_NEAR(n.norm(), 1.0f, 1e-4f);
+    fellBack += geometric;
+    ASSERT_TRUE(map.point(mesh, t).allFinite());
+  }
+  EXPECT_GT(fellBack, 0u);
+  EXPECT_LT(fellBack, valid);
+}
+
+TEST(Scene, TexelMapOfADegenerateUvTriangleHasNoNaN) {
+  MeshData d;
+  d.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  d.uvs = {{0.2f, 0.2f}, {0.6f, 0.6f}, {0.4f, 0.4f}};  // collinear: no uv area
+  d.triangles = {{0, 1, 2}};
+  const TriangleMesh mesh = buildMesh(d, "flat uv");
+  const TexelMap map(mesh, 64);
+  size_t valid = 0;
+  for (size_t t = 0; t < map.texelCount(); ++t) {
+    if (!map.valid(t)) continue;
+    ++valid;
+    ASSERT_TRUE(map.point(mesh, t).allFinite());
+  }
+  EXPECT_GT(valid, 0u);
+}
+
+#ifdef NDEBUG
+TEST(Scene, NonFiniteAndInvertedRaysAreSkippedAndCounted) {
+  const Scene scene(opposedNormals());
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_TRUE(scene.occluded(Vec3(nan, 0, 1), Vec3(0, 0, -1), 1.0f));
+  EXPECT_TRUE(scene.occluded(Vec3(0.2f, 0.2f, 1), Vec3(0, 0, -1), -1e-4f));  // a point within 2 eps of the camera
+  EXPECT_FALSE(scene.intersect(Vec3(0.2f, 0.2f, 1), Vec3(0, nan, -1)));
+  EXPECT_EQ(scene.hitDistance(Vec3(0.2f, 0.2f, 1), Vec3(0, 0, -1), nan), INFINITY);
+  EXPECT_EQ(scene.skippedRays(), 4u);
+  // Valid rays are traced as before.
+  EXPECT_TRUE(scene.intersect(Vec3(0.2f, 0.2f, 1), Vec3(0, 0, -1)));
+  EXPECT_EQ(scene.skippedRays(), 4u);
+}
+#else
+TEST(Scene, NonFiniteRayAssertsInDebugBuilds) {
+  const Scene scene(opposedNormals());
+  EXPECT_DEATH(scene.occluded(Vec3(std::numeric_limits<float>::quiet_NaN(), 0, 1), Vec3(0, 0, -1), 1.0f), "non-finite or inverted ray");
+}
+#endif

@@ -28,9 +28,21 @@ std::vector<Eigen::Array3d> traceAll(const Scene& scene, const LightSampler& lig
   return out;
 }
 
-float stepFor(const ParamRef& p, float value, float eps) {
+// Radiance is linear in every emission, so any emission step is exact but for float rounding, which
+// scales with the brightest radiance, i.e. the scene's largest emission: the step is relative to
+// that, not to the parameter's own value (a dark wall's 0 gave a step below the rounding of ~1e4
+// radiances at --emission-scale 1e4).
+float emissionStepScale(const Appearance& a) {
+  float largest = 1.0f;
+  for (int o = 0; o < a.objectCount(); ++o) largest = std::max(largest, a.emission[o].maxCoeff());
+  for (const Texture& t : a.emissionTextures)
+    for (uint32_t i = 0; i < t.texelCount(); ++i) largest = std::max(largest, t.texel(i).maxCoeff());
+  return largest;
+}
+
+float stepFor(const ParamRef& p, float eps, float emissionScale) {
   const bool emission = p.kind == ParamKind::Emission || p.kind == ParamKind::EmissionTexture;
-  return emission ? eps * std::max(std::abs(value), 1.0f) : eps;
+  return emission ? eps * emissionScale : eps;
 }
 
 // Loss residual of each estimate, in double (the per-ray Jacobian weight applies to the loss).
@@ -157,11 +169,12 @@ GradcheckReport runGradcheck(const Scene& scene, const Appearance& base, const s
   auto seedA = [&](uint64_t it) { return [&s, it](size_t j) { return primalSeed(s, it, j); }; };
   auto seedB = [&](uint64_t it) { return [&s, it](size_t j) { return adjointSeed(s, it, j); }; };
   const AppearanceScope baseScope = AppearanceScope::uniform(base);
+  const float emissionScale = emissionStepScale(base);
 
   // Central difference of `objective` with the parameter perturbed only where the mode differentiates.
   auto centralDifference = [&](const ParamRef& p, const std::function<double(const AppearanceScope&)>& objective) {
     Appearance plus = base, minus = base;
-    const float h = stepFor(p, paramValue(base, p), o.eps);
+    const float h = stepFor(p, o.eps, emissionScale);
     paramValue(plus, p) += h;
     paramValue(minus, p) -= h;
     return (objective(perturbedScope(base, plus, s)) - objective(perturbedScope(base, minus, s))) / (2.0 * h);
@@ -185,7 +198,7 @@ GradcheckReport runGradcheck(const Scene& scene, const Appearance& base, const s
         return sampleObjective(rays, s.pairing, a, b, dA, dB);
       });
       GradcheckRow row{"sample", p, gradientValue(base, g, p), fd};
-      const double floorAbs = 20 * 6e-8 * scale / stepFor(p, paramValue(base, p), o.eps);
+      const double floorAbs = 20 * 6e-8 * scale / stepFor(p, o.eps, emissionScale);
       row.error = std::abs(row.adjoint - fd) / std::max(std::abs(fd), 1e-12);
       row.pass = std::abs(row.adjoint - fd) <= o.level1Tolerance * std::abs(fd) + floorAbs;
       report.rows.push_back(row);

@@ -2,11 +2,19 @@
 
 #include <spdlog/spdlog.h>
 
+#include <cmath>
+
 #include "core/error.h"
 #include "io/json.h"
 
 namespace relume {
 namespace {
+
+// Bounds of a plausible camera: beyond them Embree's rays are invalid or the input is garbage.
+constexpr double kMaxFocal = 1e7;              // pixels
+constexpr double kMaxPrincipalOffset = 10.0;   // |c - size/2| <= this many image sizes
+constexpr double kMaxPosition = 1e6;           // metres, per coordinate
+constexpr double kOrthonormalTolerance = 1e-3; // on every entry of R^T R - I, and on det R - 1
 
 struct Intrinsics {
   std::optional<double> fx, fy, cx, cy, w, h, k1, k2, p1, p2, k3, exposure, clipLow, clipHigh;
@@ -16,7 +24,9 @@ struct Intrinsics {
 void readIntrinsics(const Json& j, Intrinsics& in, const std::string& where) {
   auto num = [&](const char* key, std::optional<double>& dst) {
     if (!j.contains(key)) return;
-    if (!j[key].is_number() || !std::isfinite(j[key].get<double>())) fail("{}: field '{}' must be a finite number", where, key);
+    // Checked in float, the precision cameras use (1e39 is finite as a double, not as a float).
+    if (!j[key].is_number() || !std::isfinite(static_cast<float>(j[key].get<double>())))
+      fail("{}: field '{}' must be a finite number (in float)", where, key);
     dst = j[key].get<double>();
   };
   num("fl_x", in.fx); num("fl_y", in.fy); num("cx", in.cx); num("cy", in.cy);
@@ -54,14 +64,25 @@ static Capture parseTransforms(const std::filesystem::path& path) {
     readIntrinsics(f, in, where);
     Frame fr;
     Camera& c = fr.camera;
-    c.fx = static_cast<float>(need(in.fx, "fl_x", where));
-    c.fy = static_cast<float>(in.fy.value_or(c.fx));
-    c.width = static_cast<int>(need(in.w, "w", where));
-    c.height = static_cast<int>(need(in.h, "h", where));
-    c.cx = static_cast<float>(in.cx.value_or(c.width * 0.5));
-    c.cy = static_cast<float>(in.cy.value_or(c.height * 0.5));
-    if (c.width <= 0 || c.height <= 0 || c.width > 65536 || c.height > 65536) fail("{}: bad image size {}x{}", where, c.width, c.height);
-    if (!(c.fx > 0) || !(c.fy > 0)) fail("{}: focal lengths must be positive", where);
+    const double w = need(in.w, "w", where), h = need(in.h, "h", where);
+    if (!(w >= 1 && w <= 65536 && h >= 1 && h <= 65536) || w != std::floor(w) || h != std::floor(h))
+      fail("{}: bad image size {}x{} (integers in [1, 65536])", where, w, h);
+    c.width = static_cast<int>(w);
+    c.height = static_cast<int>(h);
+    const double fx = need(in.fx, "fl_x", where), fy = in.fy.value_or(fx);
+    if (!(fx > 0 && fx < kMaxFocal)) fail("{}: 'fl_x' is {}, must be in (0, {:g}) pixels", where, fx, kMaxFocal);
+    if (!(fy > 0 && fy < kMaxFocal)) fail("{}: 'fl_y' is {}, must be in (0, {:g}) pixels", where, fy, kMaxFocal);
+    c.fx = static_cast<float>(fx);
+    c.fy = static_cast<float>(fy);
+    const double cx = in.cx.value_or(w * 0.5), cy = in.cy.value_or(h * 0.5);
+    if (std::abs(cx - 0.5 * w) > kMaxPrincipalOffset * w)
+      fail("{}: 'cx' is {}, must be in [{}, {}] (image width {} times {} around its centre)", where, cx,
+           0.5 * w - kMaxPrincipalOffset * w, 0.5 * w + kMaxPrincipalOffset * w, w, kMaxPrincipalOffset);
+    if (std::abs(cy - 0.5 * h) > kMaxPrincipalOffset * h)
+      fail("{}: 'cy' is {}, must be in [{}, {}] (image height {} times {} around its centre)", where, cy,
+           0.5 * h - kMaxPrincipalOffset * h, 0.5 * h + kMaxPrincipalOffset * h, h, kMaxPrincipalOffset);
+    c.cx = static_cast<float>(cx);
+    c.cy = static_cast<float>(cy);
     const std::string model = in.model.value_or("PINHOLE");
     if (model == "OPENCV") {
       c.distortion = {static_cast<float>(in.k1.value_or(0)), static_cast<float>(in.k2.value_or(0)),
@@ -81,9 +102,15 @@ static Capture parseTransforms(const std::filesystem::path& path) {
         m(r, k) = row[k].get<double>();
       }
     }
-    const Mat3 gl = m.block<3, 3>(0, 0).cast<float>();
-    if (std::abs(gl.determinant() - 1.0f) > 1e-3f) fail("{}: transform_matrix rotation is not orthonormal (det {})", where, gl.determinant());
-    c.rotation = Camera::rotationFromOpenGL(gl);
+    const Eigen::Matrix3d r = m.block<3, 3>(0, 0);
+    const double offOrthonormal = (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+    if (offOrthonormal > kOrthonormalTolerance || std::abs(r.determinant() - 1.0) > kOrthonormalTolerance)
+      fail("{}: transform_matrix rotation is not orthonormal (det {}, |R^T R - I| {}, tolerance {})", where,
+           r.determinant(), offOrthonormal, kOrthonormalTolerance);
+    for (int k = 0; k < 3; ++k)
+      if (!(std::abs(m(k, 3)) < kMaxPosition))
+        fail("{}: transform_matrix[{}][3] (position) is {}, must be within +-{:g} m", where, k, m(k, 3), kMaxPosition);
+    c.rotation = Camera::rotationFromOpenGL(r.cast<float>());
     c.position = m.block<3, 1>(0, 3).cast<float>();
     if (!f.contains("file_path") || !f["file_path"].is_string()) fail("{}: missing 'file_path'", where);
     fr.image = dir / f["file_path"].get<std::string>();

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <limits>
 #include <numeric>
 #include <sstream>
 
@@ -23,6 +24,20 @@
 
 namespace relume {
 namespace {
+
+// CLI::Range lets NaN through (every comparison with it is false); this check does not.
+CLI::Validator inRange(double lo, double hi) {
+  return CLI::Validator(
+      [lo, hi](std::string& text) -> std::string {
+        double v = 0;
+        if (!CLI::detail::lexical_cast(text, v)) return fmt::format("'{}' is not a number", text);
+        if (!(v >= lo && v <= hi)) return fmt::format("{} is not in [{}, {}]", text, lo, hi);
+        return "";
+      },
+      fmt::format("in [{}, {}]", lo, hi));
+}
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr int kMaxSide = 65536, kMaxSpp = 1 << 20, kMaxDepthLimit = 1024;
 
 constexpr const char* kMaxDepthHelp = "scattering vertices per path, each with light sampling (1 = direct light only; Cycles' max bounces B is depth B + 1)";
 
@@ -87,13 +102,13 @@ void registerPrepare(CLI::App& app, CommandTable& table) {
   c->add_option("--out", *work, "work folder")->required();
   c->add_option("--res", *res, "texture resolutions, coarse to fine (the first is the init resolution)")->capture_default_str();
   c->add_option("--init", *init, "median or mean of the observations")->capture_default_str();
-  c->add_option("--max-overexposed", o->maxOverexposed, "drop frames with more saturated pixels than this")->capture_default_str();
-  c->add_option("--max-underexposed", o->maxUnderexposed)->capture_default_str();
-  c->add_option("--max-speed", o->maxSpeed, "metres between neighbouring frames")->capture_default_str();
-  c->add_option("--max-angular-speed", o->maxAngularSpeed, "degrees between neighbouring frames")->capture_default_str();
-  c->add_option("--tile", o->tileTexels, "visibility tile size in texels at the init resolution")->capture_default_str();
-  c->add_option("--gutter-res", o->atlas.gutterResolution, "resolution at which charts keep a 2-texel gutter")->capture_default_str();
-  c->add_option("--downscale", o->downscale, "box-filter frames by this integer factor in the cache")->capture_default_str();
+  c->add_option("--max-overexposed", o->maxOverexposed, "drop frames with more saturated pixels than this")->capture_default_str()->check(inRange(0, 1));
+  c->add_option("--max-underexposed", o->maxUnderexposed)->capture_default_str()->check(inRange(0, 1));
+  c->add_option("--max-speed", o->maxSpeed, "metres between neighbouring frames")->capture_default_str()->check(inRange(0, kInf));
+  c->add_option("--max-angular-speed", o->maxAngularSpeed, "degrees between neighbouring frames")->capture_default_str()->check(inRange(0, 180));
+  c->add_option("--tile", o->tileTexels, "visibility tile size in texels at the init resolution")->capture_default_str()->check(inRange(1, 4096));
+  c->add_option("--gutter-res", o->atlas.gutterResolution, "resolution at which charts keep a 2-texel gutter")->capture_default_str()->check(inRange(1, kMaxSide));
+  c->add_option("--downscale", o->downscale, "box-filter frames by this integer factor in the cache")->capture_default_str()->check(inRange(1, 256));
   c->add_flag("--force", o->force, "redo every phase");
   table[c] = [=] {
     o->resolutions.clear();
@@ -214,15 +229,15 @@ void registerProfile(CLI::App& app, CommandTable& table) {
   CLI::App* c = app.add_subcommand("profile", "measure speed: renderer, adjoint passes, pairings, gradient scatter");
   c->add_option("--what", a->what, "comma list of render, adjoint, pairing, scatter, leaks, visibility (+ texel maps)")->capture_default_str();
   c->add_option("--synth", a->synth, "room, cornell or furnace")->capture_default_str();
-  c->add_option("--width", a->width)->capture_default_str();
-  c->add_option("--height", a->height)->capture_default_str();
-  c->add_option("--spp", a->spp)->capture_default_str();
-  c->add_option("--max-depth", a->maxDepth, kMaxDepthHelp)->capture_default_str();
-  c->add_option("--rays", a->rays, "adjoint batch size")->capture_default_str();
-  c->add_option("--repeats", a->repeats)->capture_default_str();
-  c->add_option("--batches", a->batches, "pairing study batches")->capture_default_str();
-  c->add_option("--study-rays", a->studyRays, "pairing study batch size")->capture_default_str();
-  c->add_option("--scatter-res", a->scatterRes)->capture_default_str();
+  c->add_option("--width", a->width)->capture_default_str()->check(inRange(8, kMaxSide));
+  c->add_option("--height", a->height)->capture_default_str()->check(inRange(8, kMaxSide));
+  c->add_option("--spp", a->spp)->capture_default_str()->check(inRange(1, kMaxSpp));
+  c->add_option("--max-depth", a->maxDepth, kMaxDepthHelp)->capture_default_str()->check(inRange(0, kMaxDepthLimit));
+  c->add_option("--rays", a->rays, "adjoint batch size")->capture_default_str()->check(inRange(1, 1 << 26));
+  c->add_option("--repeats", a->repeats)->capture_default_str()->check(inRange(1, 1000));
+  c->add_option("--batches", a->batches, "pairing study batches")->capture_default_str()->check(inRange(2, 1 << 20));
+  c->add_option("--study-rays", a->studyRays, "pairing study batch size")->capture_default_str()->check(inRange(1, 1 << 24));
+  c->add_option("--scatter-res", a->scatterRes)->capture_default_str()->check(inRange(1, 1 << 15));
   table[c] = [=] { return runProfile(*a); };
 }
 
@@ -295,14 +310,14 @@ void registerGradcheck(CLI::App& app, CommandTable& table) {
   c->add_option("--emitter-gradients", a->emitters, "strict or all-depth")->capture_default_str();
   c->add_option("--pairing", a->pairing, "decorrelated, crossfit or reuse")->capture_default_str();
   c->add_option("--level", a->level, "sample, loss or both")->capture_default_str();
-  c->add_option("--rays", a->rays, "rays per batch")->capture_default_str();
-  c->add_option("--batches", a->batches, "independent batches for the whole-loss check")->capture_default_str();
-  c->add_option("--params-per-kind", a->perKind)->capture_default_str();
-  c->add_option("--eps", a->eps, "finite-difference step (relative for emission)")->capture_default_str();
-  c->add_option("--max-depth", a->maxDepth, kMaxDepthHelp)->capture_default_str();
-  c->add_option("--atlas-res", a->atlas, "synthetic albedo atlas resolution")->capture_default_str();
-  c->add_option("--emission-scale", a->emissionScale, "multiply emitters (e.g. 1e4 to stress)")->capture_default_str();
-  c->add_option("--clip-high", a->clipHigh, "reference saturation threshold (one-sided loss)");
+  c->add_option("--rays", a->rays, "rays per batch")->capture_default_str()->check(inRange(1, 1 << 26));
+  c->add_option("--batches", a->batches, "independent batches for the whole-loss check")->capture_default_str()->check(inRange(2, 1 << 20));
+  c->add_option("--params-per-kind", a->perKind)->capture_default_str()->check(inRange(1, 1 << 20));
+  c->add_option("--eps", a->eps, "finite-difference step (relative for emission)")->capture_default_str()->check(inRange(1e-6, 0.5));
+  c->add_option("--max-depth", a->maxDepth, kMaxDepthHelp)->capture_default_str()->check(inRange(0, kMaxDepthLimit));
+  c->add_option("--atlas-res", a->atlas, "synthetic albedo atlas resolution")->capture_default_str()->check(inRange(1, 1 << 14));
+  c->add_option("--emission-scale", a->emissionScale, "multiply emitters (e.g. 1e4 to stress)")->capture_default_str()->check(inRange(1e-6, 1e12));
+  c->add_option("--clip-high", a->clipHigh, "reference saturation threshold (one-sided loss)")->check(inRange(1e-30, kInf));
   c->add_flag("--russian-roulette", a->roulette);
   table[c] = [=] { return runGradcheck(*a); };
 }
@@ -318,21 +333,19 @@ CommandTable registerCommands(CLI::App& app) {
   CLI::App* synth = app.add_subcommand("synth", "write a synthetic capture with known ground truth");
   synth->add_option("--scene", *synthScene, "room, cornell, furnace or scan")->capture_default_str();
   synth->add_option("--out", *outDir, "output capture folder")->required();
-  synth->add_option("--frames", synthArgs->frames, "training frames")->capture_default_str();
-  synth->add_option("--test-frames", synthArgs->testFrames, "held-out frames")->capture_default_str();
-  synth->add_option("--width", synthArgs->width)->capture_default_str();
-  synth->add_option("--height", synthArgs->height)->capture_default_str();
-  synth->add_option("--spp", synthArgs->spp, "samples per pixel")->capture_default_str();
-  synth->add_option("--max-depth", synthArgs->maxDepth, kMaxDepthHelp)->capture_default_str();
+  synth->add_option("--frames", synthArgs->frames, "training frames")->capture_default_str()->check(inRange(1, 1 << 20));
+  synth->add_option("--test-frames", synthArgs->testFrames, "held-out frames")->capture_default_str()->check(inRange(0, 1 << 20));
+  synth->add_option("--width", synthArgs->width)->capture_default_str()->check(inRange(8, kMaxSide));
+  synth->add_option("--height", synthArgs->height)->capture_default_str()->check(inRange(8, kMaxSide));
+  synth->add_option("--spp", synthArgs->spp, "samples per pixel")->capture_default_str()->check(inRange(1, kMaxSpp));
+  synth->add_option("--max-depth", synthArgs->maxDepth, kMaxDepthHelp)->capture_default_str()->check(inRange(0, kMaxDepthLimit));
   synth->add_option("--seed", synthArgs->seed)->capture_default_str();
-  synth->add_option("--atlas-res", synthArgs->atlasResolution, "ground-truth albedo atlas resolution")->capture_default_str();
+  synth->add_option("--atlas-res", synthArgs->atlasResolution, "ground-truth albedo atlas resolution")->capture_default_str()->check(inRange(1, 1 << 15));
   synth->add_flag("--with-uv", synthArgs->withUv, "keep uv coordinates in the capture's mesh.ply");
-  synth->add_option("--triangles", synthArgs->scanTriangles, "size of the `scan` mesh")->capture_default_str();
+  synth->add_option("--triangles", synthArgs->scanTriangles, "size of the `scan` mesh")->capture_default_str()->check(inRange(1000, 1e8));
   table[synth] = [=] {
     synthArgs->kind = parseSynthScene(*synthScene);
     synthArgs->out = *outDir;
-    if (synthArgs->frames < 1 || synthArgs->width < 8 || synthArgs->height < 8 || synthArgs->spp < 1)
-      fail("synth: need --frames >= 1, --width/--height >= 8, --spp >= 1");
     const int n = writeSynthCapture(*synthArgs);
     spdlog::info("wrote {} frames of '{}' to {}", n, *synthScene, *outDir);
     return 0;
@@ -345,8 +358,8 @@ CommandTable registerCommands(CLI::App& app) {
   render->add_option("--scene", (*renderPaths)[0], "scene.json")->required()->check(CLI::ExistingFile);
   render->add_option("--cameras", (*renderPaths)[1], "transforms.json")->required()->check(CLI::ExistingFile);
   render->add_option("--out", (*renderPaths)[2], "output folder")->required();
-  render->add_option("--spp", renderArgs->render.spp)->capture_default_str()->check(CLI::Range(1, 1 << 20));
-  render->add_option("--max-depth", renderArgs->render.path.maxDepth, kMaxDepthHelp)->capture_default_str()->check(CLI::Range(0, 1024));
+  render->add_option("--spp", renderArgs->render.spp)->capture_default_str()->check(inRange(1, kMaxSpp));
+  render->add_option("--max-depth", renderArgs->render.path.maxDepth, kMaxDepthHelp)->capture_default_str()->check(inRange(0, kMaxDepthLimit));
   render->add_option("--seed", renderArgs->render.seed)->capture_default_str();
   render->add_flag("--russian-roulette", renderArgs->render.path.russianRoulette);
   render->add_option("--aov", renderArgs->aovs, "comma list of albedo,normal,depth,object");

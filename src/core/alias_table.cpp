@@ -3,12 +3,19 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/error.h"
+
 namespace relume {
 
 AliasTable::AliasTable(const std::vector<double>& weights) {
   double sum = 0.0;
-  for (double w : weights) sum += (w > 0.0 && std::isfinite(w)) ? w : 0.0;
-  if (!(sum > 0.0)) return;
+  for (size_t i = 0; i < weights.size(); ++i) {
+    if (!(weights[i] >= 0.0 && std::isfinite(weights[i])))
+      fail("alias table: weight {} is {} (must be finite and >= 0)", i, weights[i]);
+    sum += weights[i];
+  }
+  if (!(sum > 0.0 && std::isfinite(sum)))
+    fail("alias table: the {} weights sum to {} (must be finite and > 0)", weights.size(), sum);
   const size_t n = weights.size();
   prob_.resize(n);
   pmf_.resize(n);
@@ -16,9 +23,8 @@ AliasTable::AliasTable(const std::vector<double>& weights) {
   std::vector<double> scaled(n);
   std::vector<uint32_t> small, large;
   for (size_t i = 0; i < n; ++i) {
-    const double w = (weights[i] > 0.0 && std::isfinite(weights[i])) ? weights[i] : 0.0;
-    pmf_[i] = static_cast<float>(w / sum);
-    scaled[i] = w / sum * static_cast<double>(n);
+    pmf_[i] = static_cast<float>(weights[i] / sum);
+    scaled[i] = weights[i] / sum * static_cast<double>(n);
     (scaled[i] < 1.0 ? small : large).push_back(static_cast<uint32_t>(i));
   }
   while (!small.empty() && !large.empty()) {

@@ -9,7 +9,7 @@ namespace relume {
 class AliasTable {
  public:
   AliasTable() = default;
-  // Weights must be >= 0 with a positive sum; otherwise the table stays empty.
+  // Weights must be finite and >= 0 with a finite positive sum; otherwise throws relume::Error.
   explicit AliasTable(const std::vector<double>& weights);
   bool empty() const { return prob_.empty(); }
   size_t size() const { return prob_.size(); }

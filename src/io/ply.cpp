@@ -2,6 +2,7 @@
 // bytes actually present before anything is allocated, every index against the vertex count.
 #include <bit>
 #include <charconv>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <optional>
@@ -99,6 +100,12 @@ class Cursor {
   Format format_;
 };
 
+// A list length as read (any numeric type, ascii may even say "nan"): an integer in [0, 1e6].
+size_t listLength(double n, const std::string& file, const std::string& what, uint64_t index) {
+  if (!(n >= 0 && n <= 1e6) || n != std::floor(n)) fail("{}: {} {}: bad list length {}", file, what, index, n);
+  return static_cast<size_t>(n);
+}
+
 int findProperty(const Element& e, std::initializer_list<const char*> names) {
   for (const char* n : names)
     for (size_t i = 0; i < e.properties.size(); ++i)
@@ -184,6 +191,8 @@ MeshData readPly(const std::filesystem::path& path) {
     size_t minBytes = 0;
     for (const Property& p : e.properties) minBytes += p.isList ? typeSize(p.countType) : typeSize(p.type);
     if (*format == Format::Ascii) minBytes = 2 * e.properties.size();
+    if (e.properties.empty() && e.count > 0)
+      fail("{}: element '{}' declares {} entries but no properties", file, e.name, e.count);
     if (minBytes > 0 && e.count > cur.remaining() / minBytes)
       fail("{}: element '{}' declares {} entries but the file holds at most {}", file, e.name, e.count,
            cur.remaining() / minBytes);
@@ -203,9 +212,8 @@ MeshData readPly(const std::filesystem::path& path) {
         for (size_t k = 0; k < e.properties.size(); ++k) {
           const Property& p = e.properties[k];
           if (p.isList) {
-            const double n = cur.read(p.countType, "vertex list count");
-            if (n < 0 || n > 1e6) fail("{}: vertex {}: bad list length {}", file, i, n);
-            for (int j = 0; j < static_cast<int>(n); ++j) cur.read(p.type, "vertex list item");
+            const size_t n = listLength(cur.read(p.countType, "vertex list count"), file, "vertex", i);
+            for (size_t j = 0; j < n; ++j) cur.read(p.type, "vertex list item");
           } else {
             vals[k] = cur.read(p.type, "vertex property");
           }
@@ -231,10 +239,9 @@ MeshData readPly(const std::filesystem::path& path) {
         for (size_t k = 0; k < e.properties.size(); ++k) {
           const Property& p = e.properties[k];
           if (p.isList) {
-            const double n = cur.read(p.countType, "face vertex count");
-            if (n < 0 || n > 1e6 || n != std::floor(n)) fail("{}: face {}: bad vertex count {}", file, i, n);
-            if (static_cast<int>(k) == listIdx) poly.resize(static_cast<size_t>(n));
-            for (int j = 0; j < static_cast<int>(n); ++j) {
+            const size_t n = listLength(cur.read(p.countType, "face vertex count"), file, "face", i);
+            if (static_cast<int>(k) == listIdx) poly.resize(n);
+            for (size_t j = 0; j < n; ++j) {
               const double idx = cur.read(p.type, "face vertex index");
               if (static_cast<int>(k) != listIdx) continue;
               if (idx < 0 || idx >= static_cast<double>(mesh.positions.size()) || idx != std::floor(idx))
@@ -258,9 +265,8 @@ MeshData readPly(const std::filesystem::path& path) {
     } else {
       for (uint64_t i = 0; i < e.count; ++i)
         for (const Property& p : e.properties) {
-          const double n = p.isList ? cur.read(p.countType, "list count") : 1;
-          if (n < 0 || n > 1e6) fail("{}: element '{}' {}: bad list length {}", file, e.name, i, n);
-          for (int j = 0; j < static_cast<int>(n); ++j) cur.read(p.type, e.name.c_str());
+          const size_t n = p.isList ? listLength(cur.read(p.countType, "list count"), file, "element '" + e.name + "'", i) : 1;
+          for (size_t j = 0; j < n; ++j) cur.read(p.type, e.name.c_str());
         }
     }
   }

@@ -1,5 +1,8 @@
 #include "render/lights.h"
 
+#include <cmath>
+
+#include "core/error.h"
 #include "core/warp.h"
 
 namespace relume {
@@ -21,11 +24,13 @@ LightSampler::LightSampler(const Scene& scene, const Appearance& appearance) : s
     double area = 0;
     for (uint32_t f : e.triangles) areas.push_back(mesh.faceArea[f]), area += mesh.faceArea[f];
     e.byArea = AliasTable(areas);
-    power.push_back(area * kPi * luminance(appearance.meanEmission(o)) + 1e-12);
+    const double p = area * kPi * luminance(appearance.meanEmission(o)) + 1e-12;
+    if (!std::isfinite(p)) fail("light sampling: object {} ('{}') emits a non-finite power {}", o, appearance.names[o], p);
+    power.push_back(p);
     objectArea.push_back(area);
     objects_.push_back(std::move(e));
   }
-  byPower_ = AliasTable(power);
+  if (!objects_.empty()) byPower_ = AliasTable(power);
   for (size_t i = 0; i < objects_.size(); ++i)
     pdfArea_[objects_[i].object] = static_cast<float>(byPower_.pmf(static_cast<uint32_t>(i)) / objectArea[i]);
 }

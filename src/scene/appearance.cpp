@@ -1,5 +1,8 @@
 #include "scene/appearance.h"
 
+#include <cmath>
+#include <limits>
+
 #include "core/error.h"
 #include "io/image.h"
 #include "io/json.h"
@@ -26,21 +29,47 @@ Color Appearance::meanEmission(int object) const {
 
 namespace {
 
-Color readColor(const Json& j, const char* key, const std::string& where) {
+// Every number is checked in float, the precision it is used in (1e39 is finite as a double, not as a
+// float). `range` describes [lo, hi] in the error.
+constexpr double kFloatMax = std::numeric_limits<float>::max();
+constexpr const char* kEmissionRange = ">= 0 and finite in float";
+
+float floatIn(const Json& v, double lo, double hi, const char* range, const std::string& where, const std::string& field) {
+  if (!v.is_number()) fail("{}: '{}' must be a number", where, field);
+  const double d = v.get<double>();
+  const float f = static_cast<float>(d);
+  if (!std::isfinite(f) || !(f >= lo && f <= hi)) fail("{}: '{}' is {}, must be {}", where, field, d, range);
+  return f;
+}
+
+Color readColor(const Json& j, const char* key, double lo, double hi, const char* range, const std::string& where) {
   const Json& v = j.at(key);
-  if (v.is_number()) return Color::Constant(v.get<float>());
+  if (v.is_number()) return Color::Constant(floatIn(v, lo, hi, range, where, key));
   if (!v.is_array() || v.size() != 3) fail("{}: '{}' must be a number or [r,g,b]", where, key);
   Color c;
-  for (int k = 0; k < 3; ++k) {
-    if (!v[k].is_number()) fail("{}: '{}' must contain numbers", where, key);
-    c[k] = v[k].get<float>();
-  }
-  if (!isFinite(c)) fail("{}: '{}' is not finite", where, key);
+  for (int k = 0; k < 3; ++k) c[k] = floatIn(v[k], lo, hi, range, where, fmt::format("{}[{}]", key, k));
   return c;
 }
 
-Texture readTexture(const std::filesystem::path& path) {
-  const Image img = readImage(path);
+// 64-bit read, so 4294967296 cannot wrap to 0.
+int intIn(const Json& v, int64_t lo, int64_t hi, const std::string& where, const std::string& field) {
+  if (!v.is_number_integer()) fail("{}: '{}' must be an integer", where, field);
+  if (v.is_number_unsigned() ? v.get<uint64_t>() > static_cast<uint64_t>(hi) : (v.get<int64_t>() < lo || v.get<int64_t>() > hi))
+    fail("{}: '{}' is {}, must be in [{}, {}]", where, field, v.dump(), lo, hi);
+  return static_cast<int>(v.get<int64_t>());
+}
+
+// Texels are checked like the constants: every channel finite in [lo, hi].
+Texture readTexture(const std::filesystem::path& path, double lo, double hi, const char* range) {
+  ImageReadStats stats;
+  const Image img = readImage(path, &stats);
+  if (stats.nonFinitePixels)
+    fail("{}: texel ({}, {}) is not finite, must be {}", path.string(), stats.nonFiniteIndex[0] % img.width,
+         stats.nonFiniteIndex[0] / img.width, range);
+  for (size_t i = 0; i < img.rgb.size(); ++i)
+    if (!(img.rgb[i] >= lo && img.rgb[i] <= hi))
+      fail("{}: texel ({}, {}) channel {} is {}, must be {}", path.string(), i / 3 % img.width, i / 3 / img.width, i % 3,
+           img.rgb[i], range);
   Texture t(img.width, img.height);
   t.rgb = img.rgb;
   return t;
@@ -71,7 +100,7 @@ static SceneDescription parseSceneFile(const std::filesystem::path& path) {
   else fail("{}: 'model' must be principled-v1 or gltf, not '{}'", file, model);
   if (j.contains("albedo_texture")) {
     if (!s.mesh.hasUv()) fail("{}: 'albedo_texture' given but {} has no valid uv", file, s.meshPath.string());
-    a.albedo = readTexture(dir / j["albedo_texture"].get<std::string>());
+    a.albedo = readTexture(dir / j["albedo_texture"].get<std::string>(), 0.0, 1.0, "in [0, 1] (albedo)");
     std::fill(a.albedoFromTexture.begin(), a.albedoFromTexture.end(), 1);
   }
   if (j.contains("objects")) {
@@ -80,25 +109,25 @@ static SceneDescription parseSceneFile(const std::filesystem::path& path) {
       const Json& o = j["objects"][i];
       const std::string where = fmt::format("{}: objects[{}]", file, i);
       if (!o.is_object() || !o.contains("id") || !o["id"].is_number_integer()) fail("{}: needs an integer 'id'", where);
-      const int id = o["id"].get<int>();
-      if (id < 0 || id >= a.objectCount()) {
-        fail("{}: id {} not in the mesh (objects 0..{})", where, id, a.objectCount() - 1);
-      }
+      const int id = intIn(o["id"], 0, std::numeric_limits<int>::max(), where, "id");
+      if (id >= a.objectCount()) fail("{}: id {} not in the mesh (objects 0..{})", where, id, a.objectCount() - 1);
       if (o.contains("name")) a.names[id] = o["name"].get<std::string>();
       if (o.contains("albedo")) {
-        a.albedoConstant[id] = readColor(o, "albedo", where);
+        a.albedoConstant[id] = readColor(o, "albedo", 0.0, 1.0, "in [0, 1]", where);
         a.albedoFromTexture[id] = 0;
       }
-      a.roughness[id] = static_cast<float>(jsonNumberOr(o, "roughness", a.roughness[id], path));
-      a.specular[id] = static_cast<float>(jsonNumberOr(o, "specular", a.specular[id], path));
-      if (o.contains("emission")) a.emission[id] = readColor(o, "emission", where);
-      if (a.emission[id].minCoeff() < 0) fail("{}: emission must be >= 0", where);
+      if (o.contains("roughness")) a.roughness[id] = floatIn(o["roughness"], kRoughnessMin, 1.0, "in [0.035, 1]", where, "roughness");
+      if (o.contains("specular")) a.specular[id] = floatIn(o["specular"], 0.0, 1.0, "in [0, 1]", where, "specular");
+      if (o.contains("emission")) a.emission[id] = readColor(o, "emission", 0.0, kFloatMax, kEmissionRange, where);
       if (o.contains("emission_texture")) {
         if (!s.mesh.hasUv()) fail("{}: emission_texture needs a mesh with uv", where);
         const Json& w = o["emission_window"];
         if (!w.is_array() || w.size() != 4) fail("{}: 'emission_window' must be [x0, y0, atlas_width, atlas_height]", where);
-        Texture t = readTexture(dir / o["emission_texture"].get<std::string>());
-        t.x0 = w[0].get<int>(), t.y0 = w[1].get<int>(), t.fullWidth = w[2].get<int>(), t.fullHeight = w[3].get<int>();
+        Texture t = readTexture(dir / o["emission_texture"].get<std::string>(), 0.0, kFloatMax, kEmissionRange);
+        const int maxSide = std::numeric_limits<int>::max();
+        t.x0 = intIn(w[0], 0, maxSide, where, "emission_window[0]"), t.y0 = intIn(w[1], 0, maxSide, where, "emission_window[1]");
+        t.fullWidth = intIn(w[2], 1, maxSide, where, "emission_window[2]");
+        t.fullHeight = intIn(w[3], 1, maxSide, where, "emission_window[3]");
         a.emissionTextureOf[id] = static_cast<int>(a.emissionTextures.size());
         a.emissionTextures.push_back(std::move(t));
       }

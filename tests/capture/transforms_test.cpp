@@ -78,6 +78,23 @@ TEST(Transforms, MalformedInputsGiveOneLineErrors) {
       {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0]]}]})", "missing 'file_path'"},
       {R"({"fl_x": 10, "w": 10, "h": 10, "exposure": 0, "frames": [{)" + frame + "}]}", "exposure must be positive"},
       {R"({"fl_x": 10, "w": 10, "h": 10, "camera_model": 3, "frames": [{)" + frame + "}]}", "'camera_model' must be a string"},
+      // Finite as a double, infinite as a float: Embree used to abort on the rays.
+      {R"({"fl_x": 1e39, "w": 10, "h": 10, "frames": [{)" + frame + "}]}", "field 'fl_x' must be a finite number (in float)"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"cx": 1e300, )" + frame + "}]}", "frame 0: field 'cx' must be a finite number (in float)"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"k1": 1e39, )" + frame + "}]}", "frame 0: field 'k1' must be a finite number (in float)"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"cx": 1e30, )" + frame + "}]}", "frame 0: 'cx' is 1e+30, must be in [-95, 105]"},
+      {R"({"fl_x": 10, "w": 10, "h": 20, "frames": [{"cy": -201, )" + frame + "}]}", "frame 0: 'cy' is -201, must be in [-190, 210]"},
+      {R"({"fl_x": 1e7, "w": 10, "h": 10, "frames": [{)" + frame + "}]}", "frame 0: 'fl_x' is 10000000, must be in (0, 1e+07) pixels"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"fl_y": 0, )" + frame + "}]}", "frame 0: 'fl_y' is 0, must be in (0, 1e+07) pixels"},
+      {R"({"fl_x": 10, "w": 1e300, "h": 10, "frames": [{)" + frame + "}]}", "field 'w' must be a finite number (in float)"},
+      {R"({"fl_x": 10, "w": 1e30, "h": 10, "frames": [{)" + frame + "}]}", "frame 0: bad image size 1e+30x10"},
+      {R"({"fl_x": 10, "w": 10.5, "h": 10, "frames": [{)" + frame + "}]}", "frame 0: bad image size 10.5x10"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"file_path": "a", "transform_matrix": [[1,0,0,1e19],[0,1,0,0],[0,0,1,0]]}]})",
+       "frame 0: transform_matrix[0][3] (position) is 1e+19, must be within +-1e+06 m"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"file_path": "a", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,-1e6]]}]})",
+       "frame 0: transform_matrix[2][3] (position) is -1000000, must be within +-1e+06 m"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"file_path": "a", "transform_matrix": [[1,0.5,0,0],[0,1,0,0],[0,0,1,0]]}]})",
+       "frame 0: transform_matrix rotation is not orthonormal (det 1, |R^T R - I| 0.5"},
   };
   for (size_t i = 0; i < cases.size(); ++i) {
     const fs::path p = writeFile("bad" + std::to_string(i) + ".json", cases[i].first);

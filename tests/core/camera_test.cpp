@@ -1,6 +1,10 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <limits>
+
 #include "core/alias_table.h"
+#include "core/error.h"
 #include "core/camera.h"
 #include "core/rng.h"
 
@@ -44,7 +48,23 @@ TEST(AliasTable, MatchesWeights) {
   EXPECT_EQ(counts[1], 0);
   EXPECT_NEAR(counts[3] / 100000.0, 0.6, 0.01);
   EXPECT_NEAR(counts[0] / 100000.0, 0.1, 0.01);
-  EXPECT_TRUE(AliasTable({0.0, 0.0}).empty());
+}
+
+TEST(AliasTable, RejectsZeroNegativeAndNonFiniteWeights) {
+  const auto errorOf = [](const std::vector<double>& w) -> std::string {
+    try {
+      AliasTable t(w);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "<no error>";
+  };
+  EXPECT_NE(errorOf({0.0, 0.0}).find("sum to 0 (must be finite and > 0)"), std::string::npos) << errorOf({0.0, 0.0});
+  EXPECT_NE(errorOf({}).find("sum to 0"), std::string::npos);
+  EXPECT_NE(errorOf({1.0, 1e308, 1e308}).find("sum to inf"), std::string::npos);
+  EXPECT_NE(errorOf({1.0, std::numeric_limits<double>::infinity()}).find("weight 1 is inf"), std::string::npos);
+  EXPECT_NE(errorOf({std::nan("")}).find("weight 0 is nan"), std::string::npos);
+  EXPECT_NE(errorOf({1.0, -2.0}).find("weight 1 is -2"), std::string::npos);
 }
 
 TEST(Rng, SeedsAreIndependentOfOrder) {

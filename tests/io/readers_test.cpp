@@ -105,6 +105,11 @@ TEST(Ply, MalformedFilesGiveOneLineErrors) {
       {"noface.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n", "no faces"},
       {"badlabel.ply", kAsciiHeader + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2 -4\n", "not a non-negative integer"},
       {"hugelist.ply", kAsciiHeader + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n200 0 1 2\n", "unexpected end of file"},
+      {"noprops.ply", "ply\nformat ascii 1.0\nelement junk 18446744073709551615\n" + kAsciiHeader.substr(21), "element 'junk' declares 18446744073709551615 entries but no properties"},
+      {"nanlist.ply", kAsciiHeader + "0 0 0\n1 0 0\n1 1 0\n0 1 0\nnan 0 1 2 0\n", "face 0: bad list length nan"},
+      {"nanvertlist.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nproperty list float int extra\nend_header\n0 0 0 nan\n", "vertex 0: bad list length nan"},
+      {"nanjunklist.ply", "ply\nformat ascii 1.0\nelement junk 1\nproperty list float int extra\n" + kAsciiHeader.substr(21) + "nan\n", "element 'junk' 0: bad list length nan"},
+      {"fraclist.ply", kAsciiHeader + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n3.5 0 1 2 0\n", "face 0: bad list length 3.5"},
       {"nanvert.ply", kAsciiHeader + "0 0 nan\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2 0\n", "non-finite position"},
   };
   for (const auto& [name, bytes, expected] : cases) {
@@ -181,9 +186,21 @@ TEST(SceneFile, RejectsBadFields) {
       {R"({"mesh": "scene_mesh.ply", "model": "oren"})", "'model' must be principled-v1 or gltf, not 'oren'"},
       {R"({"mesh": "scene_mesh.ply", "diffuse": "disney"})", "'diffuse' is no longer read"},
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 4}]})", "id 4 not in the mesh"},
-      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "roughness": "rough"}]})", "must be a number"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "roughness": "rough"}]})", "'roughness' must be a number"},
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": [1, 2]}]})", "[r,g,b]"},
-      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": [-1, 0, 0]}]})", "emission must be >= 0"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": [-1, 0, 0]}]})", "objects[0]: 'emission[0]' is -1, must be >= 0 and finite in float"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": 1e39}]})", "objects[0]: 'emission' is 1e+39, must be >= 0 and finite in float"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": [0, 1e300, 0]}]})", "'emission[1]' is 1e+300, must be >= 0 and finite in float"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "albedo": 1.5}]})", "'albedo' is 1.5, must be in [0, 1]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "albedo": [0.5, 0.5, -0.1]}]})", "'albedo[2]' is -0.1, must be in [0, 1]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "roughness": 0.01}]})", "'roughness' is 0.01, must be in [0.035, 1]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "roughness": 1e39}]})", "'roughness' is 1e+39, must be in [0.035, 1]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "specular": 1.01}]})", "'specular' is 1.01, must be in [0, 1]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "specular": -0.5}]})", "'specular' is -0.5, must be in [0, 1]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 4294967296}]})", "objects[0]: 'id' is 4294967296, must be in [0, 2147483647]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 2147483648}]})", "'id' is 2147483648, must be in [0, 2147483647]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": -1}]})", "'id' is -1, must be in [0, 2147483647]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 18446744073709551615}]})", "'id' is 18446744073709551615, must be in [0, 2147483647]"},
       {R"({"mesh": "scene_mesh.ply", "albedo_texture": "a.exr"})", "has no valid uv"},
       {R"({"mesh": "missing.ply"})", "cannot open"},
       {R"({"mesh": "scene_mesh.ply", "model": 3})", "type must be string"},
@@ -195,6 +212,35 @@ TEST(SceneFile, RejectsBadFields) {
     EXPECT_NE(err.find(cases[i].second), std::string::npos) << i << ": " << err;
     EXPECT_NE(err.find(tmpDir().string()), std::string::npos) << "must name the file: " << err;
   }
+}
+
+TEST(SceneFile, RejectsTexelsOutsideTheirDomain) {
+  MeshData m;
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  m.uvs = {{0, 0}, {1, 0}, {0, 1}};
+  m.triangles = {{0, 1, 2}};
+  writePly(tmpDir() / "uv_mesh.ply", m);
+  Image img(2, 2);
+  std::fill(img.rgb.begin(), img.rgb.end(), 0.5f);
+  img.rgb[3 * 3 + 1] = 1.5f;  // texel (1, 1), green
+  writeExr(tmpDir() / "bright_albedo.exr", img);
+  std::string err = errorOf([] {
+    loadSceneFile(writeBytes("tex_albedo.json", R"({"mesh": "uv_mesh.ply", "albedo_texture": "bright_albedo.exr"})"));
+  });
+  EXPECT_NE(err.find((tmpDir() / "bright_albedo.exr").string() + ": texel (1, 1) channel 1 is 1.5, must be in [0, 1]"),
+            std::string::npos) << err;
+  img.rgb[3 * 3 + 1] = -2.0f;
+  writeExr(tmpDir() / "negative_emission.exr", img);
+  err = errorOf([] {
+    loadSceneFile(writeBytes("tex_emission.json", R"({"mesh": "uv_mesh.ply", "objects": [{"id": 0,
+      "emission_texture": "negative_emission.exr", "emission_window": [0, 0, 2, 2]}]})"));
+  });
+  EXPECT_NE(err.find("negative_emission.exr: texel (1, 1) channel 1 is -2, must be >= 0"), std::string::npos) << err;
+  err = errorOf([] {
+    loadSceneFile(writeBytes("window.json", R"({"mesh": "uv_mesh.ply", "objects": [{"id": 0,
+      "emission_texture": "bright_albedo.exr", "emission_window": [0, 0, 4294967298, 2]}]})"));
+  });
+  EXPECT_NE(err.find("'emission_window[2]' is 4294967298"), std::string::npos) << err;
 }
 
 TEST(SceneFile, ModelDefaultsToPrincipledV1AndRoundTrips) {

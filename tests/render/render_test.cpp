@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include "core/error.h"
 #include "pipeline/synth.h"
 #include "render/film.h"
 
@@ -133,4 +134,27 @@ TEST(Render, DeterministicAcrossThreadCounts) {
   ro.seed = 43;
   const auto other = renderImage(scene, room.scene.appearance, lights, cam, ro).color.rgb;
   EXPECT_NE(0, std::memcmp(images[0].data(), other.data(), other.size() * sizeof(float)));
+}
+
+// Emission scaled past float range (gradcheck --emission-scale 1e38 made it inf) used to leave the
+// power table empty and crash in sampling; a scene without emitters is still valid.
+TEST(Render, LightSamplerRejectsNonFiniteEmissionAndAcceptsNone) {
+  SynthScene cornell = makeSynthScene(SynthSceneKind::Cornell, 32);
+  Scene scene(cornell.scene.mesh);
+  Appearance a = cornell.scene.appearance;
+  int emitter = -1;
+  for (int o = 0; o < a.objectCount(); ++o)
+    if (a.isEmissive(o)) emitter = o;
+  ASSERT_GE(emitter, 0);
+  a.emission[emitter] *= 1e38f;
+  try {
+    LightSampler lights(scene, a);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(fmt::format("object {} ('{}') emits a non-finite power", emitter, a.names[emitter])),
+              std::string::npos) << e.what();
+  }
+  for (Color& e : a.emission) e = Color::Zero();
+  a.emissionTextureOf.assign(a.objectCount(), -1);
+  EXPECT_TRUE(LightSampler(scene, a).empty());
 }

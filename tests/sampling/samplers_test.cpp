@@ -15,7 +15,9 @@ namespace {
 // at 1 m, facing down: it hides part of the floor from some cameras and is never seen itself.
 // Frame i shows radiance 0.1 + 0.1 i everywhere, so a reference says which frame it came from.
 fs::path makeCapture() {
-  const fs::path dir = fs::temp_directory_path() / "relume_sampler_test";
+  // One folder per test: CTest runs the tests of this file in parallel processes.
+  const fs::path dir = fs::temp_directory_path() /
+                       ("relume_sampler_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
   fs::remove_all(dir);
   fs::create_directories(dir / "images");
   MeshData m;

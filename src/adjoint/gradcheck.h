@@ -19,7 +19,7 @@ struct GradcheckOptions {
   std::vector<ParamKind> kinds;
   AdjointSettings settings;
   int paramsPerKind = 3;
-  float eps = 1e-3f;        // absolute for [0,1] parameters, relative (x max(|E|,1)) for emission
+  float eps = 1e-3f;        // absolute for [0,1] parameters; for emission x the scene's largest emission (floor 1)
   int batches = 32;         // level 2
   bool level1 = true, level2 = true;
   double level1Tolerance = 2e-3;  // relative, on top of the float-rounding floor

@@ -1,6 +1,7 @@
 #include "capture/objects.h"
 
 #include <charconv>
+#include <limits>
 
 #include "core/error.h"
 #include "io/json.h"
@@ -16,10 +17,12 @@ static std::map<int, std::string> parseObjectNames(const std::filesystem::path& 
     if (!j["objects"].is_array()) fail("{}: 'objects' must be an array", file);
     for (size_t i = 0; i < j["objects"].size(); ++i) {
       const Json& o = j["objects"][i];
-      if (!o.is_object() || !o.contains("id") || !o["id"].is_number_integer() || o["id"].get<int>() < 0)
-        fail("{}: objects[{}] needs a non-negative integer 'id'", file, i);
+      // Read as 64-bit: get<int>() would wrap 4294967296 onto object 0.
+      if (!o.is_object() || !o.contains("id") || !o["id"].is_number_integer() || o["id"].get<int64_t>() < 0 ||
+          o["id"].get<int64_t>() > std::numeric_limits<int>::max())
+        fail("{}: objects[{}] needs an integer 'id' in [0, {}]", file, i, std::numeric_limits<int>::max());
       if (!o.contains("name") || !o["name"].is_string()) fail("{}: objects[{}] needs a string 'name'", file, i);
-      names[o["id"].get<int>()] = o["name"].get<std::string>();
+      names[static_cast<int>(o["id"].get<int64_t>())] = o["name"].get<std::string>();
     }
     return names;
   }

@@ -134,7 +134,8 @@ TEST(ObjectNames, BothFormsAndErrors) {
   EXPECT_EQ(readObjectNames(a).at(2), "sofa");
   const fs::path b = writeFile("objects_b.json", R"({"0": "floor", "7": "lamp"})");
   EXPECT_EQ(readObjectNames(b).at(7), "lamp");
-  for (const char* bad : {R"({"x": "floor"})", R"({"objects": [{"id": -1, "name": "a"}]})", R"({"1": 3})", "[1,2]"}) {
+  for (const char* bad : {R"({"x": "floor"})", R"({"objects": [{"id": -1, "name": "a"}]})", R"({"1": 3})", "[1,2]",
+                          R"({"objects": [{"id": 4294967296, "name": "wraps to 0"}]})", R"({"4294967296": "floor"})"}) {
     const fs::path p = writeFile("objects_bad.json", bad);
     try {
       readObjectNames(p);

@@ -41,7 +41,9 @@ struct FitConfig {
   float gradientClamp = 10.0f;      // x the median nonzero gradient magnitude of the group; 0 = off
   float polyakFraction = 0.1f;      // of the final stage; 0 = off
   // Schedule
-  int emissionIterations = 200, materialIterations = 150, emissionTextureIterations = 100;
+  // The emission-texture stage is off by default: on the room it raised the loss (0.09 -> 0.15 in
+  // 40 iterations) and the emission error (1.5% -> 9.5%), a defect not yet understood.
+  int emissionIterations = 200, materialIterations = 150, emissionTextureIterations = 0;
   float albedoPasses = 60.0f;       // albedo stage length: expected draws per sampleable texel
   int maxStageIterations = 2000;    // cap on any albedo stage
   int maxResolution = 0;            // cap on the final albedo resolution; 0 = what the frames resolve

@@ -18,6 +18,7 @@ FitConfig DemoOptions::demoFitConfig() {
   c.emissionIterations = 100;
   c.materialIterations = 150;
   c.albedoPasses = 40;
+  c.emissionTextureIterations = 40;
   return c;
 }
 

@@ -283,10 +283,7 @@ void registerEval(CLI::App& app, CommandTable& table) {
     fmt::print("views: PSNR {:.2f} dB, MSRE {:.4f} over {} frames\n", v.psnr, v.msre, v.framePsnr.size());
     if (!truthPath.empty()) {
       if (coveragePath.empty()) fail("eval: --truth needs --coverage (prepare's coverage.exr)");
-      const Image cov = readImage(coveragePath);
-      std::vector<float> coverage(static_cast<size_t>(cov.width) * cov.height);
-      for (size_t i = 0; i < coverage.size(); ++i) coverage[i] = cov.rgb[3 * i];
-      const TruthComparison t = compareWithTruth(scene, loadSceneFile(truthPath), coverage, cov.width, {});
+      const TruthComparison t = compareWithTruth(scene, loadSceneFile(truthPath), readImage(coveragePath), {});
       report["truth"] = t.toJson();
       fmt::print("albedo: MAE {:.4f}, PSNR {:.2f} dB over {} texels; roughness MAE {:.3f}, specular MAE {:.3f}; emitters "
                  "{}/{} found ({} found in all), emission error {:.2f}%\n",

@@ -24,14 +24,6 @@ FitConfig DemoOptions::demoFitConfig() {
 
 namespace {
 
-std::vector<float> readCoverage(const fs::path& work, int& resolution) {
-  const Image cov = readImage(work / "coverage.exr");
-  resolution = cov.width;
-  std::vector<float> c(static_cast<size_t>(cov.width) * cov.height);
-  for (size_t i = 0; i < c.size(); ++i) c[i] = cov.rgb[3 * i];
-  return c;
-}
-
 void writeReport(const fs::path& out, const Json& s) {
   const Json& t = s["truth"];
   std::string md = "# relume demo: reconstruction of the synthetic room\n\n";
@@ -86,10 +78,8 @@ Json runDemo(const DemoOptions& o) {
   const Json materials = readJson(fs.resultDir / "materials.json");
   TruthOptions to;
   for (const Json& m : materials["objects"]) to.highlightObserved.push_back(m["highlight_observed"].get<bool>());
-  int coverageRes = 0;
-  const std::vector<float> coverage = readCoverage(o.out / "work", coverageRes);
   Image truthAlbedo;
-  const TruthComparison tc = compareWithTruth(fitted, truth, coverage, coverageRes, to, &truthAlbedo);
+  const TruthComparison tc = compareWithTruth(fitted, truth, readImage(o.out / "work" / "coverage.exr"), to, &truthAlbedo);
   writePng(o.out / "albedo_truth.png", truthAlbedo);
 
   RenderOptions ro;

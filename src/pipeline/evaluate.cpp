@@ -51,8 +51,8 @@ Json TruthComparison::toJson() const {
           {"emission_rel_error", emissionRelError}, {"objects", perObject}};
 }
 
-TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescription& truth, const std::vector<float>& coverage,
-                                 int coverageResolution, const TruthOptions& o, Image* truthAlbedo) {
+TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescription& truth, const Image& coverage,
+                                 const TruthOptions& o, Image* truthAlbedo) {
   const TriangleMesh& fm = fit.mesh;
   const TriangleMesh& tm = truth.mesh;
   if (fm.triangles.size() != tm.triangles.size())
@@ -78,8 +78,8 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
       for (int k = 0; k < 3; ++k) uv += bc[k] * tm.uvs[tm.triangles[tri][k]];
     const Color truth = ta.albedoAt(tm.faceObject[tri], uv);
     if (truthAlbedo) truthAlbedo->set(static_cast<int>(t % res), static_cast<int>(t / res), truth);
-    const int s = res / coverageResolution;
-    if (coverage[((t / res) / s) * coverageResolution + (t % res) / s] < o.minObservations) continue;
+    const int s = res / coverage.width;
+    if (coverage.at(static_cast<int>(t % res) / s, static_cast<int>(t / res) / s)[0] < o.minObservations) continue;
     const Color d = fa.albedo.texel(static_cast<uint32_t>(t)) - truth;
     abs += d.abs().sum() / 3, sq += d.square().sum() / 3;
     ++c.albedoTexels;

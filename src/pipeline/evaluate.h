@@ -39,12 +39,12 @@ struct TruthComparison {
   Json toJson() const;
 };
 
-// `coverage`: observations per texel of a `coverageResolution` grid over the fit's atlas.
+// `coverage`: prepare's coverage.exr (observations per texel over the fit's atlas).
 // The two meshes must have the same triangles in the same order (the fit's atlas mesh re-uses
 // the capture's triangles); the truth may have its own uv layout.
 // `truthAlbedo`, when given, receives the true albedo in the fit's atlas layout (for pictures).
 TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescription& truth,
-                                 const std::vector<float>& coverage, int coverageResolution, const TruthOptions& options,
+                                 const Image& coverage, const TruthOptions& options,
                                  Image* truthAlbedo = nullptr);
 
 }  // namespace relume

@@ -165,7 +165,7 @@ struct Workspace {
   int initResolution = 0;
   std::vector<int> resolutions;
   std::vector<float> coverage;  // observations per texel at the init resolution
-  std::vector<std::string> names;
+  std::vector<std::pair<int, std::string>> names;  // object id, name
   std::vector<uint32_t> kept;
 
   explicit Workspace(const fs::path& work) : dir(work) {
@@ -180,7 +180,7 @@ struct Workspace {
       kept = prepare.at("phases").at("frames").at("kept").get<std::vector<uint32_t>>();
       resolutions = prepare.at("resolutions").get<std::vector<int>>();
       const Json objectNames = prepare["phases"]["atlas"].value("object_names", Json::object());
-      for (const auto& [id, name] : objectNames.items()) names.push_back(id + "=" + name.get<std::string>());
+      for (const auto& [id, name] : objectNames.items()) names.push_back({std::stoi(id), name.get<std::string>()});
       return 0;
     });
     mesh = loadMesh(work / "atlas_mesh.ply");
@@ -310,11 +310,8 @@ class Fit {
     settings_.path.maxDepth = c_.maxDepth;
     settings_.path.russianRoulette = c_.russianRoulette;
     settings_.seed = c_.seed;
-    for (size_t i = 0; i < w_.names.size(); ++i) {
-      const auto eq = w_.names[i].find('=');
-      const int id = std::stoi(w_.names[i].substr(0, eq));
-      if (id >= 0 && id < appearance_.objectCount()) appearance_.names[id] = w_.names[i].substr(eq + 1);
-    }
+    for (const auto& [id, name] : w_.names)
+      if (id >= 0 && id < appearance_.objectCount()) appearance_.names[id] = name;
     std::fill(appearance_.albedoFromTexture.begin(), appearance_.albedoFromTexture.end(), 1);
     emitter_.assign(appearance_.objectCount(), 1);
     observedSum_.assign(appearance_.objectCount(), 0.0);
@@ -342,10 +339,10 @@ class Fit {
     if (resolutions.empty()) fail("fit: max_resolution {} is below the init resolution {}", finalRes_, w_.initResolution);
     if (!c_.coarseToFine) resolutions = {resolutions.back()};
     finalRes_ = resolutions.back();
-    std::map<int, size_t> sampleableCount{{init.resolution, init.sampleable.size()}};
-    auto sampleableAt = [&](int r) {
+    auto sampleableAt = [&](int r) -> size_t {
       // Valid texels scale with the area: estimate from the init resolution, no texel map needed.
-      return sampleableCount.count(r) ? sampleableCount[r] : init.sampleable.size() * (static_cast<size_t>(r) / init.resolution) * (r / init.resolution);
+      const size_t f = static_cast<size_t>(r / init.resolution);
+      return init.sampleable.size() * f * f;
     };
     const std::vector<Stage> stages = buildSchedule(c_, resolutions, w_, sampleableAt);
     spdlog::info("fit: {} stages, final albedo resolution {}^2 ({} texels sampleable at {}^2), radiance scale {:.3g}",

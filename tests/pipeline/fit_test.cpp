@@ -46,10 +46,7 @@ FitConfig smallConfig() {
 TruthComparison score(const fs::path& dir) {
   const SceneDescription fit = loadSceneFile(dir / "work" / "result" / "scene.json");
   const SceneDescription truth = loadSceneFile(dir / "capture" / "gt" / "scene.json");
-  const Image cov = readImage(dir / "work" / "coverage.exr");
-  std::vector<float> coverage(static_cast<size_t>(cov.width) * cov.height);
-  for (size_t i = 0; i < coverage.size(); ++i) coverage[i] = cov.rgb[3 * i];
-  return compareWithTruth(fit, truth, coverage, cov.width, {});
+  return compareWithTruth(fit, truth, readImage(dir / "work" / "coverage.exr"), {});
 }
 
 }  // namespace

@@ -40,4 +40,9 @@ inline Color rayLossDelta(const Color& estimate, const Color& reference, const C
   return 2.0f * scale * lossResidual(estimate, reference, clip);
 }
 
+// 2 scale slope^2: the ray's Gauss-Newton weight, d^2 (scale r^2) / dI_hat^2 with r linearised.
+inline Color rayCurvatureWeight(const Color& estimate, const Color& reference, const ClipThresholds& clip, float scale) {
+  return 2.0f * scale * lossResidualSlope(estimate, reference, clip).square();
+}
+
 }  // namespace relume

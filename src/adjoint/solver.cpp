@@ -119,6 +119,13 @@ class Scatterer {
     if (s_.mask.active(ParamKind::Roughness)) local_[g_.roughnessSlot(r.object)] += (d.dRoughness * w).sum();
     if (s_.mask.active(ParamKind::Specular)) local_[g_.specularSlot(r.object)] += (d.dSpecular * w).sum();
   }
+  // Row-sum Gauss-Newton curvature of the texels under the first vertex: w_t x0^2, x0 = dI/d(albedo).
+  void albedoCurvature(const VertexRecord& r, const Color& x0Squared) {
+    if (g_.albedoCurvature.empty() || !s_.mask.active(ParamKind::Albedo) || !a_.usesTexture(r.object)) return;
+    const TexelFootprint fp = a_.albedo.footprint(r.uv);
+    for (int k = 0; k < 4; ++k)
+      if (fp.weight[k] != 0.0f) g_.addAlbedoCurvature(fp.index[k], fp.weight[k] * x0Squared);
+  }
   void emission(int object, const Vec2& uv, const Color& g) {
     if (const Texture* t = a_.emissionTexture(object)) {
       if (!s_.mask.active(ParamKind::EmissionTexture)) return;
@@ -137,8 +144,11 @@ class Scatterer {
   std::vector<double>& local_;
 };
 
-// Backward sweep over one cached path, scattering delta x derivative.
-void sweep(const VertexRecord* records, int count, const Color& delta, const AdjointSettings& settings, Scatterer& out) {
+// Backward sweep over one cached path, scattering delta x derivative, and curvatureScale x the
+// squared albedo derivative at the first vertex (a one-sample Gauss-Newton estimate: its noise
+// inflates the curvature, which shortens steps but leaves the fixed point where the gradient is 0).
+void sweep(const VertexRecord* records, int count, const Color& delta, const Color& curvatureScale,
+           const AdjointSettings& settings, Scatterer& out) {
   Color arriving = Color::Zero();  // radiance arriving at x_k along its BSDF sample (suffix sum)
   for (int k = count - 1; k >= 0; --k) {
     const VertexRecord& r = records[k];
@@ -147,10 +157,20 @@ void sweep(const VertexRecord* records, int count, const Color& delta, const Adj
     const Color neeRadiance = r.hasNee ? Color(r.neeF * (r.neeCos * r.neeScale) * r.neeLe) : Color::Zero();
     const Color db = delta * r.beta;
     if (settings.bsdfGradientAt(k)) {
-      if (r.hasNee)
-        out.bsdf(r, evalBsdf(r.params, r.wo, r.neeWi, kBsdfDerivatives), db * (r.neeCos * r.neeScale) * r.neeLe);
-      if (r.hasScatter && after.maxCoeff() > 0.0f)
-        out.bsdf(r, evalBsdf(r.params, r.wo, r.wi, kBsdfDerivatives), db * (r.cos / (r.pdf * r.survival)) * after);
+      Color dIdAlbedo = Color::Zero();
+      if (r.hasNee) {
+        const BsdfEval d = evalBsdf(r.params, r.wo, r.neeWi, kBsdfDerivatives);
+        const Color radiance = r.beta * (r.neeCos * r.neeScale) * r.neeLe;
+        out.bsdf(r, d, delta * radiance);
+        dIdAlbedo += d.dAlbedo * radiance;
+      }
+      if (r.hasScatter && after.maxCoeff() > 0.0f) {
+        const BsdfEval d = evalBsdf(r.params, r.wo, r.wi, kBsdfDerivatives);
+        const Color radiance = r.beta * (r.cos / (r.pdf * r.survival)) * after;
+        out.bsdf(r, d, delta * radiance);
+        dIdAlbedo += d.dAlbedo * radiance;
+      }
+      if (k == 0) out.albedoCurvature(r, curvatureScale * dIdAlbedo.square());
     }
     if (r.frontFacing && settings.emissionGradientFrom(k - 1)) out.emission(r.object, r.uv, db * r.emitMis);
     if (r.hasNee && settings.emissionGradientFrom(k))
@@ -200,6 +220,7 @@ void adjointPass(const Scene& scene, const Appearance& appearance, const LightSa
                  uint64_t iteration, Gradients& grads) {
   const AppearanceScope scope = AppearanceScope::uniform(appearance);
   RecordBuffers buffers(settings.path.maxDepth);
+  const float invN = 1.0f / static_cast<float>(rays.size());
   tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
     Scatterer out(appearance, settings, grads);
     AdjointRecorder rec;
@@ -210,7 +231,10 @@ void adjointPass(const Scene& scene, const Appearance& appearance, const LightSa
       Pcg32 rng(adjointSeed(settings, iteration, j));
       rec.count = 0;
       const Color L = tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rng, rec);
-      if (isFinite(L)) sweep(rec.records, rec.count, delta[j] * lossResidualSlope(L, rays[j].reference, rays[j].clip), settings, out);
+      if (!isFinite(L)) continue;
+      const BatchRay& ray = rays[j];
+      sweep(rec.records, rec.count, delta[j] * lossResidualSlope(L, ray.reference, ray.clip),
+            rayCurvatureWeight(L, ray.reference, ray.clip, ray.weight * invN), settings, out);
     }
   });
   grads.combine();
@@ -227,6 +251,9 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
     return rayLossDelta(est, rays[j].reference, rays[j].clip, rays[j].weight * invN);
   };
   auto slopeOf = [&](size_t j, const Color& est) { return lossResidualSlope(est, rays[j].reference, rays[j].clip); };
+  auto curvatureOf = [&](size_t j, const Color& est) {
+    return rayCurvatureWeight(est, rays[j].reference, rays[j].clip, rays[j].weight * invN);
+  };
 
   if (settings.pairing == Pairing::Decorrelated) {
     Timer t;
@@ -266,7 +293,7 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
       if (!crossfit) {
         if (!isFinite(a)) continue;  // as in the decorrelated pass: no gradient from a broken path
         loss.local() += lossOf(j, a);
-        sweep(recA.records, recA.count, deltaOf(j, a) * slopeOf(j, a), settings, out);
+        sweep(recA.records, recA.count, deltaOf(j, a) * slopeOf(j, a), curvatureOf(j, a), settings, out);
         continue;
       }
       Pcg32 rngB(adjointSeed(settings, iteration, j));
@@ -277,8 +304,8 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
       // Each sample's delta drives the other's path: the derivative of r(a) r(b), a product of
       // independent estimates. A non-finite sample drives nothing and receives nothing.
       if (!isFinite(a) || !isFinite(b)) continue;
-      sweep(recB.records, recB.count, 0.5f * deltaOf(j, a) * slopeOf(j, b), settings, out);
-      sweep(recA.records, recA.count, 0.5f * deltaOf(j, b) * slopeOf(j, a), settings, out);
+      sweep(recB.records, recB.count, 0.5f * deltaOf(j, a) * slopeOf(j, b), 0.5f * curvatureOf(j, b), settings, out);
+      sweep(recA.records, recA.count, 0.5f * deltaOf(j, b) * slopeOf(j, a), 0.5f * curvatureOf(j, a), settings, out);
     }
   });
   grads.combine();

@@ -61,7 +61,8 @@ std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, 
                               const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration);
 
 // Adjoint pass only: scatters sum_j delta_j . dr(I_hat_j)/dtheta (paths traced with seed s2, r the
-// ray's loss residual) into `grads`.
+// ray's loss residual) into `grads`, and, when `grads` has albedo curvature storage, the
+// Gauss-Newton curvature of the loss in the albedo texels under each ray's first vertex.
 void adjointPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
                  const std::vector<BatchRay>& rays, const std::vector<Color>& delta, const AdjointSettings& settings,
                  uint64_t iteration, Gradients& grads);

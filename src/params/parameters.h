@@ -80,10 +80,17 @@ void projectToDomain(Appearance& a, const ParamDomain& domain = {});
 // after the pass, so millions of float additions lose nothing.
 class Gradients {
  public:
-  explicit Gradients(const Appearance& shape);
+  // withAlbedoCurvature: also allocate albedoCurvature (the Gauss-Newton albedo step needs it).
+  explicit Gradients(const Appearance& shape, bool withAlbedoCurvature = false);
   void clear();
   void addAlbedo(uint32_t texel, const Color& g) {
     for (int c = 0; c < 3; ++c) std::atomic_ref<float>(albedo[3 * texel + c]).fetch_add(g[c], std::memory_order_relaxed);
+  }
+  // Gauss-Newton curvature of the albedo texels (sum of w_t dI/da * dI/da over rays whose first
+  // vertex reads texel t with bilinear weight w_t); filled only when the solver is asked to.
+  void addAlbedoCurvature(uint32_t texel, const Color& h) {
+    for (int c = 0; c < 3; ++c)
+      std::atomic_ref<float>(albedoCurvature[3 * texel + c]).fetch_add(h[c], std::memory_order_relaxed);
   }
   void addEmissionTexel(int textureIndex, uint32_t texel, const Color& g) {
     float* d = emissionTexture[textureIndex].data() + 3 * texel;
@@ -98,6 +105,7 @@ class Gradients {
   void combine();
 
   std::vector<float> albedo;                      // texels * 3
+  std::vector<float> albedoCurvature;             // texels * 3 like albedo, or empty
   std::vector<std::vector<float>> emissionTexture;
   std::vector<float> objects;                     // combined [roughness | specular | emission rgb]
 

@@ -69,6 +69,8 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
   const TexelMap map(fm, res);
   if (truthAlbedo) *truthAlbedo = Image(res, res);
   double abs = 0, sq = 0;
+  struct ObjectError { double abs = 0, signedSum = 0; size_t texels = 0; };  // bias vs noise, per object
+  std::vector<ObjectError> objectError(fa.objectCount());
   for (size_t t = 0; t < map.texelCount(); ++t) {
     if (!map.covered(t)) continue;
     const uint32_t tri = map.triangle(t);
@@ -83,6 +85,8 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
     const Color d = fa.albedo.texel(static_cast<uint32_t>(t)) - truth;
     abs += d.abs().sum() / 3, sq += d.square().sum() / 3;
     ++c.albedoTexels;
+    ObjectError& oe = objectError[fm.faceObject[tri]];
+    oe.abs += d.abs().sum() / 3, oe.signedSum += d.sum() / 3, ++oe.texels;
   }
   if (c.albedoTexels) c.albedoMae = abs / c.albedoTexels, c.albedoPsnr = 10.0 * std::log10(1.0 / std::max(sq / c.albedoTexels, 1e-12));
   // Per object.
@@ -95,6 +99,8 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
     Json row = {{"id", obj}, {"name", ta.names[obj]}, {"roughness", {fa.roughness[obj], ta.roughness[obj]}},
                 {"specular", {fa.specular[obj], ta.specular[obj]}}, {"materials_scored", materials},
                 {"emitter", {fitEmitter, trueEmitter}}};
+    if (const ObjectError& oe = objectError[obj]; oe.texels)
+      row["albedo"] = {{"texels", oe.texels}, {"mae", oe.abs / oe.texels}, {"bias", oe.signedSum / oe.texels}};
     if (materials && !trueEmitter) {
       c.roughnessMae += std::abs(fa.roughness[obj] - ta.roughness[obj]);
       c.specularMae += std::abs(fa.specular[obj] - ta.specular[obj]);

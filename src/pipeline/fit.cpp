@@ -14,6 +14,7 @@
 #include "io/image.h"
 #include "optim/adam.h"
 #include "optim/checkpoint.h"
+#include "optim/gauss_newton.h"
 #include "optim/upsample.h"
 #include "sampling/samplers.h"
 #include "scene/atlas.h"
@@ -41,6 +42,8 @@ template <typename Fn> void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("emitter_gradients", ConfigField(&c.emitterGradients));
   fn("pairing", ConfigField(&c.pairing));
   fn("russian_roulette", ConfigField(&c.russianRoulette));
+  fn("albedo_step", ConfigField(&c.albedoStep));
+  fn("albedo_damping", ConfigField(&c.albedoDamping));
   fn("lr_albedo", ConfigField(&c.lrAlbedo));
   fn("lr_roughness", ConfigField(&c.lrRoughness));
   fn("lr_specular", ConfigField(&c.lrSpecular));
@@ -85,6 +88,8 @@ void validate(const FitConfig& c, const std::string& where) {
   parseGradientMode(c.gradients);
   parseEmitterGradients(c.emitterGradients);
   parsePairing(c.pairing);
+  need(c.albedoStep == "gauss-newton" || c.albedoStep == "adam", "albedo_step must be gauss-newton or adam");
+  need(std::isfinite(c.albedoDamping) && c.albedoDamping > 0 && c.albedoDamping <= 1, "albedo_damping must be in (0, 1]");
   need(c.lrFinalFraction > 0 && c.lrFinalFraction <= 1, "lr_final_fraction must be in (0, 1]");
   for (float lr : {c.lrAlbedo, c.lrRoughness, c.lrSpecular, c.lrEmission, c.lrEmissionTexture})
     need(std::isfinite(lr) && lr > 0 && lr <= 10, "learning rates must be in (0, 10]");
@@ -450,6 +455,13 @@ class Fit {
     std::vector<float> values = upsampleTexels(appearance_.albedo.rgb, from.map, to.map, w_.mesh, 3);
     appearance_.albedo = Texture(to.resolution, to.resolution);
     appearance_.albedo.rgb = std::move(values);
+    if (newton_.size() > 0) {  // each child texel receives ~1/f^2 of its parent's curvature, as of its gradient
+      GaussNewtonState up;
+      up.curvature = upsampleTexels(newton_.curvature, from.map, to.map, w_.mesh, 3);
+      for (float& h : up.curvature) h /= f2;
+      up.steps = upsampleSteps(newton_.steps, from, to);
+      newton_ = std::move(up);
+    }
     if (auto it = adam_.find("albedo"); it != adam_.end()) {
       AdamState& s = it->second;
       AdamState up;
@@ -457,14 +469,20 @@ class Fit {
       up.v = upsampleTexels(s.v, from.map, to.map, w_.mesh, 3);
       for (float& m : up.m) m /= f2;
       for (float& v : up.v) v /= f2 * f2;
-      std::vector<float> steps(s.steps.begin(), s.steps.end());
-      steps = upsampleTexels(steps, from.map, to.map, w_.mesh, 3);
-      up.steps.assign(steps.size(), 0);
-      for (size_t i = 0; i < steps.size(); ++i) up.steps[i] = static_cast<uint16_t>(std::lround(steps[i]));
+      up.steps = upsampleSteps(s.steps, from, to);
       s = std::move(up);
     }
     polyak_.erase("albedo");
   }
+
+  std::vector<uint16_t> upsampleSteps(const std::vector<uint16_t>& steps, const TexelSpace& from, const TexelSpace& to) const {
+    const std::vector<float> up = upsampleTexels(std::vector<float>(steps.begin(), steps.end()), from.map, to.map, w_.mesh, 3);
+    std::vector<uint16_t> out(up.size());
+    for (size_t i = 0; i < up.size(); ++i) out[i] = static_cast<uint16_t>(std::lround(up[i]));
+    return out;
+  }
+
+  bool newtonAlbedo() const { return c_.albedoStep == "gauss-newton"; }
 
   AdamSettings adamFor(const ParamGroup& g, float lrScale) const {
     AdamSettings s;
@@ -533,7 +551,7 @@ class Fit {
     Progress progress(st.name, static_cast<size_t>(st.iterations));
     progress.advance(static_cast<size_t>(firstIteration));
     PhaseTimes times;
-    Gradients grads(appearance_);  // one buffer per stage, cleared every iteration
+    Gradients grads(appearance_, newtonAlbedo());  // one buffer per stage, cleared every iteration
     for (int it = firstIteration; it < st.iterations; ++it) {
       const uint64_t iteration = static_cast<uint64_t>(globalIteration_);
       // Constant, except over the second half of a settling stage: linear down to lr_final_fraction.
@@ -556,10 +574,19 @@ class Fit {
       for (ParamGroup& g : paramGroups(appearance_, &grads)) {
         if (!st.active.active(g.kind)) continue;
         maskGradients(g, space);
-        clampGradients(g.grads, c_.gradientClamp);
-        auto [state, inserted] = adam_.try_emplace(g.name(), g.values.size());
-        if (state->second.size() != g.values.size()) state->second = AdamState(g.values.size());
-        state->second.step(g.values, g.grads, g.lo, g.hi, adamFor(g, lrScale), static_cast<uint32_t>(it + 1));
+        if (g.kind == ParamKind::Albedo && newtonAlbedo()) {
+          // No gradient clamp: the step is bounded by maxStep, and a bright outlier in the adjoint
+          // sample inflates the curvature as much as the gradient.
+          if (newton_.size() != g.values.size()) newton_ = GaussNewtonState(g.values.size());
+          GaussNewtonSettings gn;
+          gn.damping = c_.albedoDamping * lrScale;
+          newton_.step(g.values, g.grads, grads.albedoCurvature, g.lo, g.hi, gn);
+        } else {
+          clampGradients(g.grads, c_.gradientClamp);
+          auto [state, inserted] = adam_.try_emplace(g.name(), g.values.size());
+          if (state->second.size() != g.values.size()) state->second = AdamState(g.values.size());
+          state->second.step(g.values, g.grads, g.lo, g.hi, adamFor(g, lrScale), static_cast<uint32_t>(it + 1));
+        }
         if (it >= averageFrom) polyak_[g.name()].add(g.values);
       }
       times.optimiser += to.seconds();
@@ -690,6 +717,10 @@ class Fit {
       ck.put(name + ".mean", p.mean);
       ck.put(name + ".count", std::vector<uint32_t>{p.count});
     }
+    if (newton_.size() > 0) {
+      ck.put("albedo.curvature", newton_.curvature);
+      ck.put("albedo.curvature_steps", newton_.steps);
+    }
     ck.put("emitter", emitter_);
     ck.put("highlight", highlight_);
     ck.put("observed.sum", observedSum_);
@@ -714,6 +745,11 @@ class Fit {
         ck.get(g.name() + ".count", count);
         p.count = count[0];
       }
+    }
+    if (newtonAlbedo() && ck.has("albedo.curvature")) {
+      newton_ = GaussNewtonState(appearance_.albedo.rgb.size());
+      ck.get("albedo.curvature", newton_.curvature);
+      ck.get("albedo.curvature_steps", newton_.steps);
     }
     ck.get("emitter", emitter_);
     ck.get("highlight", highlight_);
@@ -764,6 +800,7 @@ class Fit {
   std::vector<double> observedSum_;      // per object, luminance of the references seen in the emission stage
   std::vector<uint64_t> observedCount_;
   std::map<std::string, AdamState> adam_;
+  GaussNewtonState newton_;  // the albedo's, with albedo_step gauss-newton
   std::map<std::string, PolyakAverage> polyak_;
   SamplerStats stats_;
   float radianceScale_ = 1e-6f;

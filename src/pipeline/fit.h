@@ -32,6 +32,11 @@ struct FitConfig {
   // sign-like steps then jitter it by ~lr. On the room at 256^2 (100 passes): lr 0.1 -> albedo
   // MAE 0.129, 0.02 -> 0.063, 0.005 -> 0.074 (start 0.115).
   float lrAlbedo = 0.02f, lrRoughness = 0.005f, lrSpecular = 0.005f;
+  // Albedo step: "gauss-newton" (damped diagonal Gauss-Newton, optim/gauss_newton.h) or "adam"
+  // (the paper's, at lr_albedo).
+  std::string albedoStep = "gauss-newton";
+  float albedoDamping = 0.1f;       // Gauss-Newton: fraction of the Newton step taken once a texel
+                                    // has had 1/damping visits (1/visit before)
   float lrEmission = 0.2f;          // relative: a step is lr * max(E, emissionFloor * brightest observation)
   float emissionFloor = 0.02f;
   // Relative, per texel. Every NEE sample from a lit surface splats onto some emitter texel, so

@@ -70,3 +70,25 @@ TEST_F(AdjointPassTest, FrozenGroupsGetNoGradient) {
   for (int obj = 0; obj < e.current.objectCount(); ++obj) spec += std::abs(g.objects[g.specularSlot(obj)]);
   EXPECT_GT(spec, 0.0);
 }
+
+TEST_F(AdjointPassTest, AlbedoCurvatureIsTheSquaredFirstVertexSensitivity) {
+  // One ray at a time, delta = 1: the albedo gradient sums to the ray's sensitivity X = dI/da at
+  // its first vertex (bilinear weights sum to 1), and the row-sum curvature to 2 X^2 (weight 2/N).
+  s.mask = ParamMask::only({ParamKind::Albedo});
+  int checked = 0;
+  for (const BatchRay& ray : e.rays) {
+    Gradients g(e.current, true);
+    adjointPass(scene, e.current, lights, {ray}, {Color::Ones()}, s, 7, g);
+    for (int c = 0; c < 3; ++c) {
+      double gradient = 0, curvature = 0;
+      for (size_t t = c; t < g.albedo.size(); t += 3) gradient += g.albedo[t], curvature += g.albedoCurvature[t];
+      EXPECT_NEAR(curvature, 2 * gradient * gradient, 1e-4 * (curvature + 1e-6));
+      EXPECT_GE(curvature, 0.0);
+      checked += gradient > 0;
+    }
+  }
+  EXPECT_GT(checked, 3 * 32);  // most rays see a lit, textured first vertex
+  Gradients none(e.current);  // without curvature storage nothing is accumulated
+  computeGradients(scene, e.current, lights, e.rays, s, 0, none);
+  EXPECT_TRUE(none.albedoCurvature.empty());
+}

@@ -5,6 +5,7 @@
 #include "core/error.h"
 #include "optim/adam.h"
 #include "optim/checkpoint.h"
+#include "optim/gauss_newton.h"
 #include "optim/upsample.h"
 
 using namespace relume;
@@ -86,6 +87,48 @@ TEST(Adam, ClampBoundsOutliersAndDropsNonFinite) {
   std::vector<float> off = {1000, 1};
   EXPECT_EQ(clampGradients(off, 0.0f), 0.0f);
   EXPECT_EQ(off[0], 1000.0f);
+}
+
+// Loss sum_i h_i (x_i - t_i)^2 / 2: gradient h (x - t), curvature h.
+TEST(GaussNewton, FirstStepLandsOnTheTargetAndMaskedEntriesStay) {
+  std::vector<float> x = {0.2f, 0.5f, 0.9f}, h = {0.01f, 0.0f, 4.0f};
+  const std::vector<float> target = {0.6f, 0.5f, 0.3f};
+  std::vector<float> g(3);
+  for (int i = 0; i < 3; ++i) g[i] = h[i] * (x[i] - target[i]);
+  GaussNewtonState s(3);
+  GaussNewtonSettings settings;
+  settings.maxStep = 1.0f;
+  EXPECT_EQ(s.step(x, g, h, 0.0f, 1.0f, settings), 2u);  // entry 1: no gradient, no curvature
+  EXPECT_NEAR(x[0], 0.6f, 1e-6f);  // the first visit takes the whole Newton step, whatever h's scale
+  EXPECT_EQ(x[1], 0.5f);
+  EXPECT_NEAR(x[2], 0.3f, 1e-6f);
+  EXPECT_EQ(s.steps[1], 0);
+}
+
+TEST(GaussNewton, AveragesNoisyTargetsThenBoundsAndProjects) {
+  // Per-visit targets t_k with noise: after n <= 1/damping visits x is their exact mean.
+  GaussNewtonState s(1);
+  GaussNewtonSettings settings;
+  settings.damping = 0.1f;
+  settings.maxStep = 1.0f;
+  std::vector<float> x = {0.0f};
+  const float targets[] = {0.7f, 0.3f, 0.6f, 0.4f, 0.5f};
+  for (float t : targets) {
+    const std::vector<float> h = {2.0f}, g = {2.0f * (x[0] - t)};
+    s.step(x, g, h, 0.0f, 1.0f, settings);
+  }
+  EXPECT_NEAR(x[0], 0.5f, 1e-5f);
+  // Bounded step, then the domain.
+  settings.maxStep = 0.05f;
+  const std::vector<float> h = {2.0f}, far = {2.0f * (x[0] - 10.0f)};
+  s.step(x, far, h, 0.0f, 1.0f, settings);
+  EXPECT_NEAR(x[0], 0.55f, 1e-6f);
+  settings.maxStep = 100.0f;
+  s.step(x, far, h, 0.0f, 1.0f, settings);
+  EXPECT_EQ(x[0], 1.0f);
+  // Non-finite input changes nothing.
+  const std::vector<float> nan = {std::nanf("")};
+  EXPECT_EQ(s.step(x, nan, h, 0.0f, 1.0f, settings), 0u);
 }
 
 TEST(Polyak, IsTheRunningMean) {

@@ -40,9 +40,10 @@ inline Color rayLossDelta(const Color& estimate, const Color& reference, const C
   return 2.0f * scale * lossResidual(estimate, reference, clip);
 }
 
-// 2 scale slope^2: the ray's Gauss-Newton weight, d^2 (scale r^2) / dI_hat^2 with r linearised.
-inline Color rayCurvatureWeight(const Color& estimate, const Color& reference, const ClipThresholds& clip, float scale) {
-  return 2.0f * scale * lossResidualSlope(estimate, reference, clip).square();
+// The Gauss-Newton weight of a ray whose sensitivities come from samples a and b (the slopes of
+// their residuals): 2 scale slope_a slope_b, i.e. d^2 (scale r^2) / dI_hat^2 with r linearised.
+inline Color rayCurvatureWeight(const Color& slopeA, const Color& slopeB, float scale) {
+  return 2.0f * scale * slopeA * slopeB;
 }
 
 }  // namespace relume

@@ -106,6 +106,7 @@ struct AdjointRecorder : NullPathObserver {
 
 class Scatterer {
  public:
+  static constexpr bool kScatters = true;
   Scatterer(const Appearance& a, const AdjointSettings& s, Gradients& g) : a_(a), s_(s), g_(g), local_(g.objectLocal()) {}
 
   void bsdf(const VertexRecord& r, const BsdfEval& d, const Color& w) {
@@ -119,12 +120,15 @@ class Scatterer {
     if (s_.mask.active(ParamKind::Roughness)) local_[g_.roughnessSlot(r.object)] += (d.dRoughness * w).sum();
     if (s_.mask.active(ParamKind::Specular)) local_[g_.specularSlot(r.object)] += (d.dSpecular * w).sum();
   }
-  // Row-sum Gauss-Newton curvature of the texels under the first vertex: w_t x0^2, x0 = dI/d(albedo).
-  void albedoCurvature(const VertexRecord& r, const Color& x0Squared) {
-    if (g_.albedoCurvature.empty() || !s_.mask.active(ParamKind::Albedo) || !a_.usesTexture(r.object)) return;
+  // Row-sum Gauss-Newton curvature of the texels under the first vertex: weight x w_t X X', the
+  // product of two independent estimates of the ray's albedo sensitivity X (an unbiased X^2).
+  void albedoCurvature(const VertexRecord& r, const Color& h) {
+    // h is zero for a path with no vertex (r is then stale) or no diffuse sensitivity: nothing to add.
+    if (g_.albedoCurvature.empty() || (h == 0.0f).all() || !s_.mask.active(ParamKind::Albedo) || !a_.usesTexture(r.object))
+      return;
     const TexelFootprint fp = a_.albedo.footprint(r.uv);
     for (int k = 0; k < 4; ++k)
-      if (fp.weight[k] != 0.0f) g_.addAlbedoCurvature(fp.index[k], fp.weight[k] * x0Squared);
+      if (fp.weight[k] != 0.0f) g_.addAlbedoCurvature(fp.index[k], fp.weight[k] * h);
   }
   void emission(int object, const Vec2& uv, const Color& g) {
     if (const Texture* t = a_.emissionTexture(object)) {
@@ -144,39 +148,47 @@ class Scatterer {
   std::vector<double>& local_;
 };
 
-// Backward sweep over one cached path, scattering delta x derivative, and curvatureScale x the
-// squared albedo derivative at the first vertex (a one-sample Gauss-Newton estimate: its noise
-// inflates the curvature, which shortens steps but leaves the fixed point where the gradient is 0).
-void sweep(const VertexRecord* records, int count, const Color& delta, const Color& curvatureScale,
-           const AdjointSettings& settings, Scatterer& out) {
+// What the primal pass keeps of a sweep: nothing but the first vertex's albedo sensitivity.
+struct NoScatter {
+  static constexpr bool kScatters = false;
+  void bsdf(const VertexRecord&, const BsdfEval&, const Color&) {}
+  void emission(int, const Vec2&, const Color&) {}
+};
+
+// Backward sweep over one cached path, scattering delta x derivative. Returns dI/d(albedo) at the
+// first vertex (per channel, zero if it has no diffuse lobe): the Gauss-Newton sensitivity.
+template <typename Out>
+Color sweep(const VertexRecord* records, int count, const Color& delta, const AdjointSettings& settings, Out& out) {
   Color arriving = Color::Zero();  // radiance arriving at x_k along its BSDF sample (suffix sum)
+  Color dIdAlbedo = Color::Zero();
   for (int k = count - 1; k >= 0; --k) {
     const VertexRecord& r = records[k];
     const Color after = r.hasScatter ? arriving : Color::Zero();
     const Color throughput = r.hasScatter ? Color(r.f * (r.cos / (r.pdf * r.survival))) : Color::Zero();
     const Color neeRadiance = r.hasNee ? Color(r.neeF * (r.neeCos * r.neeScale) * r.neeLe) : Color::Zero();
     const Color db = delta * r.beta;
-    if (settings.bsdfGradientAt(k)) {
-      Color dIdAlbedo = Color::Zero();
+    if (k == 0 || (Out::kScatters && settings.bsdfGradientAt(k))) {
       if (r.hasNee) {
         const BsdfEval d = evalBsdf(r.params, r.wo, r.neeWi, kBsdfDerivatives);
         const Color radiance = r.beta * (r.neeCos * r.neeScale) * r.neeLe;
-        out.bsdf(r, d, delta * radiance);
-        dIdAlbedo += d.dAlbedo * radiance;
+        if (settings.bsdfGradientAt(k)) out.bsdf(r, d, delta * radiance);
+        if (k == 0) dIdAlbedo += d.dAlbedo * radiance;
       }
       if (r.hasScatter && after.maxCoeff() > 0.0f) {
         const BsdfEval d = evalBsdf(r.params, r.wo, r.wi, kBsdfDerivatives);
         const Color radiance = r.beta * (r.cos / (r.pdf * r.survival)) * after;
-        out.bsdf(r, d, delta * radiance);
-        dIdAlbedo += d.dAlbedo * radiance;
+        if (settings.bsdfGradientAt(k)) out.bsdf(r, d, delta * radiance);
+        if (k == 0) dIdAlbedo += d.dAlbedo * radiance;
       }
-      if (k == 0) out.albedoCurvature(r, curvatureScale * dIdAlbedo.square());
     }
-    if (r.frontFacing && settings.emissionGradientFrom(k - 1)) out.emission(r.object, r.uv, db * r.emitMis);
-    if (r.hasNee && settings.emissionGradientFrom(k))
-      out.emission(r.lightObject, r.lightUv, db * r.neeF * (r.neeCos * r.neeScale));
+    if (Out::kScatters) {
+      if (r.frontFacing && settings.emissionGradientFrom(k - 1)) out.emission(r.object, r.uv, db * r.emitMis);
+      if (r.hasNee && settings.emissionGradientFrom(k))
+        out.emission(r.lightObject, r.lightUv, db * r.neeF * (r.neeCos * r.neeScale));
+    }
     arriving = r.emitted + neeRadiance + throughput * after;
   }
+  return dIdAlbedo;
 }
 
 // Per-thread record buffers, bounded by the max depth: constant memory per ray.
@@ -210,14 +222,35 @@ std::vector<Color> traceRays(const Scene& scene, const LightSampler& lights, con
 }
 
 std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
-                              const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration) {
-  return traceRays(scene, lights, AppearanceScope::uniform(appearance), rays, settings.path,
-                   [&](size_t j) { return primalSeed(settings, iteration, j); });
+                              const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration,
+                              std::vector<Color>* albedoSensitivity) {
+  if (!albedoSensitivity)
+    return traceRays(scene, lights, AppearanceScope::uniform(appearance), rays, settings.path,
+                     [&](size_t j) { return primalSeed(settings, iteration, j); });
+  // The same paths, recorded, to read the first vertex's albedo sensitivity off them.
+  const AppearanceScope scope = AppearanceScope::uniform(appearance);
+  RecordBuffers buffers(settings.path.maxDepth);
+  std::vector<Color> estimate(rays.size());
+  albedoSensitivity->assign(rays.size(), Color::Zero());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
+    AdjointRecorder rec;
+    rec.appearance = &appearance;
+    rec.records = buffers.get(0);
+    NoScatter none;
+    for (size_t j = range.begin(); j < range.end(); ++j) {
+      Pcg32 rng(primalSeed(settings, iteration, j));
+      rec.count = 0;
+      estimate[j] = safeRadiance(tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rng, rec));
+      if (isFinite(estimate[j]) && (estimate[j] != 0.0f).any())
+        (*albedoSensitivity)[j] = sweep(rec.records, rec.count, Color::Zero(), settings, none);
+    }
+  });
+  return estimate;
 }
 
 void adjointPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
                  const std::vector<BatchRay>& rays, const std::vector<Color>& delta, const AdjointSettings& settings,
-                 uint64_t iteration, Gradients& grads) {
+                 uint64_t iteration, Gradients& grads, const std::vector<Color>* primalSensitivity) {
   const AppearanceScope scope = AppearanceScope::uniform(appearance);
   RecordBuffers buffers(settings.path.maxDepth);
   const float invN = 1.0f / static_cast<float>(rays.size());
@@ -230,11 +263,13 @@ void adjointPass(const Scene& scene, const Appearance& appearance, const LightSa
       if ((delta[j] == 0.0f).all()) continue;  // exact: deltas are tiny (1/N), isZero() would drop them
       Pcg32 rng(adjointSeed(settings, iteration, j));
       rec.count = 0;
-      const Color L = tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rng, rec);
-      if (!isFinite(L)) continue;
       const BatchRay& ray = rays[j];
-      sweep(rec.records, rec.count, delta[j] * lossResidualSlope(L, ray.reference, ray.clip),
-            rayCurvatureWeight(L, ray.reference, ray.clip, ray.weight * invN), settings, out);
+      const Color L = tracePath(scene, lights, scope, settings.path, ray.origin, ray.dir, rng, rec);
+      if (!isFinite(L)) continue;
+      const Color slope = lossResidualSlope(L, ray.reference, ray.clip);
+      const Color x = slope * sweep(rec.records, rec.count, delta[j] * slope, settings, out);
+      const Color partner = primalSensitivity ? (*primalSensitivity)[j] : x;
+      out.albedoCurvature(rec.records[0], rayCurvatureWeight(x, partner, ray.weight * invN));
     }
   });
   grads.combine();
@@ -251,13 +286,13 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
     return rayLossDelta(est, rays[j].reference, rays[j].clip, rays[j].weight * invN);
   };
   auto slopeOf = [&](size_t j, const Color& est) { return lossResidualSlope(est, rays[j].reference, rays[j].clip); };
-  auto curvatureOf = [&](size_t j, const Color& est) {
-    return rayCurvatureWeight(est, rays[j].reference, rays[j].clip, rays[j].weight * invN);
-  };
 
   if (settings.pairing == Pairing::Decorrelated) {
     Timer t;
-    const std::vector<Color> estimate = primalPass(scene, appearance, lights, rays, settings, iteration);
+    const bool curvature = !grads.albedoCurvature.empty();
+    std::vector<Color> sensitivity;
+    const std::vector<Color> estimate =
+        primalPass(scene, appearance, lights, rays, settings, iteration, curvature ? &sensitivity : nullptr);
     result.times.primal = t.seconds();
     Timer tl;
     std::vector<Color> delta(rays.size());
@@ -265,11 +300,12 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
     for (size_t j = 0; j < rays.size(); ++j) {
       loss += lossOf(j, estimate[j]);
       delta[j] = deltaOf(j, estimate[j]);
+      if (curvature) sensitivity[j] *= slopeOf(j, estimate[j]);
     }
     result.loss = loss * invN;
     result.times.loss = tl.seconds();
     Timer ta;
-    adjointPass(scene, appearance, lights, rays, delta, settings, iteration, grads);
+    adjointPass(scene, appearance, lights, rays, delta, settings, iteration, grads, curvature ? &sensitivity : nullptr);
     result.times.adjoint = ta.seconds();
     return result;
   }
@@ -293,7 +329,8 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
       if (!crossfit) {
         if (!isFinite(a)) continue;  // as in the decorrelated pass: no gradient from a broken path
         loss.local() += lossOf(j, a);
-        sweep(recA.records, recA.count, deltaOf(j, a) * slopeOf(j, a), curvatureOf(j, a), settings, out);
+        const Color x = slopeOf(j, a) * sweep(recA.records, recA.count, deltaOf(j, a) * slopeOf(j, a), settings, out);
+        out.albedoCurvature(recA.records[0], rayCurvatureWeight(x, x, rays[j].weight * invN));  // biased, as reuse is
         continue;
       }
       Pcg32 rngB(adjointSeed(settings, iteration, j));
@@ -304,8 +341,9 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
       // Each sample's delta drives the other's path: the derivative of r(a) r(b), a product of
       // independent estimates. A non-finite sample drives nothing and receives nothing.
       if (!isFinite(a) || !isFinite(b)) continue;
-      sweep(recB.records, recB.count, 0.5f * deltaOf(j, a) * slopeOf(j, b), 0.5f * curvatureOf(j, b), settings, out);
-      sweep(recA.records, recA.count, 0.5f * deltaOf(j, b) * slopeOf(j, a), 0.5f * curvatureOf(j, a), settings, out);
+      const Color xb = slopeOf(j, b) * sweep(recB.records, recB.count, 0.5f * deltaOf(j, a) * slopeOf(j, b), settings, out);
+      const Color xa = slopeOf(j, a) * sweep(recA.records, recA.count, 0.5f * deltaOf(j, b) * slopeOf(j, a), settings, out);
+      out.albedoCurvature(recA.records[0], rayCurvatureWeight(xa, xb, rays[j].weight * invN));
     }
   });
   grads.combine();

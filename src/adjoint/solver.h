@@ -56,16 +56,20 @@ std::vector<Color> traceRays(const Scene& scene, const LightSampler& lights, con
                              const std::vector<BatchRay>& rays, const PathSettings& path,
                              const std::function<uint64_t(size_t)>& seedOf);
 
-// Primal pass only: radiance estimates with seed s1.
+// Primal pass only: radiance estimates with seed s1; with `albedoSensitivity`, also each ray's
+// dI/d(albedo) at its first vertex (the paths are then recorded, as in the adjoint pass).
 std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
-                              const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration);
+                              const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration,
+                              std::vector<Color>* albedoSensitivity = nullptr);
 
 // Adjoint pass only: scatters sum_j delta_j . dr(I_hat_j)/dtheta (paths traced with seed s2, r the
 // ray's loss residual) into `grads`, and, when `grads` has albedo curvature storage, the
-// Gauss-Newton curvature of the loss in the albedo texels under each ray's first vertex.
+// Gauss-Newton curvature of the loss in the albedo texels under each ray's first vertex: the
+// product of this pass's residual sensitivity and `primalSensitivity` (the primal's, times its
+// residual slope; unbiased), or without it the square of this pass's own (inflated by its variance).
 void adjointPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
                  const std::vector<BatchRay>& rays, const std::vector<Color>& delta, const AdjointSettings& settings,
-                 uint64_t iteration, Gradients& grads);
+                 uint64_t iteration, Gradients& grads, const std::vector<Color>* primalSensitivity = nullptr);
 
 // One iteration's gradient of the batch loss under settings.pairing. `grads` is accumulated into
 // (clear it first) and combined on return.

@@ -88,7 +88,41 @@ TEST_F(AdjointPassTest, AlbedoCurvatureIsTheSquaredFirstVertexSensitivity) {
     }
   }
   EXPECT_GT(checked, 3 * 32);  // most rays see a lit, textured first vertex
+  // With the primal's sensitivity X_p as partner the curvature is 2 X X_p.
+  Gradients g(e.current, true);
+  const std::vector<Color> partner = {Color(0.5f, 1.0f, 2.0f)};
+  adjointPass(scene, e.current, lights, {e.rays[0]}, {Color::Ones()}, s, 7, g, &partner);
+  for (int c = 0; c < 3; ++c) {
+    double gradient = 0, curvature = 0;
+    for (size_t t = c; t < g.albedo.size(); t += 3) gradient += g.albedo[t], curvature += g.albedoCurvature[t];
+    EXPECT_NEAR(curvature, 2 * gradient * partner[0][c], 1e-4 * (std::abs(curvature) + 1e-6));
+  }
   Gradients none(e.current);  // without curvature storage nothing is accumulated
   computeGradients(scene, e.current, lights, e.rays, s, 0, none);
   EXPECT_TRUE(none.albedoCurvature.empty());
+}
+
+TEST_F(AdjointPassTest, PrimalSensitivityEstimatesWhatTheAdjointDifferentiates) {
+  // Over independent seeds, the primal pass's first-vertex albedo sensitivity and the adjoint
+  // pass's albedo gradient at delta = 1 estimate the same sum over rays of dI/d(albedo).
+  s.mask = ParamMask::only({ParamKind::Albedo});
+  const int n = 200;
+  Color sumP = Color::Zero(), sumA = Color::Zero(), sqP = Color::Zero(), sqA = Color::Zero();
+  for (int it = 0; it < n; ++it) {
+    std::vector<Color> x;
+    primalPass(scene, e.current, lights, e.rays, s, it, &x);
+    Color p = Color::Zero();
+    for (const Color& v : x) p += v;
+    Gradients g(e.current);
+    adjointPass(scene, e.current, lights, e.rays, std::vector<Color>(e.rays.size(), Color::Ones()), s, it, g);
+    Color a = Color::Zero();
+    for (size_t t = 0; t < g.albedo.size(); ++t) a[t % 3] += g.albedo[t];
+    sumP += p, sumA += a, sqP += p.square(), sqA += a.square();
+  }
+  for (int c = 0; c < 3; ++c) {
+    const double mp = sumP[c] / n, ma = sumA[c] / n;
+    const double se = std::sqrt((sqP[c] / n - mp * mp + sqA[c] / n - ma * ma) / n);
+    EXPECT_GT(mp, 0.0);
+    EXPECT_NEAR(mp, ma, 4 * se + 1e-6) << "channel " << c;
+  }
 }

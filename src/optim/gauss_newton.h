@@ -1,10 +1,15 @@
 // Damped diagonal Gauss-Newton step, for unknowns the loss is nearly linear in: each pixel is
-// linear in the albedo at its first vertex, so the residual divided by that sensitivity is how
-// far the albedo is off. The step is damping x g / h, h a running average (per-entry bias
-// correction) of the row-sum curvature the adjoint pass accumulates; entries with no gradient
-// this iteration are left alone, as in masked Adam. Adam's step is about lr whatever the residual,
-// so a texel 0.3 too dark needs ~0.3 / lr visits at full signal and many more at the 1-spp noise
-// level; this step is the residual's own size.
+// linear in the albedo at its first vertex (I = a X + C), so the residual divided by that
+// sensitivity is how far the albedo is off. Per entry, with g the gradient and h the curvature
+// the adjoint pass accumulates, x h - g = sum (I - C) X' no longer depends on x; the step keeps
+// running averages of it and of h over the entry's visits and sets x to their ratio: a running
+// weighted least-squares fit of the entry to every ray it has seen (the primal's noise in a X
+// cancels between the two, unlike in an average of per-visit Newton targets x - g / h).
+// The first visit is the full Newton step x - g / h; visit n weighs 1/n (a plain average) until
+// 1/n falls to `damping`, then an exponential average over ~1/damping visits (the lights and
+// the neighbours still move). Entries with no gradient this iteration are left alone, as in
+// masked Adam. Adam's step is about lr whatever the residual, so a texel 0.3 too dark needs
+// ~0.3 / lr visits at full signal and many more at the 1-spp noise level.
 #pragma once
 #include <cstdint>
 #include <span>
@@ -13,23 +18,22 @@
 namespace relume {
 
 struct GaussNewtonSettings {
-  float damping = 0.1f;  // fraction of the Newton step taken after the first 1/damping visits
-                         // (before: 1/visit, a plain average of the noisy per-visit targets)
-  float beta = 0.9f;     // running average of the curvature over an entry's visits
-  float maxStep = 0.25f; // bound on |step| per iteration, in value units (guards rare huge residuals)
+  float damping = 0.1f;   // weight of a visit once 1/n is below it
+  float maxStep = 0.25f;  // bound on |step| per iteration, in value units (guards rare huge residuals)
 };
 
 class GaussNewtonState {
  public:
   GaussNewtonState() = default;
-  explicit GaussNewtonState(size_t entries) : curvature(entries, 0.0f), steps(entries, 0) {}
+  explicit GaussNewtonState(size_t entries) : numerator(entries, 0.0f), curvature(entries, 0.0f), steps(entries, 0) {}
   size_t size() const { return curvature.size(); }
   // One step on x with gradient g and curvature sample h, then projection onto [lo, hi].
   // Returns the entries updated.
   size_t step(std::span<float> x, std::span<const float> g, std::span<const float> h, float lo, float hi,
               const GaussNewtonSettings& s);
 
-  std::vector<float> curvature;  // running average, not bias-corrected
+  std::vector<float> numerator;  // running average of x h - g
+  std::vector<float> curvature;  // running average of h
   std::vector<uint16_t> steps;   // visits, saturating
 };
 

@@ -457,7 +457,9 @@ class Fit {
     appearance_.albedo.rgb = std::move(values);
     if (newton_.size() > 0) {  // each child texel receives ~1/f^2 of its parent's curvature, as of its gradient
       GaussNewtonState up;
+      up.numerator = upsampleTexels(newton_.numerator, from.map, to.map, w_.mesh, 3);
       up.curvature = upsampleTexels(newton_.curvature, from.map, to.map, w_.mesh, 3);
+      for (float& n : up.numerator) n /= f2;
       for (float& h : up.curvature) h /= f2;
       up.steps = upsampleSteps(newton_.steps, from, to);
       newton_ = std::move(up);
@@ -718,6 +720,7 @@ class Fit {
       ck.put(name + ".count", std::vector<uint32_t>{p.count});
     }
     if (newton_.size() > 0) {
+      ck.put("albedo.numerator", newton_.numerator);
       ck.put("albedo.curvature", newton_.curvature);
       ck.put("albedo.curvature_steps", newton_.steps);
     }
@@ -748,6 +751,7 @@ class Fit {
     }
     if (newtonAlbedo() && ck.has("albedo.curvature")) {
       newton_ = GaussNewtonState(appearance_.albedo.rgb.size());
+      ck.get("albedo.numerator", newton_.numerator);
       ck.get("albedo.curvature", newton_.curvature);
       ck.get("albedo.curvature_steps", newton_.steps);
     }

@@ -106,7 +106,7 @@ TEST(GaussNewton, FirstStepLandsOnTheTargetAndMaskedEntriesStay) {
 }
 
 TEST(GaussNewton, AveragesNoisyTargetsThenBoundsAndProjects) {
-  // Per-visit targets t_k with noise: after n <= 1/damping visits x is their exact mean.
+  // Per-visit targets t_k (constant curvature): after n <= 1/damping visits x is their mean.
   GaussNewtonState s(1);
   GaussNewtonSettings settings;
   settings.damping = 0.1f;
@@ -129,6 +129,27 @@ TEST(GaussNewton, AveragesNoisyTargetsThenBoundsAndProjects) {
   // Non-finite input changes nothing.
   const std::vector<float> nan = {std::nanf("")};
   EXPECT_EQ(s.step(x, nan, h, 0.0f, 1.0f, settings), 0u);
+}
+
+TEST(GaussNewton, IsTheLeastSquaresFitOfEveryVisit) {
+  // Pixel I = a X + C seen with noisy sensitivities: the primal's X_k in the residual, the
+  // adjoint's X'_k in g and h. After n <= 1/damping visits x = sum (I - C) X' / sum X X', whatever
+  // x was at each visit: the primal's noise in a X does not enter.
+  GaussNewtonState s(1);
+  GaussNewtonSettings settings;
+  settings.damping = 0.1f;
+  settings.maxStep = 1.0f;
+  std::vector<float> x = {0.9f};
+  const float I = 0.5f, C = 0.05f;
+  const float primal[] = {0.4f, 1.6f, 0.9f, 1.2f}, adjoint[] = {1.3f, 0.7f, 1.1f, 0.5f};
+  double num = 0, den = 0;
+  for (int k = 0; k < 4; ++k) {
+    const float residual = x[0] * primal[k] + C - I;
+    const std::vector<float> g = {residual * adjoint[k]}, h = {primal[k] * adjoint[k]};
+    s.step(x, g, h, 0.0f, 1.0f, settings);
+    num += (I - C) * adjoint[k], den += primal[k] * adjoint[k];
+  }
+  EXPECT_NEAR(x[0], num / den, 1e-5);
 }
 
 TEST(Polyak, IsTheRunningMean) {

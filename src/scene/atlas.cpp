@@ -2,6 +2,7 @@
 
 #include <Eigen/SparseCholesky>
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <cassert>
 #include <map>
@@ -299,7 +300,7 @@ double uvArea(const TriangleMesh& m, const Chart& c) {
 // longest uv edges run within 15 degrees of their neighbour's; a part that is still hollow becomes
 // one chart per face. Empty when the chart is fine as it is.
 std::vector<Chart> splitHollow(const TriangleMesh& m, const Topology& topo, const Chart& c, double density) {
-  constexpr double kMinHollowFill = 0.25, kMinBoxTexels = 64, kMaxTurnDegrees = 15;
+  constexpr double kMinHollowFill = 0.4, kMinBoxTexels = 64, kMaxTurnDegrees = 15;
   auto hollow = [&](const Chart& part) {
     Eigen::AlignedBox2d box;
     for (const Vec2d& p : part.uv) box.extend(p);
@@ -417,9 +418,9 @@ bool hasValidUvAtlas(const TriangleMesh& mesh) {
 
 std::string AtlasReport::summary() const {
   if (keptInputUv) return "kept the mesh's own uv atlas (valid, no overlaps)";
-  return fmt::format("{} charts ({} least-squares conformal, {} split for overlaps, {} small ones merged, {} hollow ones cut, {} tiny ones in {} shared blocks), packing efficiency {:.3f}, {:.1f} texels/m, "
+  return fmt::format("{} charts ({} least-squares conformal, {} split for overlaps, {} small ones merged, {} hollow ones cut, {} tiny ones in {} shared blocks holding {:.1f}% of the surface), packing efficiency {:.3f}, {:.1f} texels/m, "
                      "stretch p05/median/p95 {:.3f}/{:.3f}/{:.3f}, {} uv overlaps, {:.1f}s",
-                     charts, lscmCharts, splitCharts, mergedCharts, hollowCharts, blockedCharts, sharedBlocks, packingEfficiency, texelsPerMetre, stretchP05, stretchMedian, stretchP95,
+                     charts, lscmCharts, splitCharts, mergedCharts, hollowCharts, blockedCharts, sharedBlocks, 100 * blockedSurface, packingEfficiency, texelsPerMetre, stretchP05, stretchMedian, stretchP95,
                      uvOverlaps, seconds);
 }
 
@@ -473,6 +474,7 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
     std::iota(all.begin(), all.end(), 0);
     chartRegion(std::move(all), o.coneDegrees);
   }
+  spdlog::debug("atlas: {} charts grown and mapped at {:.1f}s", charts.size(), timer.seconds());
 
   const int G = o.gutterResolution;
   double meshArea = 0;
@@ -565,13 +567,14 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
     }
     std::erase_if(charts, [](const Chart& c) { return c.faces.empty(); });
   }
+  spdlog::debug("atlas: {} charts after merging and cutting at {:.1f}s", charts.size(), timer.seconds());
   // Disjoint footprints grown by r texels leave 2r >= gutterTexels empty texels between two charts.
   const int ring = (o.gutterTexels + 1) / 2;
   std::vector<Group> groups;
   std::vector<std::array<Footprint, 4>> fps;  // per group
   std::vector<Placement> placement;           // per group
   std::vector<std::vector<Vec2>> chartUv;     // per chart and local vertex: the atlas uv as stored (float)
-  double density = 0;
+  double density = 0, lastMiss = 0;
   for (;;) {
     // Deterministic order whatever the work-queue order was: by first face.
     std::sort(charts.begin(), charts.end(), [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
@@ -612,9 +615,12 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
     };
     // Largest density (texels per metre at the gutter resolution) at which everything packs:
     // secant-like steps while packings fit (a fitting pass reports its height), bisection once one
-    // has failed (a failing pass stops early, so its height says little), to 0.5%.
-    double fit = 0, miss = maxDensity;
-    double d = miss * 0.9;
+    // has failed (a failing pass stops early, so its height says little), to 0.5%. A repack after
+    // re-charting the few charts that folded starts at the density found before and takes its miss
+    // as the bound: they add little, so that density mostly still fits and one pass settles it.
+    const bool repack = density > 0;
+    double fit = 0, miss = repack ? lastMiss : maxDensity;
+    double d = repack ? density : miss * 0.9;
     for (int it = 0; it < 30 && miss > fit * 1.005; ++it) {
       const int used = packAt(d);
       if (used <= G) {
@@ -623,9 +629,10 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
         d = next > d * 1.001 && next < miss ? next : 0.5 * (fit + miss);
       } else {
         miss = d;
-        d = fit > 0 ? 0.5 * (fit + miss) : 0.7 * miss;
+        d = fit > 0 ? 0.5 * (fit + miss) : (repack ? 0.95 : 0.7) * miss;
       }
     }
+    lastMiss = miss;
     if (!(fit > 0)) fail("uv atlas: {} charts do not fit a {}^2 atlas with {}-texel gutters", charts.size(), G, o.gutterTexels);
     packAt(fit);  // footprints at the chosen density (the same placement as `placement`)
     density = fit;
@@ -646,6 +653,8 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
       for (uint32_t f : c.faces) positive += cross2(uvOf(f, 0), uvOf(f, 1), uvOf(f, 2)) > 0;
       bad[i] = (positive != 0 && positive != static_cast<int>(c.faces.size())) || countOverlaps(c.faces, uvOf, 1) > 0;
     });
+    spdlog::debug("atlas: {} groups packed at {:.1f} texels/m at {:.1f}s, {} charts fold in float", groups.size(), density, timer.seconds(),
+                  std::count(bad.begin(), bad.end(), 1));
     if (std::find(bad.begin(), bad.end(), 1) == bad.end()) break;
     std::vector<Chart> keep;
     std::vector<std::pair<std::vector<uint32_t>, float>> redo;
@@ -656,7 +665,11 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
     for (auto& [faces, cone] : redo) chartRegion(std::move(faces), cone);  // one chart per face: rounding cannot fold those
   }
   for (const Group& g : groups)
-    if (g.charts.size() > 1) ++r.sharedBlocks, r.blockedCharts += g.charts.size();
+    if (g.charts.size() > 1) {
+      ++r.sharedBlocks, r.blockedCharts += g.charts.size();
+      for (uint32_t i : g.charts)
+        for (uint32_t f : charts[i].faces) r.blockedSurface += mesh.faceArea[f] / meshArea;
+    }
   r.charts = charts.size();
   for (const Chart& c : charts) r.lscmCharts += c.lscm;
   r.texelsPerMetre = density;

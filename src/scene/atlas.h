@@ -34,6 +34,7 @@ struct AtlasReport {
   size_t charts = 0, lscmCharts = 0, splitCharts = 0, mergedCharts = 0;
   size_t hollowCharts = 0;                     // frame-like charts cut into straight parts
   size_t sharedBlocks = 0, blockedCharts = 0;  // shared blocks of tiny charts, and the charts in them
+  double blockedSurface = 0;                    // the share of the mesh's area in shared blocks
   double packingEfficiency = 0;  // charted uv area / atlas area
   double texelsPerMetre = 0;     // at AtlasOptions::gutterResolution
   // Stretch: sqrt(uv area / 3D area), normalised by the atlas density; 1 = no distortion.

@@ -12,6 +12,7 @@
 #include "pipeline/synth.h"
 #include "scene/atlas.h"
 #include "scene/texel_map.h"
+#include "framed_room.h"
 
 using namespace relume;
 
@@ -113,6 +114,8 @@ TEST(TexelMap, GutterHoldsOnARealMeshAtEveryStage) {
   const TriangleMesh mesh = loadMesh(std::filesystem::path(RELUME_TEST_DATA) / "furnished_cut.ply");
   expectFootprintsInsideTheirChart(buildAtlas(mesh, {}), 20000);
 }
+
+TEST(TexelMap, GutterHoldsAroundSharedBlocksAndCutFrames) { expectFootprintsInsideTheirChart(buildAtlas(makeFramedRoom(), {}), 20000); }
 
 TEST(TexelMap, BuildTimeAndSizeAt4096) {
   const TriangleMesh mesh = roomAtlas();

@@ -578,12 +578,15 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
   for (;;) {
     // Deterministic order whatever the work-queue order was: by first face.
     std::sort(charts.begin(), charts.end(), [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
-    // Charts under sharedBlockTexels or narrower than sharedBlockWidth at maxDensity share blocks per object, a tenth of a texel apart
-    // (at any density the packing ends at: far above float rounding), each block at most 1/64 of the atlas.
+    // Charts under sharedBlockTexels or narrower than sharedBlockWidth at maxDensity share blocks
+    // per object, a tenth of a texel apart (at any density the packing ends at: far above float
+    // rounding), each block at most 1/64 of the atlas. Sharing costs lookup isolation, so only when
+    // it buys texture: when their own footprints would take over 1% of the atlas.
     {
       std::vector<Vec2d> size(charts.size());
       std::vector<int32_t> object(charts.size());
       std::vector<char> tiny(charts.size());
+      double tinyFootprints = 0;  // texels at maxDensity
       for (size_t i = 0; i < charts.size(); ++i) {
         Eigen::AlignedBox2d box;
         double area = 0;
@@ -592,7 +595,9 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
         size[i] = box.sizes();
         object[i] = mesh.faceObject[charts[i].faces.front()];
         tiny[i] = area * maxDensity * maxDensity < o.sharedBlockTexels || size[i].minCoeff() * maxDensity < o.sharedBlockWidth;
+        if (tiny[i]) tinyFootprints += (size[i].x() * maxDensity + 1 + 2 * ring) * (size[i].y() * maxDensity + 1 + 2 * ring);
       }
+      if (tinyFootprints < 0.01 * G * G) std::fill(tiny.begin(), tiny.end(), 0);
       groups = shareBlocks(size, object, tiny, 0.1 / maxDensity, 1.0 / 64 * G * G / (maxDensity * maxDensity));
     }
     std::vector<Eigen::AlignedBox2d> extent(groups.size());

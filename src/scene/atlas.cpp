@@ -326,8 +326,9 @@ std::vector<Chart> splitHollow(const TriangleMesh& m, const Topology& topo, cons
   const double maxTurn = kMaxTurnDegrees * kPi / 180;
   for (uint32_t i = 0; i < c.faces.size(); ++i)
     for (int k = 0; k < 3; ++k) {
-      const auto it = index.find(static_cast<uint32_t>(std::max(topo.neighbour[c.faces[i]][k], 0)));
-      if (topo.neighbour[c.faces[i]][k] < 0 || it == index.end()) continue;
+      const int32_t g = topo.neighbour[c.faces[i]][k];
+      const auto it = g < 0 ? index.end() : index.find(static_cast<uint32_t>(g));
+      if (it == index.end()) continue;
       const double turn = std::abs(direction[i] - direction[it->second]);
       if (std::min(turn, kPi - turn) < maxTurn) parent[root(i)] = root(it->second);
     }

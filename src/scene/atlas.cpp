@@ -2,6 +2,7 @@
 
 #include <Eigen/SparseCholesky>
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <cassert>
 #include <map>
@@ -270,11 +271,87 @@ void orientChart(Chart& c) {
   }
 }
 
+// The chart of a subset of `parent`'s faces with the parent's map (a part of a map without flips or
+// overlaps has none either), oriented again.
+Chart subChart(const TriangleMesh& m, const Chart& parent, std::vector<uint32_t> faces) {
+  Chart c;
+  c.faces = std::move(faces);
+  c.lscm = parent.lscm, c.cone = parent.cone;
+  collectVertices(m, c);
+  c.uv.resize(c.vertices.size());
+  for (size_t v = 0; v < c.vertices.size(); ++v) c.uv[v] = parent.uv[parent.local.at(c.vertices[v])];
+  orientChart(c);
+  return c;
+}
+
+double uvArea(const TriangleMesh& m, const Chart& c) {
+  double a = 0;
+  for (uint32_t f : c.faces) {
+    const auto& t = m.triangles[f];
+    a += 0.5 * std::abs(cross2(c.uv[c.local.at(t[0])], c.uv[c.local.at(t[1])], c.uv[c.local.at(t[2])]));
+  }
+  return a;
+}
+
+// A chart filling less than kMinHollowFill of its (oriented) box wastes the rest: the packer places
+// footprints on a height map, so nothing fills a frame's inside. Real interiors are full of such
+// rings (picture and window frames, coffered ceilings, inlay lines around a floor). Such a chart
+// with a box over 64 texels at `density` is cut into straight parts: the components of faces whose
+// longest uv edges run within 15 degrees of their neighbour's; a part that is still hollow becomes
+// one chart per face. Empty when the chart is fine as it is.
+std::vector<Chart> splitHollow(const TriangleMesh& m, const Topology& topo, const Chart& c, double density) {
+  constexpr double kMinHollowFill = 0.4, kMinBoxTexels = 64, kMaxTurnDegrees = 15;
+  auto hollow = [&](const Chart& part) {
+    Eigen::AlignedBox2d box;
+    for (const Vec2d& p : part.uv) box.extend(p);
+    return part.faces.size() > 1 && box.volume() * density * density > kMinBoxTexels && uvArea(m, part) < kMinHollowFill * box.volume();
+  };
+  if (!hollow(c)) return {};
+  std::unordered_map<uint32_t, uint32_t> index;  // face -> position in c.faces
+  std::vector<double> direction(c.faces.size());  // of the longest uv edge, in [0, pi)
+  for (uint32_t i = 0; i < c.faces.size(); ++i) {
+    index[c.faces[i]] = i;
+    const auto& t = m.triangles[c.faces[i]];
+    Vec2d longest = Vec2d::Zero();
+    for (int k = 0; k < 3; ++k)
+      if (const Vec2d e = c.uv[c.local.at(t[(k + 1) % 3])] - c.uv[c.local.at(t[k])]; e.squaredNorm() > longest.squaredNorm()) longest = e;
+    direction[i] = std::fmod(std::atan2(longest.y(), longest.x()) + kPi, kPi);
+  }
+  std::vector<uint32_t> parent(c.faces.size());
+  std::iota(parent.begin(), parent.end(), 0);
+  auto root = [&](uint32_t i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  const double maxTurn = kMaxTurnDegrees * kPi / 180;
+  for (uint32_t i = 0; i < c.faces.size(); ++i)
+    for (int k = 0; k < 3; ++k) {
+      const int32_t g = topo.neighbour[c.faces[i]][k];
+      const auto it = g < 0 ? index.end() : index.find(static_cast<uint32_t>(g));
+      if (it == index.end()) continue;
+      const double turn = std::abs(direction[i] - direction[it->second]);
+      if (std::min(turn, kPi - turn) < maxTurn) parent[root(i)] = root(it->second);
+    }
+  std::map<uint32_t, std::vector<uint32_t>> parts;  // by root: ordered, so deterministic
+  for (uint32_t i = 0; i < c.faces.size(); ++i) parts[root(i)].push_back(c.faces[i]);
+  std::vector<Chart> out;
+  for (auto& [r, faces] : parts) {
+    Chart part = subChart(m, c, std::move(faces));
+    if (!hollow(part)) {
+      out.push_back(std::move(part));
+      continue;
+    }
+    for (uint32_t f : part.faces) out.push_back(subChart(m, part, {f}));
+  }
+  return out;
+}
+
 double shiftOf(int ring) { return ring + 0.25; }  // the ring, then a quarter texel off the grid lines
 
-
-// A chart larger than `limit` texels gets a stand-in footprint wider than the strip (no bits).
-Footprint footprintOf(const TriangleMesh& m, const Chart& c, const Eigen::AlignedBox2d& box, double density, int ring, int limit) {
+// The footprint of a group of charts (each at its offset) whose box is `box`. A group larger than
+// `limit` texels gets a stand-in footprint wider than the strip (no bits).
+Footprint footprintOf(const TriangleMesh& m, const std::vector<Chart>& charts, const Group& g, const Eigen::AlignedBox2d& box, double density,
+                      int ring, int limit) {
   const double shift = shiftOf(ring);
   Footprint fp;
   if (!(std::max(box.sizes().x(), box.sizes().y()) * density < limit)) {  // cannot fit: say so without allocating it
@@ -285,9 +362,7 @@ Footprint footprintOf(const TriangleMesh& m, const Chart& c, const Eigen::Aligne
   fp.w = static_cast<int>(std::floor(shift + box.sizes().x() * density + 1e-3)) + 1 + ring;
   fp.h = static_cast<int>(std::floor(shift + box.sizes().y() * density + 1e-3)) + 1 + ring;
   std::vector<uint8_t> touched(static_cast<size_t>(fp.w) * fp.h, 0);
-  for (uint32_t f : c.faces) {
-    Vec2d v[3];
-    for (int k = 0; k < 3; ++k) v[k] = Vec2d(shift, shift) + c.uv[c.local.at(m.triangles[f][k])] * density;
+  auto touch = [&](const Vec2d (&v)[3]) {
     const double orient = cross2(v[0], v[1], v[2]) >= 0 ? 1.0 : -1.0;
     const int x0 = static_cast<int>(std::floor(std::min({v[0].x(), v[1].x(), v[2].x()}) - 1e-3));
     const int x1 = static_cast<int>(std::floor(std::max({v[0].x(), v[1].x(), v[2].x()}) + 1e-3));
@@ -304,6 +379,14 @@ Footprint footprintOf(const TriangleMesh& m, const Chart& c, const Eigen::Aligne
         }
         if (touches) touched[static_cast<size_t>(y) * fp.w + x] = 1;
       }
+  };
+  for (size_t j = 0; j < g.charts.size(); ++j) {
+    const Chart& c = charts[g.charts[j]];
+    for (uint32_t f : c.faces) {
+      Vec2d v[3];
+      for (int k = 0; k < 3; ++k) v[k] = Vec2d(shift, shift) + (g.offset[j] + c.uv[c.local.at(m.triangles[f][k])]) * density;
+      touch(v);
+    }
   }
   fp.bits.assign(touched.size(), 0);
   for (int y = 0; y < fp.h; ++y)
@@ -336,9 +419,9 @@ bool hasValidUvAtlas(const TriangleMesh& mesh) {
 
 std::string AtlasReport::summary() const {
   if (keptInputUv) return "kept the mesh's own uv atlas (valid, no overlaps)";
-  return fmt::format("{} charts ({} least-squares conformal, {} split for overlaps, {} small ones merged), packing efficiency {:.3f}, {:.1f} texels/m, "
+  return fmt::format("{} charts ({} least-squares conformal, {} split for overlaps, {} small ones merged, {} hollow ones cut, {} tiny ones in {} shared blocks holding {:.1f}% of the surface), packing efficiency {:.3f}, {:.1f} texels/m, "
                      "stretch p05/median/p95 {:.3f}/{:.3f}/{:.3f}, {} uv overlaps, {:.1f}s",
-                     charts, lscmCharts, splitCharts, mergedCharts, packingEfficiency, texelsPerMetre, stretchP05, stretchMedian, stretchP95,
+                     charts, lscmCharts, splitCharts, mergedCharts, hollowCharts, blockedCharts, sharedBlocks, 100 * blockedSurface, packingEfficiency, texelsPerMetre, stretchP05, stretchMedian, stretchP95,
                      uvOverlaps, seconds);
 }
 
@@ -392,6 +475,7 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
     std::iota(all.begin(), all.end(), 0);
     chartRegion(std::move(all), o.coneDegrees);
   }
+  spdlog::debug("atlas: {} charts grown and mapped at {:.1f}s", charts.size(), timer.seconds());
 
   const int G = o.gutterResolution;
   double meshArea = 0;
@@ -446,6 +530,17 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
     }
     std::erase_if(charts, [](const Chart& c) { return c.faces.empty(); });
   }
+  {
+    std::vector<Chart> parts;
+    for (Chart& c : charts)
+      if (std::vector<Chart> split = splitHollow(mesh, topo, c, maxDensity); !split.empty()) {
+        c.faces.clear();
+        for (Chart& p : split) parts.push_back(std::move(p));
+        ++r.hollowCharts;
+      }
+    for (Chart& p : parts) charts.push_back(std::move(p));
+    std::erase_if(charts, [](const Chart& c) { return c.faces.empty(); });
+  }
   // Faces narrower in uv than 1/1000 texel at the largest density possible (every texel covered),
   // 16 float roundings at 1024^2, could fold when their uvs are stored as float: they become charts
   // of their own before packing.
@@ -463,13 +558,7 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
         else keep.push_back(f);
       }
       if (keep.size() == c.faces.size()) continue;
-      const auto old = c.local;
-      const std::vector<Vec2d> oldUv = c.uv;
-      c.faces = std::move(keep);
-      collectVertices(mesh, c);
-      c.uv.resize(c.vertices.size());
-      for (size_t v = 0; v < c.vertices.size(); ++v) c.uv[v] = oldUv[old.at(c.vertices[v])];
-      if (!c.faces.empty()) orientChart(c);  // its box starts at the origin again
+      c = keep.empty() ? Chart{} : subChart(mesh, c, std::move(keep));
     }
     for (Chart& c : singles) {
       [[maybe_unused]] const bool mapped = parameterise(mesh, normals, cosPlanar, c);
@@ -479,33 +568,65 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
     }
     std::erase_if(charts, [](const Chart& c) { return c.faces.empty(); });
   }
+  spdlog::debug("atlas: {} charts after merging and cutting at {:.1f}s", charts.size(), timer.seconds());
   // Disjoint footprints grown by r texels leave 2r >= gutterTexels empty texels between two charts.
   const int ring = (o.gutterTexels + 1) / 2;
-  std::vector<std::array<Footprint, 4>> fps;
-  std::vector<Placement> placement;
-  std::vector<std::vector<Vec2>> chartUv;  // per chart and local vertex: the atlas uv as stored (float)
-  double density = 0;
+  std::vector<Group> groups;
+  std::vector<std::array<Footprint, 4>> fps;  // per group
+  std::vector<Placement> placement;           // per group
+  std::vector<std::vector<Vec2>> chartUv;     // per chart and local vertex: the atlas uv as stored (float)
+  double density = 0, lastMiss = 0;
   for (;;) {
     // Deterministic order whatever the work-queue order was: by first face.
     std::sort(charts.begin(), charts.end(), [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
-    // Largest density (texels per metre at the gutter resolution) at which everything packs: a few
-    // secant-like steps on the strip height, then bisection between the best fit and the first miss.
-    std::vector<Eigen::AlignedBox2d> extent(charts.size());
-    for (size_t i = 0; i < charts.size(); ++i)
-      for (const Vec2d& p : charts[i].uv) extent[i].extend(p);
-    fps.assign(charts.size(), {});
+    // Charts under sharedBlockTexels or narrower than sharedBlockWidth at maxDensity share blocks
+    // per object, a tenth of a texel apart (at any density the packing ends at: far above float
+    // rounding), each block at most 1/64 of the atlas. Sharing costs lookup isolation, so only when
+    // it buys texture: when their own footprints would take over 1% of the atlas.
+    {
+      std::vector<Vec2d> size(charts.size());
+      std::vector<int32_t> object(charts.size());
+      std::vector<char> tiny(charts.size());
+      double tinyFootprints = 0;  // texels at maxDensity
+      for (size_t i = 0; i < charts.size(); ++i) {
+        Eigen::AlignedBox2d box;
+        double area = 0;
+        for (const Vec2d& p : charts[i].uv) box.extend(p);
+        for (uint32_t f : charts[i].faces) area += mesh.faceArea[f];
+        size[i] = box.sizes();
+        object[i] = mesh.faceObject[charts[i].faces.front()];
+        tiny[i] = area * maxDensity * maxDensity < o.sharedBlockTexels || size[i].minCoeff() * maxDensity < o.sharedBlockWidth;
+        if (tiny[i]) tinyFootprints += (size[i].x() * maxDensity + 1 + 2 * ring) * (size[i].y() * maxDensity + 1 + 2 * ring);
+      }
+      if (tinyFootprints < 0.01 * G * G) std::fill(tiny.begin(), tiny.end(), 0);
+      groups = shareBlocks(size, object, tiny, 0.1 / maxDensity, 1.0 / 64 * G * G / (maxDensity * maxDensity));
+    }
+    std::vector<Eigen::AlignedBox2d> extent(groups.size());
+    std::vector<size_t> groupOf(charts.size());
+    std::vector<Vec2d> offsetOf(charts.size());
+    for (size_t g = 0; g < groups.size(); ++g)
+      for (size_t j = 0; j < groups[g].charts.size(); ++j) {
+        const size_t i = groups[g].charts[j];
+        groupOf[i] = g, offsetOf[i] = groups[g].offset[j];
+        for (const Vec2d& p : charts[i].uv) extent[g].extend(offsetOf[i] + p);
+      }
+    fps.assign(groups.size(), {});
     std::vector<Placement> trial;
     auto packAt = [&](double d) {
-      tbb::parallel_for(size_t{0}, charts.size(), [&](size_t i) {
-        const Footprint base = footprintOf(mesh, charts[i], extent[i], d, ring, G);
-        for (int k = 0; k < 4; ++k) fps[i][k] = rotated(base, k);
+      tbb::parallel_for(size_t{0}, groups.size(), [&](size_t g) {
+        const Footprint base = footprintOf(mesh, charts, groups[g], extent[g], d, ring, G);
+        for (int k = 0; k < 4; ++k) fps[g][k] = rotated(base, k);
       });
       return profilePack(fps, G, trial);
     };
-    // Secant-like steps while packings fit (a fitting pass reports its height), bisection once one
-    // has failed (a failing pass stops early, so its height says little), to 0.5%.
-    double fit = 0, miss = std::sqrt(static_cast<double>(G) * G / std::max(meshArea, 1e-12));
-    double d = miss * 0.9;
+    // Largest density (texels per metre at the gutter resolution) at which everything packs:
+    // secant-like steps while packings fit (a fitting pass reports its height), bisection once one
+    // has failed (a failing pass stops early, so its height says little), to 0.5%. A repack after
+    // re-charting the few charts that folded starts at the density found before and takes its miss
+    // as the bound: they add little, so that density mostly still fits and one pass settles it.
+    const bool repack = density > 0;
+    double fit = 0, miss = repack ? lastMiss : maxDensity;
+    double d = repack ? density : miss * 0.9;
     for (int it = 0; it < 30 && miss > fit * 1.005; ++it) {
       const int used = packAt(d);
       if (used <= G) {
@@ -514,9 +635,10 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
         d = next > d * 1.001 && next < miss ? next : 0.5 * (fit + miss);
       } else {
         miss = d;
-        d = fit > 0 ? 0.5 * (fit + miss) : 0.7 * miss;
+        d = fit > 0 ? 0.5 * (fit + miss) : (repack ? 0.95 : 0.7) * miss;
       }
     }
+    lastMiss = miss;
     if (!(fit > 0)) fail("uv atlas: {} charts do not fit a {}^2 atlas with {}-texel gutters", charts.size(), G, o.gutterTexels);
     packAt(fit);  // footprints at the chosen density (the same placement as `placement`)
     density = fit;
@@ -526,9 +648,10 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
     std::vector<char> bad(charts.size(), 0);
     tbb::parallel_for(size_t{0}, charts.size(), [&](size_t i) {
       const Chart& c = charts[i];
+      const size_t g = groupOf[i];
       for (const Vec2d& p : c.uv) {
-        const Vec2d q = turn(Vec2d::Constant(shiftOf(ring)) + p * density, placement[i].turns, fps[i][0].w, fps[i][0].h);
-        chartUv[i].push_back(((Vec2d(placement[i].x, placement[i].y) + q) / G).cast<float>());
+        const Vec2d q = turn(Vec2d::Constant(shiftOf(ring)) + (offsetOf[i] + p) * density, placement[g].turns, fps[g][0].w, fps[g][0].h);
+        chartUv[i].push_back(((Vec2d(placement[g].x, placement[g].y) + q) / G).cast<float>());
       }
       if (c.faces.size() == 1) return;
       auto uvOf = [&](uint32_t f, int k) { return Vec2d(chartUv[i][c.local.at(mesh.triangles[f][k])].cast<double>()); };
@@ -536,6 +659,8 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
       for (uint32_t f : c.faces) positive += cross2(uvOf(f, 0), uvOf(f, 1), uvOf(f, 2)) > 0;
       bad[i] = (positive != 0 && positive != static_cast<int>(c.faces.size())) || countOverlaps(c.faces, uvOf, 1) > 0;
     });
+    spdlog::debug("atlas: {} groups packed at {:.1f} texels/m at {:.1f}s, {} charts fold in float", groups.size(), density, timer.seconds(),
+                  std::count(bad.begin(), bad.end(), 1));
     if (std::find(bad.begin(), bad.end(), 1) == bad.end()) break;
     std::vector<Chart> keep;
     std::vector<std::pair<std::vector<uint32_t>, float>> redo;
@@ -545,6 +670,12 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
     charts = std::move(keep);
     for (auto& [faces, cone] : redo) chartRegion(std::move(faces), cone);  // one chart per face: rounding cannot fold those
   }
+  for (const Group& g : groups)
+    if (g.charts.size() > 1) {
+      ++r.sharedBlocks, r.blockedCharts += g.charts.size();
+      for (uint32_t i : g.charts)
+        for (uint32_t f : charts[i].faces) r.blockedSurface += mesh.faceArea[f] / meshArea;
+    }
   r.charts = charts.size();
   for (const Chart& c : charts) r.lscmCharts += c.lscm;
   r.texelsPerMetre = density;

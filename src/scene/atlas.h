@@ -1,7 +1,8 @@
 // UV atlas: keeps a mesh's own uvs when they are valid (inside [0,1], no two triangles
 // overlapping), otherwise charts the mesh (per object, by normal cone and connectivity),
 // parameterises each chart (planar projection when near-planar, least-squares conformal maps
-// otherwise), scales every chart to one world-space texel density and packs them with a gutter.
+// otherwise), scales every chart to one world-space texel density and packs them with a gutter
+// (tiny charts of one object share blocks, one gutter around each block).
 // Same mesh in, same atlas out.
 #pragma once
 #include <string>
@@ -19,12 +20,21 @@ struct AtlasOptions {
   float coneDegrees = 60.0f;   // faces join a chart while their normal is within this of the seed's
   float planarDegrees = 20.0f; // charts whose area-weighted mean normal deviation is below this
                                // use planar projection, others least-squares conformal maps
+  // Charts smaller than sharedBlockTexels, or narrower than sharedBlockWidth texels (at the density
+  // where the atlas would be full), are packed side by side in shared blocks per object, one gutter
+  // around each block: lookups near such a chart's border may read a texel of another tiny chart of
+  // the same object.
+  double sharedBlockTexels = 16;
+  double sharedBlockWidth = 1;
   bool keepValidUv = true;
 };
 
 struct AtlasReport {
   bool keptInputUv = false;
   size_t charts = 0, lscmCharts = 0, splitCharts = 0, mergedCharts = 0;
+  size_t hollowCharts = 0;                     // frame-like charts cut into straight parts
+  size_t sharedBlocks = 0, blockedCharts = 0;  // shared blocks of tiny charts, and the charts in them
+  double blockedSurface = 0;                    // the share of the mesh's area in shared blocks
   double packingEfficiency = 0;  // charted uv area / atlas area
   double texelsPerMetre = 0;     // at AtlasOptions::gutterResolution
   // Stretch: sqrt(uv area / 3D area), normalised by the atlas density; 1 = no distortion.

@@ -58,4 +58,19 @@ struct Placement {
 // height used.
 int profilePack(const std::vector<std::array<Footprint, 4>>& fps, int size, std::vector<Placement>& out);
 
+// Charts packed as one footprint: a chart on its own, or a shared block of tiny charts of one
+// object, each at its offset (metres) inside the block.
+struct Group {
+  std::vector<uint32_t> charts;
+  std::vector<Eigen::Vector2d> offset;
+};
+
+// Every chart on its own, except the `tiny` ones: per object (in chart order, tallest first), they
+// are shelf-packed side by side, `margin` metres apart, into near-square blocks of at most
+// `maxBlockArea` square metres. A tiny chart alone pays a whole gutter ring on the packing grid
+// (9 texels for a sub-texel chart); in a block they share one. `size` is each chart's uv box (from
+// the origin, metres).
+std::vector<Group> shareBlocks(const std::vector<Eigen::Vector2d>& size, const std::vector<int32_t>& object,
+                               const std::vector<char>& tiny, double margin, double maxBlockArea);
+
 }  // namespace relume::atlas_detail

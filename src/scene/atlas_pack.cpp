@@ -1,5 +1,7 @@
 #include <algorithm>
 #include <climits>
+#include <cmath>
+#include <map>
 #include <numeric>
 
 #include "scene/atlas_internal.h"
@@ -75,6 +77,39 @@ int profilePack(const std::vector<std::array<Footprint, 4>>& fps, int size, std:
     if (used > size) return used;  // does not fit: the caller only needs to know that
   }
   return used;
+}
+
+std::vector<Group> shareBlocks(const std::vector<Vec2d>& size, const std::vector<int32_t>& object, const std::vector<char>& tiny,
+                               double margin, double maxBlockArea) {
+  std::vector<Group> groups;
+  std::map<int32_t, std::vector<uint32_t>> tinyOf;  // ordered: deterministic block order
+  for (uint32_t i = 0; i < size.size(); ++i)
+    if (tiny[i]) tinyOf[object[i]].push_back(i);
+    else groups.push_back({{i}, {Vec2d::Zero()}});
+  auto cell = [&](uint32_t i) { return (size[i].x() + margin) * (size[i].y() + margin); };
+  for (auto& [obj, members] : tinyOf) {
+    std::stable_sort(members.begin(), members.end(), [&](uint32_t a, uint32_t b) { return size[a].y() > size[b].y(); });
+    // Blocks of consecutive members (similar heights), each shelf-packed into a near-square.
+    for (size_t first = 0; first < members.size();) {
+      size_t last = first;
+      double area = 0;
+      while (last < members.size() && (last == first || area + cell(members[last]) <= maxBlockArea)) area += cell(members[last++]);
+      double width = std::sqrt(area);
+      for (size_t j = first; j < last; ++j) width = std::max(width, size[members[j]].x());
+      Group& g = groups.emplace_back();
+      double x = 0, y = 0, shelf = 0;
+      for (size_t j = first; j < last; ++j) {
+        const Vec2d s = size[members[j]];
+        if (x > 0 && x + s.x() > width) x = 0, y += shelf + margin, shelf = 0;
+        g.charts.push_back(members[j]);
+        g.offset.emplace_back(x, y);
+        x += s.x() + margin;
+        shelf = std::max(shelf, s.y());
+      }
+      first = last;
+    }
+  }
+  return groups;
 }
 
 }  // namespace relume::atlas_detail

@@ -6,6 +6,7 @@
 #include "core/rng.h"
 #include "pipeline/synth.h"
 #include "scene/atlas.h"
+#include "framed_room.h"
 
 using namespace relume;
 
@@ -175,4 +176,22 @@ TEST(Atlas, FurnishedLikeMeshPacksAtLeast60Percent) {
   EXPECT_GT(r.mergedCharts, 2000u) << r.summary();
   EXPECT_LE(r.stretchP95, 1.1) << r.summary();
   std::printf("room + 2000 boxes: %s\n", r.summary().c_str());
+}
+
+// What sank the living room to 0.18 (README): rings whose box the packer cannot fill, and thousands
+// of sub-texel parts each paying a gutter ring.
+TEST(Atlas, FramesAreCutAndTinyPartsShareBlocks) {
+  const TriangleMesh mesh = makeFramedRoom();
+  AtlasReport r;
+  const TriangleMesh a = buildAtlas(mesh, {}, &r);
+  std::printf("framed room: %s\n", r.summary().c_str());
+  expectSound(mesh, a);
+  EXPECT_GE(r.hollowCharts, 200u) << r.summary();
+  EXPECT_GE(r.blockedCharts, 20000u) << r.summary();
+  EXPECT_LT(r.blockedSurface, 0.01) << r.summary();
+  EXPECT_GE(r.packingEfficiency, 0.7) << r.summary();
+  EXPECT_LE(r.stretchP95, 1.1) << r.summary();
+  const TriangleMesh b = buildAtlas(mesh, {});
+  EXPECT_EQ(a.uvs, b.uvs);
+  EXPECT_EQ(a.triangles, b.triangles);
 }

@@ -15,6 +15,7 @@
 #include "pipeline/demo.h"
 #include "pipeline/evaluate.h"
 #include "pipeline/experiment.h"
+#include "pipeline/export.h"
 #include "pipeline/fit.h"
 #include "pipeline/prepare.h"
 #include "pipeline/profile.h"
@@ -296,6 +297,26 @@ void registerEval(CLI::App& app, CommandTable& table) {
   };
 }
 
+void registerExport(CLI::App& app, CommandTable& table) {
+  auto input = std::make_shared<std::string>();
+  auto paths = std::make_shared<std::array<std::string, 3>>();
+  auto maxDepth = std::make_shared<int>(kDefaultMaxDepth);
+  CLI::App* c = app.add_subcommand("export", "write a reconstruction as glTF 2.0 (.glb), a Mitsuba 3 scene and EXR/PNG textures");
+  c->add_option("input", *input, "work folder (its result/scene.json) or a scene.json")->required();
+  c->add_option("--gltf", (*paths)[0], "binary glTF file to write (.glb)");
+  c->add_option("--mitsuba", (*paths)[1], "folder for the Mitsuba 3 scene (scene.xml, meshes/, textures/)");
+  c->add_option("--textures", (*paths)[2], "folder for the textures: linear EXR, sRGB PNG 8 and 16 bit");
+  c->add_option("--max-depth", *maxDepth, "path depth written into the Mitsuba integrator (relume's convention)")
+      ->capture_default_str()->check(inRange(0, kMaxDepthLimit));
+  table[c] = [=] {
+    ExportOptions o;
+    o.gltf = (*paths)[0], o.mitsuba = (*paths)[1], o.textures = (*paths)[2];
+    o.maxDepth = *maxDepth;
+    exportScene(*input, o);
+    return 0;
+  };
+}
+
 void registerGradcheck(CLI::App& app, CommandTable& table) {
   auto a = std::make_shared<GradcheckArgs>();
   CLI::App* c = app.add_subcommand("gradcheck", "adjoint gradients vs central finite differences (common random numbers)");
@@ -360,6 +381,8 @@ CommandTable registerCommands(CLI::App& app) {
   render->add_option("--seed", renderArgs->render.seed)->capture_default_str();
   render->add_flag("--russian-roulette", renderArgs->render.path.russianRoulette);
   render->add_option("--aov", renderArgs->aovs, "comma list of albedo,normal,depth,object");
+  render->add_option("--edit", renderArgs->edit, "EDIT.json: switch off/rescale emitters, change materials, add lights and meshes (README)")
+      ->check(CLI::ExistingFile);
   table[render] = [=] {
     renderViews((*renderPaths)[0], (*renderPaths)[1], (*renderPaths)[2], *renderArgs);
     return 0;
@@ -386,6 +409,7 @@ CommandTable registerCommands(CLI::App& app) {
   registerPrepare(app, table);
   registerFit(app, table);
   registerEval(app, table);
+  registerExport(app, table);
   registerGradcheck(app, table);
   return table;
 }

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# `relume export --gltf` in the real consumer: Blender 3.4's glTF importer reads the .glb as is
+# (no fix-up), Cycles renders the cameras, and the per-object means are compared with relume's
+# render of the same cameras (README "Export"). Not part of the test suite (needs Blender:
+# `apt-get install blender`). Cycles settings as scripts/cycles_compare.sh (max bounces 8 =
+# relume's default --max-depth 9, GGX, no clamping, no denoising), two seeds each for the
+# standard error.
+#
+# Usage: scripts/gltf_blender_check.sh [SCENE.json|WORK_DIR CAMERAS.json] [OUT_DIR]
+#   default: the synthetic room's ground truth and its 4 held-out views (160x120), in out/gltf_blender_check
+# Environment: SPP=256 (each half, both renderers)
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+command -v blender > /dev/null || { echo "gltf_blender_check: blender not found (apt-get install blender)" >&2; exit 1; }
+R="$ROOT/build/relume"
+SPP="${SPP:-256}"
+if [[ $# -ge 2 ]]; then
+  INPUT="$1" CAMERAS="$2" OUT="${3:-$ROOT/out/gltf_blender_check}"
+else
+  OUT="${1:-$ROOT/out/gltf_blender_check}"
+  [[ -f "$OUT/cap/gt/scene.json" ]] || "$R" --log warn synth --scene room --out "$OUT/cap" --frames 1 --test-frames 4 \
+    --width 160 --height 120 --spp 1
+  INPUT="$OUT/cap/gt/scene.json" CAMERAS="$OUT/cap/transforms_test.json"
+fi
+SCENE="$INPUT"
+[[ -d "$INPUT" ]] && SCENE="$INPUT/result/scene.json"
+mkdir -p "$OUT"
+"$R" --log warn export "$INPUT" --gltf "$OUT/scene.glb"
+PY="$ROOT/scripts/cycles_compare.py"
+for seed in 1 2; do
+  "$R" --log warn render --scene "$SCENE" --cameras "$CAMERAS" --out "$OUT/relume_$seed" --spp "$SPP" --seed "$seed" --aov object
+  blender -b --factory-startup --python "$PY" -- render "$(dirname "$SCENE")" "$OUT/blender_$seed" --gltf "$OUT/scene.glb" \
+    --transforms "$CAMERAS" --spp "$SPP" --seed "$seed" > "$OUT/blender_$seed.log" 2>&1 || { tail -20 "$OUT/blender_$seed.log" >&2; exit 1; }
+done
+echo "relume ($SPP+$SPP spp) / Blender 3.4 Cycles on the imported .glb ($SPP+$SPP spp)"
+blender -b --factory-startup --python "$PY" -- compare "$(dirname "$SCENE")" "$OUT/relume_1" "$OUT/relume_2" "$OUT/blender_1" \
+  "$OUT/blender_2" --transforms "$CAMERAS" 2>&1 | grep -v -e "^Blender" -e "^$" -e "Blender quit"

@@ -25,14 +25,17 @@ std::string rgb(const char* name, const Color& c) {
   return fmt::format("<rgb name=\"{}\" value=\"{:.9g}, {:.9g}, {:.9g}\"/>", name, c[0], c[1], c[2]);
 }
 
-// Linear EXR, read raw and looked up bilinearly like relume's textures (wrap clamped).
-std::string bitmap(const char* name, const std::string& file) {
+// Linear EXR, read raw and looked up bilinearly like relume's textures (wrap clamped); declared
+// once at the top and referenced by id, so Mitsuba loads each atlas once.
+std::string bitmap(const char* id, const std::string& file) {
   return fmt::format(
-      "<texture type=\"bitmap\" name=\"{}\"><string name=\"filename\" value=\"{}\"/>"
-      "<string name=\"filter_type\" value=\"bilinear\"/><string name=\"wrap_mode\" value=\"clamp\"/>"
-      "<boolean name=\"raw\" value=\"true\"/></texture>",
-      name, file);
+      "  <texture type=\"bitmap\" id=\"{}\">\n    <string name=\"filename\" value=\"{}\"/>\n"
+      "    <string name=\"filter_type\" value=\"bilinear\"/>\n    <string name=\"wrap_mode\" value=\"clamp\"/>\n"
+      "    <boolean name=\"raw\" value=\"true\"/>\n  </texture>\n",
+      id, file);
 }
+
+std::string ref(const char* name, const char* id) { return fmt::format("<ref name=\"{}\" id=\"{}\"/>", name, id); }
 
 // Mitsuba's principled BSDF (metallic 0, spec_tint 0) has relume's F0 = 0.08 specular and the
 // exact dielectric Fresnel (F90 = 1); it is one-sided, relume shades both sides.
@@ -40,7 +43,7 @@ std::string shape(const ExportMaterial& m, const std::string& meshFile) {
   std::string s = fmt::format("  <shape type=\"ply\" id=\"{}\">\n    <string name=\"filename\" value=\"{}\"/>\n",
                               xmlEscape(m.name), meshFile);
   s += "    <bsdf type=\"twosided\">\n      <bsdf type=\"principled\">\n        ";
-  s += m.baseColorTextured ? bitmap("base_color", "textures/albedo.exr") : rgb("base_color", m.baseColor);
+  s += m.baseColorTextured ? ref("base_color", "albedo") : rgb("base_color", m.baseColor);
   s += fmt::format(
       "\n        <float name=\"roughness\" value=\"{:.9g}\"/>\n        <float name=\"specular\" value=\"{:.9g}\"/>\n"
       "        <float name=\"metallic\" value=\"0\"/>\n        <float name=\"spec_tint\" value=\"0\"/>\n"
@@ -48,7 +51,7 @@ std::string shape(const ExportMaterial& m, const std::string& meshFile) {
       m.roughness, m.specular);
   if (m.emissionTextured || m.emission.maxCoeff() > 0.0f)
     s += "    <emitter type=\"area\">" +
-         (m.emissionTextured ? bitmap("radiance", "textures/emission.exr") : rgb("radiance", m.emission)) + "</emitter>\n";
+         (m.emissionTextured ? ref("radiance", "emission") : rgb("radiance", m.emission)) + "</emitter>\n";
   return s + "  </shape>\n";
 }
 
@@ -62,6 +65,8 @@ void writeMitsubaScene(const std::filesystem::path& dir, const ExportScene& scen
       "  <integrator type=\"path\">\n    <integer name=\"max_depth\" value=\"{}\"/>\n"
       "    <integer name=\"rr_depth\" value=\"{}\"/>\n  </integrator>\n",
       maxDepth + 1, maxDepth + 2);
+  if (!scene.albedo.rgb.empty()) xml += bitmap("albedo", "textures/albedo.exr");
+  if (!scene.emission.rgb.empty()) xml += bitmap("emission", "textures/emission.exr");
   for (size_t o = 0; o < scene.materials.size(); ++o) {
     const ExportMaterial& m = scene.materials[o];
     if ((m.baseColorTextured && scene.albedo.rgb.empty()) || (m.emissionTextured && scene.emission.rgb.empty()))

@@ -146,12 +146,13 @@ TEST(MitsubaWriter, OneShapePerObjectWithPrincipledParametersAndEmitters) {
     EXPECT_EQ(mesh.triangles.size(), 2u);
     ASSERT_EQ(mesh.uvs.size(), 4u);
     EXPECT_EQ(mesh.uvs[1], s.mesh.uvs[4 * o + 1]);
-    EXPECT_EQ(body.find("textures/albedo.exr") != std::string::npos, s.materials[o].baseColorTextured);
+    EXPECT_EQ(body.find(R"(<ref name="base_color" id="albedo"/>)") != std::string::npos, s.materials[o].baseColorTextured);
     EXPECT_EQ(body.find("<emitter type=\"area\">") != std::string::npos, o >= 1);
   }
   EXPECT_EQ(o, 3);
   EXPECT_NE(text.find("<rgb name=\"radiance\" value=\"5, 2.5, 1\"/>"), std::string::npos);
-  EXPECT_NE(text.find("textures/emission.exr"), std::string::npos);
+  EXPECT_NE(text.find(R"(<texture type="bitmap" id="emission">)"), std::string::npos);
+  EXPECT_NE(text.find(R"(<ref name="radiance" id="emission"/>)"), std::string::npos);
   const Image emission = readImage(dir / "textures" / "emission.exr");
   EXPECT_TRUE((emission.at(5, 1) == Color(8, 4, 2)).all());
 }

@@ -3,14 +3,15 @@ cycles_compare.py -- MODE ...`).
 
 render SCENE_DIR OUT_DIR --spp N --seed S [--bounces 8 --diffuse-bounces 8 --glossy-bounces 8
        --distribution GGX|MULTI_GGX --blur-glossy 0 --clamp-indirect 0 --filter-width 1.5]
-       [--gltf FILE.glb] [--transforms T.json]
+       [--gltf FILE.glb [--front-emission]] [--transforms T.json]
   Builds the relume scene (scene.json + ascii mesh.ply + transforms.json) in Cycles: one
   Principled BSDF (v1: metallic 0, specular tint 0, sheen/clearcoat/subsurface/transmission 0) per
   object, plus an Emission shader of the object's radiance on the front side only (relume's
   emitters are one-sided); black world; cameras from transforms.json (OpenGL axes = Blender's).
   Writes OUT_DIR/view_K.exr (linear RGB) and OUT_DIR/view_K_index.exr (object id + 1).
   --gltf imports `relume export`'s .glb with Blender's glTF importer instead (materials as the
-  importer maps them, nothing fixed up; scripts/gltf_blender_check.sh).
+  importer maps them, nothing fixed up; scripts/gltf_blender_check.sh); --front-emission then
+  makes emission one-sided, as relume's.
 
 compare SCENE_DIR RELUME_A RELUME_B CYCLES_A CYCLES_B
   Per object: mean radiance over pixels whose 3x3 neighbourhood is that object in both relume's
@@ -97,11 +98,43 @@ def import_gltf(a):
     """`relume export --gltf` as Blender's own importer reads it, untouched; returns the rotation
     it applied (glTF y-up to Blender z-up), which the cameras need too."""
     from mathutils import Matrix
+    import numpy
+    # Debian bookworm pairs Blender 3.4's importer (np.bool) with numpy 1.24, which removed the
+    # alias: the importer fails on any mesh without this shim (the .glb is not the cause).
+    if not hasattr(numpy, "bool"):
+        numpy.bool = bool
     bpy.ops.import_scene.gltf(filepath=a.gltf)
     for ob in bpy.data.objects:
         if "relume_object_id" in ob:  # node extras become custom properties
             ob.pass_index = int(ob["relume_object_id"]) + 1
+    if a.front_emission:
+        for m in bpy.data.materials:
+            front_side_emission(m)
     return Matrix.Rotation(math.pi / 2, 4, "X")
+
+
+def front_side_emission(m):
+    """The one fix-up an imported relume scene needs: Blender emits on both sides of a face,
+    relume (and the glTF export's intent) on the front side only. Strength *= 1 - Backfacing."""
+    if not m.use_nodes:
+        return
+    nt = m.node_tree
+    p = next((n for n in nt.nodes if n.type == "BSDF_PRINCIPLED"), None)
+    if p is None:
+        return
+    color, strength = p.inputs["Emission"], p.inputs["Emission Strength"]
+    if strength.is_linked or (not color.is_linked and max(color.default_value[:3]) == 0):
+        return
+    geo = nt.nodes.new("ShaderNodeNewGeometry")
+    front = nt.nodes.new("ShaderNodeMath")
+    front.operation = "SUBTRACT"
+    front.inputs[0].default_value = 1.0
+    nt.links.new(geo.outputs["Backfacing"], front.inputs[1])
+    scaled = nt.nodes.new("ShaderNodeMath")
+    scaled.operation = "MULTIPLY"
+    scaled.inputs[1].default_value = strength.default_value
+    nt.links.new(front.outputs[0], scaled.inputs[0])
+    nt.links.new(scaled.outputs[0], strength)
 
 
 def render(a):
@@ -250,6 +283,7 @@ def main():
         ap.add_argument("--threads", type=int, default=2)
         ap.add_argument("--gltf", help="import this .glb (relume export) instead of building SCENE_DIR's scene.json")
         ap.add_argument("--transforms", help="cameras (default SCENE_DIR/transforms.json)")
+        ap.add_argument("--front-emission", action="store_true", help="with --gltf: emit on the front side only, as relume")
         render(ap.parse_args(argv[1:]))
     elif mode == "compare":
         for k in ("scene", "relume_a", "relume_b", "cycles_a", "cycles_b"):

@@ -20,6 +20,7 @@
 #include "pipeline/prepare.h"
 #include "pipeline/profile.h"
 #include "pipeline/render_views.h"
+#include "pipeline/report.h"
 #include "pipeline/synth.h"
 #include "render/film.h"
 
@@ -317,6 +318,19 @@ void registerExport(CLI::App& app, CommandTable& table) {
   };
 }
 
+void registerReport(CLI::App& app, CommandTable& table) {
+  auto work = std::make_shared<std::string>();
+  auto o = std::make_shared<ReportOptions>();
+  CLI::App* c = app.add_subcommand("report", "(re)write WORK/report/index.html from a finished fit (fit writes it too)");
+  c->add_option("work", *work, "work folder with result/")->required()->check(CLI::ExistingDirectory);
+  c->add_option("--frames", o->frames, "views shown")->capture_default_str()->check(inRange(0, 1000));
+  c->add_option("--spp", o->spp, "samples per pixel of their re-renders")->capture_default_str()->check(inRange(1, kMaxSpp));
+  table[c] = [=] {
+    writeFitReport(*work, *o);
+    return 0;
+  };
+}
+
 void registerGradcheck(CLI::App& app, CommandTable& table) {
   auto a = std::make_shared<GradcheckArgs>();
   CLI::App* c = app.add_subcommand("gradcheck", "adjoint gradients vs central finite differences (common random numbers)");
@@ -410,6 +424,7 @@ CommandTable registerCommands(CLI::App& app) {
   registerFit(app, table);
   registerEval(app, table);
   registerExport(app, table);
+  registerReport(app, table);
   registerGradcheck(app, table);
   return table;
 }

@@ -15,6 +15,7 @@
 #include "optim/adam.h"
 #include "optim/checkpoint.h"
 #include "optim/upsample.h"
+#include "pipeline/report.h"
 #include "sampling/samplers.h"
 #include "scene/atlas.h"
 
@@ -402,6 +403,7 @@ class Fit {
       startIteration = 0;
     }
     summary.resultDir = writeResult(*space);
+    writeFitReport(w_.dir);
     summary.seconds = total.seconds();
     summary.iterations = globalIteration_;
     summary.finalResolution = finalRes_;

@@ -291,6 +291,8 @@ void registerEval(CLI::App& app, CommandTable& table) {
                  "{}/{} found ({} found in all), emission error {:.2f}%\n",
                  t.albedoMae, t.albedoPsnr, t.albedoTexels, t.roughnessMae, t.specularMae, t.emittersCorrect, t.emittersTrue,
                  t.emittersFound, 100 * t.emissionRelError);
+      fmt::print("peers' measures: albedo PSNR {:.2f} dB (8-bit sRGB maps), roughness PSNR {:.2f} dB (8-bit maps), emission IoU {:.3f}\n",
+                 t.albedoPsnr8, t.roughnessPsnr8, t.emissionIou);
       for (const Json& o : t.perObject) fmt::print("  {}\n", o.dump());
     }
     writeJson(std::filesystem::path(out) / "eval.json", report);

@@ -238,9 +238,11 @@ img.tex{width:256px;height:256px} figure{display:inline-block;margin:4px} figcap
                       materials.value("iterations", 0), materials.value("final_loss", 0.0), materials.value("albedo_resolution", 0));
   if (truth)
     page += fmt::format("<p>Against the capture's ground truth: albedo MAE {:.4f} (PSNR {:.2f} dB) over {} texels observed "
-                        "&ge; 5 times; roughness MAE {:.3f}, specular MAE {:.3f}; emitters {}/{} found; emission error {:.1f}%.</p>",
+                        "&ge; 5 times; roughness MAE {:.3f}, specular MAE {:.3f}; emitters {}/{} found; emission error {:.1f}%. "
+                        "Peers' measures: albedo PSNR {:.2f} dB and roughness PSNR {:.2f} dB on 8-bit maps, emission IoU {:.3f}.</p>",
                         scores.albedoMae, scores.albedoPsnr, scores.albedoTexels, scores.roughnessMae, scores.specularMae,
-                        scores.emittersCorrect, scores.emittersTrue, 100 * scores.emissionRelError);
+                        scores.emittersCorrect, scores.emittersTrue, 100 * scores.emissionRelError, scores.albedoPsnr8,
+                        scores.roughnessPsnr8, scores.emissionIou);
   page += "<h2>Views</h2>" + viewsSection(out, fit, prepare, o);
   page += "<h2>Textures</h2>" + textures;
   page += "<h2>Materials</h2>" + materialsSection(materials, truth ? &*truth : nullptr);

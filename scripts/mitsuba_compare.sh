@@ -12,17 +12,9 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 python3 -c "import mitsuba" 2> /dev/null || { echo "mitsuba_compare: Mitsuba 3 not found (pip install mitsuba)" >&2; exit 1; }
 R="$ROOT/build/relume"
 SPP="${SPP:-256}"
-if [[ $# -ge 2 ]]; then
-  INPUT="$1" CAMERAS="$2" OUT="${3:-$ROOT/out/mitsuba_compare}"
-else
-  OUT="${1:-$ROOT/out/mitsuba_compare}"
-  [[ -f "$OUT/cap/gt/scene.json" ]] || "$R" --log warn synth --scene room --out "$OUT/cap" --frames 1 --test-frames 4 \
-    --width 160 --height 120 --spp 1
-  INPUT="$OUT/cap/gt/scene.json" CAMERAS="$OUT/cap/transforms_test.json"
-fi
-SCENE="$INPUT"
-[[ -d "$INPUT" ]] && SCENE="$INPUT/result/scene.json"
-mkdir -p "$OUT"
+DEFAULT_OUT="$ROOT/out/mitsuba_compare"
+# shellcheck source=export_check_input.sh
+source "$ROOT/scripts/export_check_input.sh"
 "$R" --log warn export "$INPUT" --mitsuba "$OUT/mitsuba"
 PY="$ROOT/scripts/mitsuba_compare.py"
 for seed in 1 2; do

@@ -8,25 +8,17 @@
 
 #include "io/json.h"
 #include "pipeline/fit.h"
-#include "pipeline/prepare.h"
 #include "pipeline/report.h"
-#include "pipeline/synth.h"
+#include "prepared_capture.h"
 
 using namespace relume;
 namespace fs = std::filesystem;
 
 TEST(Report, FitWritesASelfContainedPageWithCurvesImagesAndMaterials) {
-  const fs::path dir = fs::temp_directory_path() / "relume_report";
-  fs::remove_all(dir);
   SynthCaptureOptions so;
   so.kind = SynthSceneKind::Cornell;
-  so.out = dir / "capture";
   so.frames = 4, so.testFrames = 0, so.width = 32, so.height = 24, so.spp = 2, so.atlasResolution = 64, so.maxDepth = 3;
-  writeSynthCapture(so);
-  PrepareOptions po;
-  po.resolutions = {64};
-  po.atlas.gutterResolution = 64;
-  prepareCapture(so.out, dir / "work", po);
+  const fs::path dir = preparedCapture("report", so, 64);
   FitConfig fc;
   fc.batchTexels = 256, fc.maxDepth = 2, fc.emissionIterations = 20, fc.materialIterations = 10, fc.albedoPasses = 1;
   fc.emissionTextureIterations = 0, fc.checkpointEvery = 1000, fc.metricsEvery = 2;

@@ -10,11 +10,11 @@
 #include "io/image.h"
 #include "io/json.h"
 #include "pipeline/fit.h"
-#include "pipeline/prepare.h"
 #include "pipeline/scene_edit.h"
 #include "pipeline/synth.h"
 #include "render/film.h"
 #include "render/lights.h"
+#include "prepared_capture.h"
 
 using namespace relume;
 namespace fs = std::filesystem;
@@ -188,16 +188,10 @@ std::vector<Image> renderAll(const SceneDescription& s, const std::vector<Camera
 }  // namespace
 
 TEST(SceneEdit, RelightingTheReconstructionMatchesTheEditedTruth) {
-  const fs::path dir = tmpDir("relight");
   SynthCaptureOptions so;
   so.kind = SynthSceneKind::Room;
-  so.out = dir / "capture";
   so.frames = 16, so.testFrames = 2, so.width = 64, so.height = 48, so.spp = 8, so.atlasResolution = 256;
-  writeSynthCapture(so);
-  PrepareOptions po;
-  po.resolutions = {256};
-  po.atlas.gutterResolution = 256;
-  prepareCapture(so.out, dir / "work", po);
+  const fs::path dir = preparedCapture("edit_relight", so, 256);
   FitConfig fc;
   fc.batchTexels = 2048, fc.maxDepth = 4, fc.emissionIterations = 80, fc.materialIterations = 20, fc.albedoPasses = 6;
   fc.emissionTextureIterations = 0, fc.checkpointEvery = 1000;
@@ -206,10 +200,10 @@ TEST(SceneEdit, RelightingTheReconstructionMatchesTheEditedTruth) {
   std::ofstream(dir / "cube.obj") << "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
                                      "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 3 4 8 7\nf 1 5 8 4\nf 2 3 7 6\n";
   std::vector<Camera> cams;
-  for (const Frame& f : readTransforms(so.out / "transforms_test.json").frames) cams.push_back(f.camera);
+  for (const Frame& f : readTransforms(dir / "capture" / "transforms_test.json").frames) cams.push_back(f.camera);
   const SceneDescription fit = loadSceneFile(dir / "work" / "result" / "scene.json");
-  const SceneDescription truth = loadSceneFile(so.out / "gt" / "scene.json");
-  const SceneDescription truthEdited = loadSceneFile(editTruthByHand(so.out / "gt", dir / "truth_edited"));
+  const SceneDescription truth = loadSceneFile(dir / "capture" / "gt" / "scene.json");
+  const SceneDescription truthEdited = loadSceneFile(editTruthByHand(dir / "capture" / "gt", dir / "truth_edited"));
   const std::vector<Image> truthEditedViews = renderAll(truthEdited, cams);
   const double reached = psnr(renderAll(fit, cams), renderAll(truth, cams));
   const double relit = psnr(renderAll(edited(fit, dir, kRelightEdit), cams), truthEditedViews);

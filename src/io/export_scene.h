@@ -31,9 +31,9 @@ struct ExportScene {
   Image emission;                         // linear radiance; empty when no emitter is textured
 };
 
-// The triangles of one object with their vertices renumbered from 0, uv kept, normals kept when
-// every one is usable; no face object ids.
-MeshData objectSubmesh(const MeshData& mesh, int object);
+// Per object id in [0, objects): its triangles with their vertices renumbered from 0, uv kept,
+// normals kept when every one is usable; no face object ids. One pass over the mesh.
+std::vector<MeshData> objectSubmeshes(const MeshData& mesh, int objects);
 
 // glTF 2.0 binary (.glb), one node + mesh + material per object, textures embedded as sRGB PNG:
 // KHR_materials_specular (F0 = min(0.04 specularColorFactor, 1) specularFactor, F90 =

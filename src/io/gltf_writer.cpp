@@ -155,8 +155,9 @@ void writeGlb(const std::filesystem::path& path, const ExportScene& scene) {
     emissionTexture = addPngTexture(m, normalised, "emission");
   }
   tinygltf::Scene gltfScene;
+  const std::vector<MeshData> submeshes = objectSubmeshes(scene.mesh, static_cast<int>(scene.materials.size()));
   for (size_t o = 0; o < scene.materials.size(); ++o) {
-    const MeshData sub = objectSubmesh(scene.mesh, static_cast<int>(o));
+    const MeshData& sub = submeshes[o];
     if (sub.triangles.empty()) continue;
     m.materials.push_back(material(scene.materials[o], albedoTexture, emissionTexture, emissionPeak));
     tinygltf::Primitive prim;

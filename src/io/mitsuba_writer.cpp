@@ -67,11 +67,12 @@ void writeMitsubaScene(const std::filesystem::path& dir, const ExportScene& scen
       maxDepth + 1, maxDepth + 2);
   if (!scene.albedo.rgb.empty()) xml += bitmap("albedo", "textures/albedo.exr");
   if (!scene.emission.rgb.empty()) xml += bitmap("emission", "textures/emission.exr");
+  const std::vector<MeshData> submeshes = objectSubmeshes(scene.mesh, static_cast<int>(scene.materials.size()));
   for (size_t o = 0; o < scene.materials.size(); ++o) {
     const ExportMaterial& m = scene.materials[o];
     if ((m.baseColorTextured && scene.albedo.rgb.empty()) || (m.emissionTextured && scene.emission.rgb.empty()))
       fail("{}: material '{}' is textured but the scene has no texture", dir.string(), m.name);
-    const MeshData sub = objectSubmesh(scene.mesh, static_cast<int>(o));
+    const MeshData& sub = submeshes[o];
     if (sub.triangles.empty()) continue;
     const std::string meshFile = fmt::format("meshes/object_{}.ply", o);
     writePly(dir / meshFile, sub);

@@ -19,17 +19,9 @@ blender -b --factory-startup --python-expr "import numpy" 2>&1 | grep -q "No mod
 R="$ROOT/build/relume"
 SPP="${SPP:-256}"
 BLENDER_ARGS="${BLENDER_ARGS:-}"
-if [[ $# -ge 2 ]]; then
-  INPUT="$1" CAMERAS="$2" OUT="${3:-$ROOT/out/gltf_blender_check}"
-else
-  OUT="${1:-$ROOT/out/gltf_blender_check}"
-  [[ -f "$OUT/cap/gt/scene.json" ]] || "$R" --log warn synth --scene room --out "$OUT/cap" --frames 1 --test-frames 4 \
-    --width 160 --height 120 --spp 1
-  INPUT="$OUT/cap/gt/scene.json" CAMERAS="$OUT/cap/transforms_test.json"
-fi
-SCENE="$INPUT"
-[[ -d "$INPUT" ]] && SCENE="$INPUT/result/scene.json"
-mkdir -p "$OUT"
+DEFAULT_OUT="$ROOT/out/gltf_blender_check"
+# shellcheck source=export_check_input.sh
+source "$ROOT/scripts/export_check_input.sh"
 "$R" --log warn export "$INPUT" --gltf "$OUT/scene.glb"
 PY="$ROOT/scripts/cycles_compare.py"
 for seed in 1 2; do

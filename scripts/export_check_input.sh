@@ -1,8 +1,11 @@
 # Sourced by scripts/mitsuba_compare.sh and scripts/gltf_blender_check.sh: what to check, from
 # their arguments [SCENE.json|WORK_DIR CAMERAS.json] [OUT_DIR], by default the synthetic room's
 # ground truth and its 4 held-out views (160x120) rendered into OUT_DIR/cap.
-# In: R (the relume binary), DEFAULT_OUT, the script's arguments.
-# Out: INPUT (as given to `relume export`), SCENE (its scene.json), CAMERAS, OUT (created).
+# In: ROOT, DEFAULT_OUT, the script's arguments, SPP (default 256).
+# Out: R (the relume binary), SPP, INPUT (as given to `relume export`), SCENE (its scene.json),
+# CAMERAS, OUT (created).
+R="$ROOT/build/relume"
+SPP="${SPP:-256}"
 if [[ $# -ge 2 ]]; then
   INPUT="$1" CAMERAS="$2" OUT="${3:-$DEFAULT_OUT}"
 else

@@ -16,8 +16,6 @@ command -v blender > /dev/null || { echo "gltf_blender_check: blender not found 
 # Blender's glTF importer needs numpy in Blender's (Debian's) Python.
 blender -b --factory-startup --python-expr "import numpy" 2>&1 | grep -q "No module named" &&
   { echo "gltf_blender_check: Blender's glTF importer needs numpy (apt-get install python3-numpy)" >&2; exit 1; }
-R="$ROOT/build/relume"
-SPP="${SPP:-256}"
 BLENDER_ARGS="${BLENDER_ARGS:-}"
 DEFAULT_OUT="$ROOT/out/gltf_blender_check"
 # shellcheck source=export_check_input.sh

@@ -10,8 +10,6 @@
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 python3 -c "import mitsuba" 2> /dev/null || { echo "mitsuba_compare: Mitsuba 3 not found (pip install mitsuba)" >&2; exit 1; }
-R="$ROOT/build/relume"
-SPP="${SPP:-256}"
 DEFAULT_OUT="$ROOT/out/mitsuba_compare"
 # shellcheck source=export_check_input.sh
 source "$ROOT/scripts/export_check_input.sh"

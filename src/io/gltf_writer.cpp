@@ -136,7 +136,6 @@ void writeGlb(const std::filesystem::path& path, const ExportScene& scene) {
   m.asset.version = "2.0";
   m.asset.generator = "relume";
   m.buffers.resize(1);
-  m.extensionsUsed = {"KHR_materials_specular", "KHR_materials_emissive_strength"};
   const bool anyAlbedoTexture = std::any_of(scene.materials.begin(), scene.materials.end(),
                                             [](const ExportMaterial& e) { return e.baseColorTextured; });
   const bool anyEmissionTexture = std::any_of(scene.materials.begin(), scene.materials.end(),
@@ -184,6 +183,9 @@ void writeGlb(const std::filesystem::path& path, const ExportScene& scene) {
     gltfScene.nodes.push_back(static_cast<int>(m.nodes.size()) - 1);
   }
   m.scenes.push_back(gltfScene);
+  for (const char* ext : {"KHR_materials_specular", "KHR_materials_emissive_strength"})
+    if (std::any_of(m.materials.begin(), m.materials.end(), [&](const tinygltf::Material& mat) { return mat.extensions.count(ext) > 0; }))
+      m.extensionsUsed.push_back(ext);
   m.defaultScene = 0;
   std::ostringstream out;
   tinygltf::TinyGLTF writer;

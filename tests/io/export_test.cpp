@@ -63,6 +63,7 @@ TEST(GltfWriter, ReadsBackWithMaterialsSpecularEmissionUvAndTexture) {
   std::string err, warn;
   ASSERT_TRUE(loader.LoadBinaryFromFile(&m, &err, &warn, (dir / "scene.glb").string())) << err;
   ASSERT_EQ(m.materials.size(), 3u);
+  EXPECT_EQ(m.extensionsUsed, std::vector<std::string>({"KHR_materials_specular", "KHR_materials_emissive_strength"}));
   ASSERT_EQ(m.nodes.size(), 3u);
   for (int o = 0; o < 3; ++o) {
     const tinygltf::Material& mat = m.materials[o];

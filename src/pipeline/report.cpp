@@ -243,7 +243,13 @@ img.tex{width:256px;height:256px} figure{display:inline-block;margin:4px} figcap
                         scores.albedoMae, scores.albedoPsnr, scores.albedoTexels, scores.roughnessMae, scores.specularMae,
                         scores.emittersCorrect, scores.emittersTrue, 100 * scores.emissionRelError, scores.albedoPsnr8,
                         scores.roughnessPsnr8, scores.emissionIou);
-  page += "<h2>Views</h2>" + viewsSection(out, fit, prepare, o);
+  page += "<h2>Views</h2>";
+  try {
+    page += viewsSection(out, fit, prepare, o);
+  } catch (const Error& e) {  // the capture moved or lost images: the rest of the report still stands
+    spdlog::warn("report: views not rendered: {}", e.what());
+    page += "<p>Views not rendered: " + html(e.what()) + "</p>";
+  }
   page += "<h2>Textures</h2>" + textures;
   page += "<h2>Materials</h2>" + materialsSection(materials, truth ? &*truth : nullptr);
   page += "<h2>Loss and time per stage</h2>" + stagesSection(readJsonLines(work / "metrics.jsonl"));

@@ -3,11 +3,15 @@ cycles_compare.py -- MODE ...`).
 
 render SCENE_DIR OUT_DIR --spp N --seed S [--bounces 8 --diffuse-bounces 8 --glossy-bounces 8
        --distribution GGX|MULTI_GGX --blur-glossy 0 --clamp-indirect 0 --filter-width 1.5]
+       [--gltf FILE.glb [--front-emission]] [--transforms T.json]
   Builds the relume scene (scene.json + ascii mesh.ply + transforms.json) in Cycles: one
   Principled BSDF (v1: metallic 0, specular tint 0, sheen/clearcoat/subsurface/transmission 0) per
   object, plus an Emission shader of the object's radiance on the front side only (relume's
   emitters are one-sided); black world; cameras from transforms.json (OpenGL axes = Blender's).
   Writes OUT_DIR/view_K.exr (linear RGB) and OUT_DIR/view_K_index.exr (object id + 1).
+  --gltf imports `relume export`'s .glb with Blender's glTF importer instead (materials as the
+  importer maps them, nothing fixed up; scripts/gltf_blender_check.sh); --front-emission then
+  makes emission one-sided, as relume's.
 
 compare SCENE_DIR RELUME_A RELUME_B CYCLES_A CYCLES_B
   Per object: mean radiance over pixels whose 3x3 neighbourhood is that object in both relume's
@@ -73,12 +77,10 @@ def material(o, distribution):
     return m
 
 
-def render(a):
+def build_scene(a, sc):
+    """The relume scene rebuilt node by node from scene.json + mesh.ply (constant albedos)."""
     scene_json = json.load(open(os.path.join(a.scene, "scene.json")))
-    transforms = json.load(open(os.path.join(a.scene, "transforms.json")))
     verts, faces = read_ascii_ply(os.path.join(a.scene, scene_json["mesh"]))
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    sc = bpy.context.scene
     for o in scene_json["objects"]:
         fs = [f for f, oid in faces if oid == o["id"]]
         used = sorted({v for f in fs for v in f})
@@ -90,6 +92,61 @@ def render(a):
         ob = bpy.data.objects.new(o["name"], me)
         ob.pass_index = o["id"] + 1
         sc.collection.objects.link(ob)
+
+
+def import_gltf(a):
+    """`relume export --gltf` as Blender's own importer reads it, untouched; returns the rotation
+    it applied (glTF y-up to Blender z-up), which the cameras need too."""
+    from mathutils import Matrix
+    import numpy
+    # Debian bookworm pairs Blender 3.4's importer (np.bool) with numpy 1.24, which removed the
+    # alias: the importer fails on any mesh without this shim (the .glb is not the cause).
+    if not hasattr(numpy, "bool"):
+        numpy.bool = bool
+    bpy.ops.import_scene.gltf(filepath=a.gltf)
+    for ob in bpy.data.objects:
+        if "relume_object_id" in ob:  # node extras become custom properties
+            ob.pass_index = int(ob["relume_object_id"]) + 1
+    if a.front_emission:
+        for m in bpy.data.materials:
+            front_side_emission(m)
+    return Matrix.Rotation(math.pi / 2, 4, "X")
+
+
+def front_side_emission(m):
+    """The one fix-up an imported relume scene needs: Blender emits on both sides of a face,
+    relume (and the glTF export's intent) on the front side only. Strength *= 1 - Backfacing."""
+    if not m.use_nodes:
+        return
+    nt = m.node_tree
+    p = next((n for n in nt.nodes if n.type == "BSDF_PRINCIPLED"), None)
+    if p is None:
+        return
+    color, strength = p.inputs["Emission"], p.inputs["Emission Strength"]
+    if strength.is_linked or (not color.is_linked and max(color.default_value[:3]) == 0):
+        return
+    geo = nt.nodes.new("ShaderNodeNewGeometry")
+    front = nt.nodes.new("ShaderNodeMath")
+    front.operation = "SUBTRACT"
+    front.inputs[0].default_value = 1.0
+    nt.links.new(geo.outputs["Backfacing"], front.inputs[1])
+    scaled = nt.nodes.new("ShaderNodeMath")
+    scaled.operation = "MULTIPLY"
+    scaled.inputs[1].default_value = strength.default_value
+    nt.links.new(front.outputs[0], scaled.inputs[0])
+    nt.links.new(scaled.outputs[0], strength)
+
+
+def render(a):
+    from mathutils import Matrix
+    transforms = json.load(open(a.transforms or os.path.join(a.scene, "transforms.json")))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = bpy.context.scene
+    world_to_blender = Matrix.Identity(4)
+    if a.gltf:
+        world_to_blender = import_gltf(a)
+    else:
+        build_scene(a, sc)
     world = bpy.data.worlds.new("black")
     world.use_nodes = True
     world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
@@ -115,7 +172,6 @@ def render(a):
     c.filter_width = a.filter_width
     sc.render.threads_mode = "FIXED"
     sc.render.threads = a.threads
-    sc.render.resolution_x, sc.render.resolution_y = int(transforms["w"]), int(transforms["h"])
     sc.render.resolution_percentage = 100
     sc.render.film_transparent = False
     sc.view_settings.view_transform = "Standard"
@@ -132,14 +188,15 @@ def render(a):
     cam_data = bpy.data.cameras.new("cam")
     cam_data.sensor_fit = "HORIZONTAL"
     cam_data.sensor_width = 36.0
-    cam_data.lens = float(transforms["fl_x"]) * 36.0 / float(transforms["w"])
     cam = bpy.data.objects.new("cam", cam_data)
     sc.collection.objects.link(cam)
     sc.camera = cam
-    from mathutils import Matrix
     for k, fr in enumerate(transforms["frames"]):
         stem = os.path.splitext(os.path.basename(fr["file_path"]))[0]
-        cam.matrix_world = Matrix(fr["transform_matrix"])
+        intrinsic = lambda key: float(fr.get(key, transforms.get(key)))  # per frame or top-level
+        sc.render.resolution_x, sc.render.resolution_y = int(intrinsic("w")), int(intrinsic("h"))
+        cam_data.lens = intrinsic("fl_x") * 36.0 / intrinsic("w")
+        cam.matrix_world = world_to_blender @ Matrix(fr["transform_matrix"])
         out.file_slots.clear()
         out.file_slots.new(stem + "_#")
         out.file_slots.new(stem + "_index_#")
@@ -163,7 +220,7 @@ def load(path):
 
 def compare(a):
     scene_json = json.load(open(os.path.join(a.scene, "scene.json")))
-    transforms = json.load(open(os.path.join(a.scene, "transforms.json")))
+    transforms = json.load(open(a.transforms or os.path.join(a.scene, "transforms.json")))
     names = {o["id"]: o["name"] for o in scene_json["objects"]}
     acc = {}  # id -> [n, sum relume, sum cycles, sum (dRelume)^2, sum (dCycles)^2]
     for fr in transforms["frames"]:
@@ -224,10 +281,14 @@ def main():
         ap.add_argument("--clamp-indirect", type=float, default=0.0)
         ap.add_argument("--filter-width", type=float, default=1.5)
         ap.add_argument("--threads", type=int, default=2)
+        ap.add_argument("--gltf", help="import this .glb (relume export) instead of building SCENE_DIR's scene.json")
+        ap.add_argument("--transforms", help="cameras (default SCENE_DIR/transforms.json)")
+        ap.add_argument("--front-emission", action="store_true", help="with --gltf: emit on the front side only, as relume")
         render(ap.parse_args(argv[1:]))
     elif mode == "compare":
         for k in ("scene", "relume_a", "relume_b", "cycles_a", "cycles_b"):
             ap.add_argument(k)
+        ap.add_argument("--transforms", help="cameras (default SCENE_DIR/transforms.json)")
         compare(ap.parse_args(argv[1:]))
     else:
         sys.exit("cycles_compare.py: mode must be render or compare, not '%s'" % mode)

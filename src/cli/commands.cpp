@@ -15,10 +15,12 @@
 #include "pipeline/demo.h"
 #include "pipeline/evaluate.h"
 #include "pipeline/experiment.h"
+#include "pipeline/export.h"
 #include "pipeline/fit.h"
 #include "pipeline/prepare.h"
 #include "pipeline/profile.h"
 #include "pipeline/render_views.h"
+#include "pipeline/report.h"
 #include "pipeline/synth.h"
 #include "render/film.h"
 
@@ -289,9 +291,44 @@ void registerEval(CLI::App& app, CommandTable& table) {
                  "{}/{} found ({} found in all), emission error {:.2f}%\n",
                  t.albedoMae, t.albedoPsnr, t.albedoTexels, t.roughnessMae, t.specularMae, t.emittersCorrect, t.emittersTrue,
                  t.emittersFound, 100 * t.emissionRelError);
+      fmt::print("peers' measures: albedo PSNR {:.2f} dB (8-bit sRGB maps), roughness PSNR {:.2f} dB (8-bit maps), emission IoU {:.3f}\n",
+                 t.albedoPsnr8, t.roughnessPsnr8, t.emissionIou);
       for (const Json& o : t.perObject) fmt::print("  {}\n", o.dump());
     }
     writeJson(std::filesystem::path(out) / "eval.json", report);
+    return 0;
+  };
+}
+
+void registerExport(CLI::App& app, CommandTable& table) {
+  auto input = std::make_shared<std::string>();
+  auto paths = std::make_shared<std::array<std::string, 3>>();
+  auto maxDepth = std::make_shared<int>(kDefaultMaxDepth);
+  CLI::App* c = app.add_subcommand("export", "write a reconstruction as glTF 2.0 (.glb), a Mitsuba 3 scene and EXR/PNG textures");
+  c->add_option("input", *input, "work folder (its result/scene.json) or a scene.json")->required();
+  c->add_option("--gltf", (*paths)[0], "binary glTF file to write (.glb)");
+  c->add_option("--mitsuba", (*paths)[1], "folder for the Mitsuba 3 scene (scene.xml, meshes/, textures/)");
+  c->add_option("--textures", (*paths)[2], "folder for the textures: linear EXR, sRGB PNG 8 and 16 bit");
+  c->add_option("--max-depth", *maxDepth, "path depth written into the Mitsuba integrator (relume's convention)")
+      ->capture_default_str()->check(inRange(0, kMaxDepthLimit));
+  table[c] = [=] {
+    ExportOptions o;
+    o.gltf = (*paths)[0], o.mitsuba = (*paths)[1], o.textures = (*paths)[2];
+    o.maxDepth = *maxDepth;
+    exportScene(*input, o);
+    return 0;
+  };
+}
+
+void registerReport(CLI::App& app, CommandTable& table) {
+  auto work = std::make_shared<std::string>();
+  auto o = std::make_shared<ReportOptions>();
+  CLI::App* c = app.add_subcommand("report", "(re)write WORK/report/index.html from a finished fit (fit writes it too)");
+  c->add_option("work", *work, "work folder with result/")->required()->check(CLI::ExistingDirectory);
+  c->add_option("--frames", o->frames, "views shown")->capture_default_str()->check(inRange(0, 1000));
+  c->add_option("--spp", o->spp, "samples per pixel of their re-renders")->capture_default_str()->check(inRange(1, kMaxSpp));
+  table[c] = [=] {
+    writeFitReport(*work, *o);
     return 0;
   };
 }
@@ -360,6 +397,8 @@ CommandTable registerCommands(CLI::App& app) {
   render->add_option("--seed", renderArgs->render.seed)->capture_default_str();
   render->add_flag("--russian-roulette", renderArgs->render.path.russianRoulette);
   render->add_option("--aov", renderArgs->aovs, "comma list of albedo,normal,depth,object");
+  render->add_option("--edit", renderArgs->edit, "EDIT.json: switch off/rescale emitters, change materials, add lights and meshes (README)")
+      ->check(CLI::ExistingFile);
   table[render] = [=] {
     renderViews((*renderPaths)[0], (*renderPaths)[1], (*renderPaths)[2], *renderArgs);
     return 0;
@@ -386,6 +425,8 @@ CommandTable registerCommands(CLI::App& app) {
   registerPrepare(app, table);
   registerFit(app, table);
   registerEval(app, table);
+  registerExport(app, table);
+  registerReport(app, table);
   registerGradcheck(app, table);
   return table;
 }

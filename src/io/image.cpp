@@ -1,6 +1,9 @@
 #include "io/image.h"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
+
+#include <optional>
 
 #include "core/error.h"
 #include "io/atomic_file.h"
@@ -43,16 +46,49 @@ Image readImage(const std::filesystem::path& path, ImageReadStats* stats) {
 }
 
 namespace {
+// Writes to `file`, or into `memory` when given (OIIO's I/O proxy; the file name picks the format).
+void writeOiioTo(const std::filesystem::path& file, int w, int h, OIIO::TypeDesc storage, OIIO::TypeDesc memoryType,
+                 const void* pixels, std::vector<uint8_t>* memory = nullptr) {
+  auto out = OIIO::ImageOutput::create(file.string());
+  if (!out) fail("{}: cannot create image writer: {}", file.string(), OIIO::geterror());
+  std::optional<OIIO::Filesystem::IOVecOutput> proxy;
+  if (memory) out->set_ioproxy(&proxy.emplace(*memory));
+  OIIO::ImageSpec spec(w, h, 3, storage);
+  if (storage == OIIO::TypeDesc::FLOAT) spec.attribute("compression", "zip");
+  if (!out->open(file.string(), spec) || !out->write_image(memoryType, pixels) || !out->close())
+    fail("{}: cannot write image: {}", file.string(), out->geterror());
+}
+
 void writeOiio(const std::filesystem::path& path, int w, int h, OIIO::TypeDesc storage, OIIO::TypeDesc memory,
                const void* pixels) {
-  writeAtomically(path, [&](const std::filesystem::path& tmp) {
-    auto out = OIIO::ImageOutput::create(tmp.string());
-    if (!out) fail("{}: cannot create image writer: {}", path.string(), OIIO::geterror());
-    OIIO::ImageSpec spec(w, h, 3, storage);
-    if (storage == OIIO::TypeDesc::FLOAT) spec.attribute("compression", "zip");
-    if (!out->open(tmp.string(), spec) || !out->write_image(memory, pixels) || !out->close())
-      fail("{}: cannot write image: {}", path.string(), out->geterror());
-  });
+  writeAtomically(path, [&](const std::filesystem::path& tmp) { writeOiioTo(tmp, w, h, storage, memory, pixels); });
+}
+
+std::vector<uint16_t> srgb16(const Image& image) {
+  std::vector<uint16_t> v(image.rgb.size());
+  for (size_t i = 0; i < v.size(); ++i)
+    v[i] = static_cast<uint16_t>(std::lround(std::clamp(linearToSrgb(std::max(0.0f, image.rgb[i])), 0.0f, 1.0f) * 65535.0f));
+  return v;
+}
+
+std::vector<uint8_t> srgb8(const Image& image, float exposure) {
+  std::vector<uint8_t> bytes(image.rgb.size());
+  for (size_t i = 0; i < bytes.size(); ++i) {
+    const float v = std::clamp(linearToSrgb(std::max(0.0f, image.rgb[i] * exposure)), 0.0f, 1.0f);
+    bytes[i] = static_cast<uint8_t>(std::lround(v * 255.0f));
+  }
+  return bytes;
+}
+
+void writeSrgbPngTo(const std::filesystem::path& file, const Image& image, int bits, std::vector<uint8_t>* memory) {
+  if (bits != 8 && bits != 16) fail("{}: PNG bit depth must be 8 or 16, not {}", file.string(), bits);
+  if (bits == 8) {
+    const auto v = srgb8(image, 1.0f);
+    writeOiioTo(file, image.width, image.height, OIIO::TypeDesc::UINT8, OIIO::TypeDesc::UINT8, v.data(), memory);
+  } else {
+    const auto v = srgb16(image);
+    writeOiioTo(file, image.width, image.height, OIIO::TypeDesc::UINT16, OIIO::TypeDesc::UINT16, v.data(), memory);
+  }
 }
 }  // namespace
 
@@ -61,12 +97,18 @@ void writeExr(const std::filesystem::path& path, const Image& image) {
 }
 
 void writePng(const std::filesystem::path& path, const Image& image, float exposure) {
-  std::vector<uint8_t> bytes(image.rgb.size());
-  for (size_t i = 0; i < bytes.size(); ++i) {
-    const float v = std::clamp(linearToSrgb(std::max(0.0f, image.rgb[i] * exposure)), 0.0f, 1.0f);
-    bytes[i] = static_cast<uint8_t>(std::lround(v * 255.0f));
-  }
+  const auto bytes = srgb8(image, exposure);
   writeOiio(path, image.width, image.height, OIIO::TypeDesc::UINT8, OIIO::TypeDesc::UINT8, bytes.data());
+}
+
+void writeSrgbPng(const std::filesystem::path& path, const Image& image, int bits) {
+  writeAtomically(path, [&](const std::filesystem::path& tmp) { writeSrgbPngTo(tmp, image, bits, nullptr); });
+}
+
+std::vector<uint8_t> encodeSrgbPng(const Image& image, int bits) {
+  std::vector<uint8_t> bytes;
+  writeSrgbPngTo("memory.png", image, bits, &bytes);
+  return bytes;
 }
 
 }  // namespace relume

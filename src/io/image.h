@@ -1,5 +1,6 @@
 // Image I/O through OpenImageIO. In memory every image is linear RGB float32.
 #pragma once
+#include <cstdint>
 #include <filesystem>
 #include <vector>
 
@@ -34,6 +35,10 @@ Image readImage(const std::filesystem::path& path, ImageReadStats* stats = nullp
 void writeExr(const std::filesystem::path& path, const Image& image);
 // Tone-mapped preview: exposure scale, clamp, sRGB encode, 8-bit PNG. Atomic.
 void writePng(const std::filesystem::path& path, const Image& image, float exposure = 1.0f);
+// sRGB-encoded PNG of [0,1]-clamped linear values with 8 or 16 bits per channel: as a file
+// (atomic) or as the bytes of one (glTF embeds them).
+void writeSrgbPng(const std::filesystem::path& path, const Image& image, int bits);
+std::vector<uint8_t> encodeSrgbPng(const Image& image, int bits);
 
 float srgbToLinear(float v);
 float linearToSrgb(float v);

@@ -54,7 +54,8 @@ void writeReport(const fs::path& out, const Json& s) {
                       o["specular"][1].get<double>(), o["emitter"][0].get<bool>(), o["emitter"][1].get<bool>(),
                       o["materials_scored"].get<bool>() ? "yes" : "no (no highlight observed)");
   md += "\nFiles: `work/result/` (scene.json, albedo.exr/.png, materials.json), `work/metrics.jsonl` (loss and "
-        "timings per 10 iterations), `summary.json`.\n";
+        "timings per 10 iterations), `summary.json`. The fit's own report, with loss curves and timings: "
+        "[work/report/index.html](work/report/index.html).\n";
   writeTextAtomically(out / "report.md", md);
 }
 

@@ -48,8 +48,15 @@ Json TruthComparison::toJson() const {
   return {{"albedo_texels", albedoTexels}, {"albedo_mae", albedoMae}, {"albedo_psnr", albedoPsnr},
           {"roughness_mae", roughnessMae}, {"specular_mae", specularMae}, {"material_objects", materialObjects},
           {"emitters_true", emittersTrue}, {"emitters_found", emittersFound}, {"emitters_correct", emittersCorrect},
-          {"emission_rel_error", emissionRelError}, {"objects", perObject}};
+          {"emission_rel_error", emissionRelError}, {"albedo_psnr_8bit", albedoPsnr8}, {"roughness_psnr_8bit", roughnessPsnr8},
+          {"emission_iou", emissionIou}, {"objects", perObject}};
 }
+
+namespace {
+int srgb8(float linear) { return static_cast<int>(std::lround(std::clamp(linearToSrgb(std::max(linear, 0.0f)), 0.0f, 1.0f) * 255)); }
+int unit8(float v) { return static_cast<int>(std::lround(std::clamp(v, 0.0f, 1.0f) * 255)); }
+double psnrOf(double sumSquares, size_t n) { return 10.0 * std::log10(1.0 / std::max(sumSquares / std::max<size_t>(n, 1), 1e-12)); }
+}  // namespace
 
 TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescription& truth, const Image& coverage,
                                  const TruthOptions& o, Image* truthAlbedo) {
@@ -68,27 +75,40 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
   const int res = fa.albedo.width;
   const TexelMap map(fm, res);
   if (truthAlbedo) *truthAlbedo = Image(res, res);
-  double abs = 0, sq = 0;
+  double abs = 0, sq = 0, sq8 = 0, roughSq8 = 0;
+  size_t emitBoth = 0, emitEither = 0;
   struct ObjectError { double abs = 0, signedSum = 0; size_t texels = 0; };  // bias vs noise, per object
   std::vector<ObjectError> objectError(fa.objectCount());
   for (size_t t = 0; t < map.texelCount(); ++t) {
     if (!map.covered(t)) continue;
     const uint32_t tri = map.triangle(t);
     const Vec3 bc = map.barycentrics(fm, t);
-    Vec2 uv = Vec2::Zero();
-    if (tm.hasUv())
-      for (int k = 0; k < 3; ++k) uv += bc[k] * tm.uvs[tm.triangles[tri][k]];
-    const Color truth = ta.albedoAt(tm.faceObject[tri], uv);
+    Vec2 uv = Vec2::Zero(), fitUv = Vec2::Zero();
+    for (int k = 0; k < 3; ++k) {
+      if (tm.hasUv()) uv += bc[k] * tm.uvs[tm.triangles[tri][k]];
+      fitUv += bc[k] * fm.uvs[fm.triangles[tri][k]];
+    }
+    const int tObj = tm.faceObject[tri], fObj = fm.faceObject[tri];
+    const Color truth = ta.albedoAt(tObj, uv);
     if (truthAlbedo) truthAlbedo->set(static_cast<int>(t % res), static_cast<int>(t / res), truth);
+    const bool emitsTrue = ta.emissionAt(tObj, uv).maxCoeff() > 0, emitsFit = fa.emissionAt(fObj, fitUv).maxCoeff() > 0;
+    emitBoth += emitsTrue && emitsFit, emitEither += emitsTrue || emitsFit;
     const int s = res / coverage.width;
     if (coverage.at(static_cast<int>(t % res) / s, static_cast<int>(t / res) / s)[0] < o.minObservations) continue;
-    const Color d = fa.albedo.texel(static_cast<uint32_t>(t)) - truth;
+    const Color fitted = fa.albedo.texel(static_cast<uint32_t>(t));
+    const Color d = fitted - truth;
     abs += d.abs().sum() / 3, sq += d.square().sum() / 3;
+    for (int k = 0; k < 3; ++k) sq8 += std::pow((srgb8(fitted[k]) - srgb8(truth[k])) / 255.0, 2) / 3;
+    roughSq8 += std::pow((unit8(fa.roughness[fObj]) - unit8(ta.roughness[tObj])) / 255.0, 2);
     ++c.albedoTexels;
-    ObjectError& oe = objectError[fm.faceObject[tri]];
+    ObjectError& oe = objectError[fObj];
     oe.abs += d.abs().sum() / 3, oe.signedSum += d.sum() / 3, ++oe.texels;
   }
-  if (c.albedoTexels) c.albedoMae = abs / c.albedoTexels, c.albedoPsnr = 10.0 * std::log10(1.0 / std::max(sq / c.albedoTexels, 1e-12));
+  if (c.albedoTexels) {
+    c.albedoMae = abs / c.albedoTexels, c.albedoPsnr = psnrOf(sq, c.albedoTexels);
+    c.albedoPsnr8 = psnrOf(sq8, c.albedoTexels), c.roughnessPsnr8 = psnrOf(roughSq8, c.albedoTexels);
+  }
+  c.emissionIou = emitEither ? static_cast<double>(emitBoth) / emitEither : 1.0;
   // Per object.
   int found = 0;
   double emissionErr = 0;

@@ -31,6 +31,9 @@ struct TruthOptions {
 struct TruthComparison {
   size_t albedoTexels = 0;
   double albedoMae = 0, albedoPsnr = 0;
+  // Peers' measures, over the same texels: PSNR of 8-bit sRGB albedo maps and of 8-bit roughness
+  // maps (each texel its object's roughness), and the IoU of emitting texels (every covered texel).
+  double albedoPsnr8 = 0, roughnessPsnr8 = 0, emissionIou = 0;
   double roughnessMae = 0, specularMae = 0;
   int materialObjects = 0;
   int emittersTrue = 0, emittersFound = 0, emittersCorrect = 0;

@@ -16,6 +16,7 @@
 #include "optim/checkpoint.h"
 #include "optim/gauss_newton.h"
 #include "optim/upsample.h"
+#include "pipeline/report.h"
 #include "sampling/samplers.h"
 #include "scene/atlas.h"
 
@@ -407,6 +408,7 @@ class Fit {
       startIteration = 0;
     }
     summary.resultDir = writeResult(*space);
+    writeFitReport(w_.dir);
     summary.seconds = total.seconds();
     summary.iterations = globalIteration_;
     summary.finalResolution = finalRes_;

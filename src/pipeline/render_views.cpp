@@ -3,12 +3,14 @@
 #include <spdlog/spdlog.h>
 
 #include "capture/transforms.h"
+#include "pipeline/scene_edit.h"
 
 namespace relume {
 
 RenderStats renderViews(const std::filesystem::path& sceneFile, const std::filesystem::path& cameras,
                         const std::filesystem::path& out, const RenderViewsOptions& o) {
-  const SceneDescription desc = loadSceneFile(sceneFile);
+  SceneDescription desc = loadSceneFile(sceneFile);
+  if (!o.edit.empty()) applySceneEdit(desc, o.edit);
   const Capture cap = readTransforms(cameras);
   const Scene scene(desc.mesh);
   const LightSampler lights(scene, desc.appearance);

@@ -12,6 +12,7 @@ namespace relume {
 struct RenderViewsOptions {
   RenderOptions render;
   std::string aovs;  // comma list
+  std::filesystem::path edit;  // EDIT.json applied to the scene first (pipeline/scene_edit.h); empty: none
 };
 
 RenderStats renderViews(const std::filesystem::path& sceneFile, const std::filesystem::path& cameras,

@@ -83,6 +83,27 @@ Image textureImage(const Texture& t) {
 
 }  // namespace
 
+void readConstantFields(const Json& o, int id, const std::string& where, Appearance& a) {
+  if (o.contains("albedo")) {
+    a.albedoConstant[id] = readColor(o, "albedo", 0.0, 1.0, "in [0, 1]", where);
+    a.albedoFromTexture[id] = 0;
+  }
+  if (o.contains("roughness")) a.roughness[id] = floatIn(o["roughness"], kRoughnessMin, 1.0, "in [0.035, 1]", where, "roughness");
+  if (o.contains("specular")) a.specular[id] = floatIn(o["specular"], 0.0, 1.0, "in [0, 1]", where, "specular");
+  if (o.contains("emission")) a.emission[id] = readColor(o, "emission", 0.0, kFloatMax, kEmissionRange, where);
+}
+
+int Appearance::addObject(const std::string& name) {
+  names.push_back(name);
+  roughness.push_back(0.5f);
+  specular.push_back(0.5f);
+  emission.push_back(Color::Zero());
+  albedoConstant.push_back(Color::Constant(0.5f));
+  albedoFromTexture.push_back(0);
+  emissionTextureOf.push_back(-1);
+  return objectCount() - 1;
+}
+
 static SceneDescription parseSceneFile(const std::filesystem::path& path) {
   const std::string file = path.string();
   const Json j = readJson(path);
@@ -112,13 +133,7 @@ static SceneDescription parseSceneFile(const std::filesystem::path& path) {
       const int id = intIn(o["id"], 0, std::numeric_limits<int>::max(), where, "id");
       if (id >= a.objectCount()) fail("{}: id {} not in the mesh (objects 0..{})", where, id, a.objectCount() - 1);
       if (o.contains("name")) a.names[id] = o["name"].get<std::string>();
-      if (o.contains("albedo")) {
-        a.albedoConstant[id] = readColor(o, "albedo", 0.0, 1.0, "in [0, 1]", where);
-        a.albedoFromTexture[id] = 0;
-      }
-      if (o.contains("roughness")) a.roughness[id] = floatIn(o["roughness"], kRoughnessMin, 1.0, "in [0.035, 1]", where, "roughness");
-      if (o.contains("specular")) a.specular[id] = floatIn(o["specular"], 0.0, 1.0, "in [0, 1]", where, "specular");
-      if (o.contains("emission")) a.emission[id] = readColor(o, "emission", 0.0, kFloatMax, kEmissionRange, where);
+      readConstantFields(o, id, where, a);
       if (o.contains("emission_texture")) {
         if (!s.mesh.hasUv()) fail("{}: emission_texture needs a mesh with uv", where);
         const Json& w = o["emission_window"];

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <string>
 
+#include "io/json.h"
 #include "scene/mesh.h"
 #include "scene/texture.h"
 
@@ -44,6 +45,8 @@ struct Appearance {
     return t ? t->lookup(uv) : emission[object];
   }
   bool isEmissive(int object) const;
+  // A new object with the defaults above and constant albedo; returns its id.
+  int addObject(const std::string& name);
   // Average emitted radiance of an object (texture mean if textured): drives light selection.
   Color meanEmission(int object) const;
 };
@@ -53,6 +56,11 @@ struct SceneDescription {
   TriangleMesh mesh;
   Appearance appearance;
 };
+
+// The constant material fields a JSON object names (albedo, roughness, specular, emission), each
+// checked against its domain, written to object `id`; errors start with `where`. A constant
+// albedo replaces the albedo texture on that object.
+void readConstantFields(const Json& o, int id, const std::string& where, Appearance& a);
 
 // scene.json (schema in the README). Throws relume::Error naming the file and field.
 SceneDescription loadSceneFile(const std::filesystem::path& path);

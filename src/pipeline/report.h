@@ -1,0 +1,25 @@
+// WORK/report/index.html: what a fit did, readable offline in any browser. Self-contained (images
+// beside it, loss curves as inline SVG drawn from metrics.jsonl, no scripts, no network):
+// reference / re-render / error for a few frames, albedo (init, fit, truth when the capture has
+// one), coverage, emission textures, the per-object material table, per-stage loss curves and
+// timings, peak memory, and the config.
+#pragma once
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace relume {
+
+struct ReportOptions {
+  int frames = 3;  // views shown (spread over the kept frames)
+  int spp = 16;    // samples per pixel of their re-renders
+};
+
+// Reads WORK (prepare.json, metrics.jsonl, result/) and writes WORK/report/; returns index.html.
+std::filesystem::path writeFitReport(const std::filesystem::path& work, const ReportOptions& options = {});
+
+// One line chart per call: polyline of (x, y) on a log-y axis with min/max labels; standalone
+// <svg> text. Non-positive y values are skipped (log scale).
+std::string lossCurveSvg(const std::string& title, const std::vector<double>& x, const std::vector<double>& y);
+
+}  // namespace relume

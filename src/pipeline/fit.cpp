@@ -555,7 +555,8 @@ class Fit {
     Progress progress(st.name, static_cast<size_t>(st.iterations));
     progress.advance(static_cast<size_t>(firstIteration));
     PhaseTimes times;
-    Gradients grads(appearance_, newtonAlbedo());  // one buffer per stage, cleared every iteration
+    // One buffer per stage, cleared every iteration; curvature only where the albedo steps by it.
+    Gradients grads(appearance_, newtonAlbedo() && st.active.active(ParamKind::Albedo));
     for (int it = firstIteration; it < st.iterations; ++it) {
       const uint64_t iteration = static_cast<uint64_t>(globalIteration_);
       // Constant, except over the second half of a settling stage: linear down to lr_final_fraction.

@@ -2,6 +2,8 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include <memory>
+
 #include "core/error.h"
 #include "io/atomic_file.h"
 #include "io/input_file.h"
@@ -24,8 +26,9 @@ Image readImage(const std::filesystem::path& path, ImageReadStats* stats) {
          spec.width, spec.height, spec.nchannels, kMaxImagePixels);
   // RGB, or the first channel expanded to grey; further channels (alpha, AOVs) are never read.
   const int nc = spec.nchannels >= 3 ? 3 : 1;
-  std::vector<float> raw(static_cast<size_t>(spec.width) * spec.height * nc);
-  if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, raw.data())) fail("{}: corrupt image data: {}", file, in->geterror());
+  // Not zero-filled: a corrupt file whose header claims 8192 x 8192 fails without touching 800 MB.
+  const auto raw = std::make_unique_for_overwrite<float[]>(static_cast<size_t>(spec.width) * spec.height * nc);
+  if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, raw.get())) fail("{}: corrupt image data: {}", file, in->geterror());
   const bool isInteger = spec.format.basetype == OIIO::TypeDesc::UINT8 || spec.format.basetype == OIIO::TypeDesc::UINT16;
   const std::string colorSpace = spec.get_string_attribute("oiio:ColorSpace");
   const bool decodeSrgb = isInteger && colorSpace != "Linear" && colorSpace != "linear";

@@ -4,8 +4,8 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <charconv>
 #include <fstream>
-#include <regex>
 
 #include "core/error.h"
 
@@ -27,16 +27,27 @@ void writeAtomically(const std::filesystem::path& path,
   }
 }
 
+namespace {
+// The writer's pid if `name` is one writeAtomically gives, ".<stem>.tmp<pid><extension>"; else 0.
+pid_t temporaryWriter(const std::string& name) {
+  const size_t tmp = name.rfind(".tmp");
+  if (name.empty() || name[0] != '.' || tmp == std::string::npos || tmp < 2) return 0;
+  const char* end = name.data() + name.size();
+  pid_t pid = 0;
+  const auto [digitsEnd, ec] = std::from_chars(name.data() + tmp + 4, end, pid);
+  const std::string_view extension(digitsEnd, static_cast<size_t>(end - digitsEnd));
+  if (ec != std::errc() || pid <= 0) return 0;
+  if (!extension.empty() && (extension[0] != '.' || extension.find('.', 1) != std::string_view::npos)) return 0;
+  return pid;
+}
+}  // namespace
+
 size_t removeStaleTemporaries(const std::filesystem::path& dir) {
-  // The name writeAtomically gives: ".<stem>.tmp<pid><extension>".
-  static const std::regex kTemporary(R"(\..+\.tmp([0-9]{1,9})(\.[^.]*)?)");
   size_t removed = 0;
   std::error_code ec;
   for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
-    std::smatch m;
-    const std::string name = entry.path().filename().string();
-    if (!entry.is_regular_file(ec) || !std::regex_match(name, m, kTemporary)) continue;
-    const pid_t pid = static_cast<pid_t>(std::stol(m[1].str()));
+    const pid_t pid = temporaryWriter(entry.path().filename().string());
+    if (!pid || !entry.is_regular_file(ec)) continue;
     const bool writerAlive = pid == getpid() || kill(pid, 0) == 0 || errno == EPERM;
     if (!writerAlive && std::filesystem::remove(entry.path(), ec)) ++removed;
   }

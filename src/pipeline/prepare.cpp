@@ -211,6 +211,9 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
     const size_t skippedBefore = scene.skippedRays();
     const VisibilityIndex vis = VisibilityIndex::read(work / "visibility.bin", cap.frames.size());
     const FrameStore store(work / "frames.bin");
+    if (store.frameCount() != cap.frames.size())
+      fail("{}: holds {} frames, the capture has {} (rerun with --force)", (work / "frames.bin").string(), store.frameCount(),
+           cap.frames.size());
     // For each frame, its tiles and its position in each tile's frame list.
     std::vector<std::vector<std::pair<uint32_t, uint32_t>>> tilesOf(cap.frames.size());
     for (size_t t = 0; t + 1 < vis.offsets.size(); ++t)

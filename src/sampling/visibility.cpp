@@ -106,7 +106,9 @@ VisibilityIndex VisibilityIndex::read(const fs::path& path, size_t frameCount) {
   v.offsets.resize(tiles + 1);
   v.frames.resize(header[3]);
   std::memcpy(v.offsets.data(), bytes.data() + 24, v.offsets.size() * sizeof(uint32_t));
-  std::memcpy(v.frames.data(), bytes.data() + 24 + v.offsets.size() * sizeof(uint32_t), v.frames.size() * sizeof(uint32_t));
+  // Guarded: an index with no entries has frames.data() == nullptr, and memcpy from/to null is undefined even for 0 bytes.
+  if (!v.frames.empty())
+    std::memcpy(v.frames.data(), bytes.data() + 24 + v.offsets.size() * sizeof(uint32_t), v.frames.size() * sizeof(uint32_t));
   if (v.offsets.front() != 0 || v.offsets.back() != v.frames.size() || !std::is_sorted(v.offsets.begin(), v.offsets.end()))
     fail("{}: visibility index offsets must rise from 0 to the entry count {}", file, v.frames.size());
   for (const uint32_t f : v.frames)

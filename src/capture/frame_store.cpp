@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "io/atomic_file.h"
+#include "io/input_file.h"
 
 namespace relume {
 namespace {
@@ -103,6 +104,7 @@ std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const
 
 FrameStore::FrameStore(const std::filesystem::path& path) {
   const std::string file = path.string();
+  requireRegularFile(path, "a relume frame cache");
   const int fd = ::open(file.c_str(), O_RDONLY);
   if (fd < 0) fail("{}: cannot open frame cache", file);
   struct stat st {};
@@ -128,9 +130,15 @@ FrameStore::FrameStore(const std::filesystem::path& path) {
   for (uint32_t i = 0; i < h.frames; ++i) {
     DiskEntry e;
     std::memcpy(&e, data_ + sizeof(Header) + i * sizeof(DiskEntry), sizeof(e));
-    const uint64_t bytes = static_cast<uint64_t>(e.stats.width) * e.stats.height * 3 * sizeof(Imath::half);
-    if (e.offset + bytes > size_ || e.stats.width > 65536 || e.stats.height > 65536 || e.stats.downscale < 1)
-      bad(fmt::format("frame {} lies outside the file", i));
+    const FrameStats& s = e.stats;
+    if (s.width > 65536 || s.height > 65536 || s.downscale < 1 || s.downscale > 64)
+      bad(fmt::format("frame {}: size {}x{} / downscale {} out of range (65536 per side, downscale 1..64)", i, s.width,
+                      s.height, s.downscale));
+    for (const float fraction : {s.overexposed, s.underexposed, s.masked})
+      if (!(fraction >= 0 && fraction <= 1)) bad(fmt::format("frame {}: exposure statistic {} is not in [0, 1]", i, fraction));
+    // Written as a difference so a huge offset cannot wrap around.
+    const uint64_t bytes = static_cast<uint64_t>(s.width) * s.height * 3 * sizeof(Imath::half);
+    if (e.offset > size_ || bytes > size_ - e.offset) bad(fmt::format("frame {} lies outside the file", i));
     index_[i] = {e.offset, e.stats};
   }
 }

@@ -256,6 +256,8 @@ void registerFit(CLI::App& app, CommandTable& table) {
   table[c] = [=] {
     FitConfig cfg = config->empty() ? FitConfig{} : FitConfig::load(*config);
     if (*maxRes > 0) cfg.maxResolution = *maxRes;
+    // Its checkpoint is written atomically into the work folder: clear what killed runs left.
+    if (const size_t stale = removeStaleTemporaries(*work)) spdlog::info("fit: removed {} temporaries of killed runs", stale);
     const FitSummary s = runFit(*work, cfg, *resume);
     spdlog::info("fit: {} iterations in {:.0f}s, albedo {}^2, {} light source(s), result in {}", s.iterations, s.seconds,
                  s.finalResolution, s.emitters.size(), s.resultDir.string());

@@ -1,7 +1,10 @@
 #include "io/atomic_file.h"
 
+#include <signal.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <charconv>
 #include <fstream>
 
 #include "core/error.h"
@@ -22,6 +25,33 @@ void writeAtomically(const std::filesystem::path& path,
     std::filesystem::remove(tmp, ec);
     throw;
   }
+}
+
+namespace {
+// The writer's pid if `name` is one writeAtomically gives, ".<stem>.tmp<pid><extension>"; else 0.
+pid_t temporaryWriter(const std::string& name) {
+  const size_t tmp = name.rfind(".tmp");
+  if (name.empty() || name[0] != '.' || tmp == std::string::npos || tmp < 2) return 0;
+  const char* end = name.data() + name.size();
+  pid_t pid = 0;
+  const auto [digitsEnd, ec] = std::from_chars(name.data() + tmp + 4, end, pid);
+  const std::string_view extension(digitsEnd, static_cast<size_t>(end - digitsEnd));
+  if (ec != std::errc() || pid <= 0) return 0;
+  if (!extension.empty() && (extension[0] != '.' || extension.find('.', 1) != std::string_view::npos)) return 0;
+  return pid;
+}
+}  // namespace
+
+size_t removeStaleTemporaries(const std::filesystem::path& dir) {
+  size_t removed = 0;
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
+    const pid_t pid = temporaryWriter(entry.path().filename().string());
+    if (!pid || !entry.is_regular_file(ec)) continue;
+    const bool writerAlive = pid == getpid() || kill(pid, 0) == 0 || errno == EPERM;
+    if (!writerAlive && std::filesystem::remove(entry.path(), ec)) ++removed;
+  }
+  return removed;
 }
 
 void writeTextAtomically(const std::filesystem::path& path, std::string_view text) {

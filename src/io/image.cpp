@@ -3,10 +3,12 @@
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
+#include <memory>
 #include <optional>
 
 #include "core/error.h"
 #include "io/atomic_file.h"
+#include "io/input_file.h"
 
 namespace relume {
 
@@ -15,15 +17,20 @@ float linearToSrgb(float v) { return v <= 0.0031308f ? 12.92f * v : 1.055f * std
 
 Image readImage(const std::filesystem::path& path, ImageReadStats* stats) {
   const std::string file = path.string();
-  if (!std::filesystem::exists(path)) fail("{}: image not found", file);
+  requireRegularFile(path, "an image file");
   auto in = OIIO::ImageInput::open(file);
   if (!in) fail("{}: cannot read image: {}", file, OIIO::geterror());
   const OIIO::ImageSpec& spec = in->spec();
-  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.width > 65536 || spec.height > 65536)
-    fail("{}: unsupported image size {}x{}x{}", file, spec.width, spec.height, spec.nchannels);
-  const int nc = spec.nchannels;
-  std::vector<float> raw(static_cast<size_t>(spec.width) * spec.height * nc);
-  if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, raw.data())) fail("{}: corrupt image data: {}", file, in->geterror());
+  // A header of a few bytes may claim any size: bound what gets allocated before reading.
+  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.width > 65536 || spec.height > 65536 ||
+      static_cast<int64_t>(spec.width) * spec.height > kMaxImagePixels)
+    fail("{}: image size {}x{} ({} channels) out of range (positive, at most 65536 per side and {} pixels)", file,
+         spec.width, spec.height, spec.nchannels, kMaxImagePixels);
+  // RGB, or the first channel expanded to grey; further channels (alpha, AOVs) are never read.
+  const int nc = spec.nchannels >= 3 ? 3 : 1;
+  // Not zero-filled: a corrupt file whose header claims 8192 x 8192 fails without touching 800 MB.
+  const auto raw = std::make_unique_for_overwrite<float[]>(static_cast<size_t>(spec.width) * spec.height * nc);
+  if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, raw.get())) fail("{}: corrupt image data: {}", file, in->geterror());
   const bool isInteger = spec.format.basetype == OIIO::TypeDesc::UINT8 || spec.format.basetype == OIIO::TypeDesc::UINT16;
   const std::string colorSpace = spec.get_string_attribute("oiio:ColorSpace");
   const bool decodeSrgb = isInteger && colorSpace != "Linear" && colorSpace != "linear";
@@ -31,7 +38,7 @@ Image readImage(const std::filesystem::path& path, ImageReadStats* stats) {
   size_t bad = 0;
   for (size_t i = 0; i < static_cast<size_t>(spec.width) * spec.height; ++i) {
     for (int c = 0; c < 3; ++c) {
-      float v = raw[i * nc + std::min(c, nc >= 3 ? c : 0)];
+      float v = raw[i * nc + (nc == 3 ? c : 0)];
       if (decodeSrgb) v = srgbToLinear(v);
       img.rgb[3 * i + c] = v;
     }

@@ -28,6 +28,8 @@ struct ImageReadStats {
   std::vector<size_t> nonFiniteIndex;  // their pixel indices, so callers can mask them
 };
 
+// Larger images are rejected before anything is allocated (8192 x 8192 is the largest square).
+inline constexpr int64_t kMaxImagePixels = int64_t{1} << 26;
 // EXR/HDR are read as linear; 8/16-bit integer formats are sRGB-decoded. Greyscale is expanded,
 // alpha dropped. NaN/Inf pixels become 0 and are counted in `stats`.
 Image readImage(const std::filesystem::path& path, ImageReadStats* stats = nullptr);

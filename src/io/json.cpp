@@ -4,14 +4,14 @@
 
 #include "core/error.h"
 #include "io/atomic_file.h"
+#include "io/input_file.h"
 
 namespace relume {
 
 Json readJson(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) fail("{}: cannot open file", path.string());
+  const std::string text = readRegularFile(path, "a JSON file");
   try {
-    return Json::parse(in);
+    return Json::parse(text);
   } catch (const Json::parse_error& e) {
     fail("{}: malformed JSON at byte {}", path.string(), e.byte);
   }

@@ -4,18 +4,21 @@
 #include <tuple>
 
 #include "core/error.h"
+#include "io/input_file.h"
 #include "io/mesh_data.h"
 
 namespace relume {
 
 MeshData readObj(const std::filesystem::path& path) {
   const std::string file = path.string();
-  if (!std::filesystem::exists(path)) fail("{}: cannot open file", file);
+  const std::string text = readRegularFile(path, "an OBJ mesh");
   tinyobj::ObjReaderConfig config;
   config.triangulate = false;  // fan-triangulate ourselves, like PLY polygons
   config.vertex_color = false;
   tinyobj::ObjReader reader;
-  if (!reader.ParseFromFile(file, config)) {
+  // Parsed from memory with an empty material library: materials are not used, and an `mtllib`
+  // line must not make the reader open arbitrary paths (a FIFO, /dev/zero).
+  if (!reader.ParseFromString(text, "", config)) {
     std::string msg = reader.Error();
     while (!msg.empty() && (msg.back() == '\n' || msg.back() == '\r')) msg.pop_back();
     std::replace(msg.begin(), msg.end(), '\n', ' ');
@@ -42,16 +45,16 @@ MeshData readObj(const std::filesystem::path& path) {
         auto key = std::make_tuple(idx.vertex_index, anyN ? idx.normal_index : -1, anyUv ? idx.texcoord_index : -1);
         auto [it, inserted] = remap.try_emplace(key, static_cast<int>(mesh.positions.size()));
         if (inserted) {
-          const float* p = &attrib.vertices[3 * idx.vertex_index];
+          const float* p = &attrib.vertices[3 * static_cast<size_t>(idx.vertex_index)];
           mesh.positions.emplace_back(p[0], p[1], p[2]);
           if (anyN) {
-            const bool ok = idx.normal_index >= 0 && static_cast<size_t>(3 * idx.normal_index + 2) < attrib.normals.size();
+            const bool ok = idx.normal_index >= 0 && 3 * static_cast<size_t>(idx.normal_index) + 2 < attrib.normals.size();
             mesh.normals.push_back(ok ? Vec3(attrib.normals[3 * idx.normal_index], attrib.normals[3 * idx.normal_index + 1],
                                              attrib.normals[3 * idx.normal_index + 2])
                                       : Vec3::Zero());
           }
           if (anyUv) {
-            const bool ok = idx.texcoord_index >= 0 && static_cast<size_t>(2 * idx.texcoord_index + 1) < attrib.texcoords.size();
+            const bool ok = idx.texcoord_index >= 0 && 2 * static_cast<size_t>(idx.texcoord_index) + 1 < attrib.texcoords.size();
             // OBJ's v points up; ours (glTF) points down.
             mesh.uvs.push_back(ok ? Vec2(attrib.texcoords[2 * idx.texcoord_index], 1.0f - attrib.texcoords[2 * idx.texcoord_index + 1])
                                   : Vec2(-1, -1));

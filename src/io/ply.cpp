@@ -10,6 +10,7 @@
 
 #include "core/error.h"
 #include "io/atomic_file.h"
+#include "io/input_file.h"
 #include "io/mesh_data.h"
 
 namespace relume {
@@ -117,9 +118,7 @@ int findProperty(const Element& e, std::initializer_list<const char*> names) {
 
 MeshData readPly(const std::filesystem::path& path) {
   const std::string file = path.string();
-  std::ifstream in(path, std::ios::binary);
-  if (!in) fail("{}: cannot open file", file);
-  std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string data = readRegularFile(path, "a PLY mesh");
   const size_t headerEnd = data.find("end_header");
   if (data.rfind("ply", 0) != 0) fail("{}: not a PLY file (missing 'ply' magic)", file);
   if (headerEnd == std::string::npos) fail("{}: PLY header has no 'end_header'", file);

@@ -4,6 +4,7 @@
 
 #include "core/error.h"
 #include "io/atomic_file.h"
+#include "io/input_file.h"
 
 namespace relume {
 
@@ -42,6 +43,7 @@ void Checkpoint::write(const std::filesystem::path& path) const {
 }
 
 Checkpoint Checkpoint::read(const std::filesystem::path& path) {
+  requireRegularFile(path, "a relume checkpoint");
   std::ifstream in(path, std::ios::binary);
   if (!in) fail("{}: cannot open checkpoint", path.string());
   in.seekg(0, std::ios::end);

@@ -37,6 +37,20 @@ std::string fingerprintOf(const std::vector<fs::path>& files, const std::string&
   return fmt::format("{:016x}", h);
 }
 
+// The previous run's report, whose fingerprints say which phases are current. --force ignores it;
+// an unreadable one (hand-edited, truncated) only means every phase is redone.
+Json previousReport(const fs::path& file, bool force) {
+  if (force || !fs::exists(file)) return Json::object();
+  try {
+    Json report = readJson(file);
+    if (report.is_object() && report.value("phases", Json::object()).is_object()) return report;
+    spdlog::warn("{}: not a prepare report; rebuilding every phase", file.string());
+  } catch (const Error& e) {
+    spdlog::warn("{}; rebuilding every phase", e.what());
+  }
+  return Json::object();
+}
+
 fs::path findMesh(const fs::path& capture) {
   for (const char* name : {"mesh.ply", "mesh.obj"})
     if (fs::exists(capture / name)) return capture / name;
@@ -62,10 +76,12 @@ Image falseColour(const std::vector<uint32_t>& counts, int res) {
 PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, const PrepareOptions& o) {
   Timer total;
   fs::create_directories(work);
+  if (const size_t stale = removeStaleTemporaries(work)) spdlog::info("prepare: removed {} temporaries of killed runs", stale);
   const fs::path transformsPath = capture / "transforms.json";
   const fs::path meshPath = findMesh(capture);
   const Capture cap = readTransforms(transformsPath);
-  Json report = fs::exists(work / "prepare.json") ? readJson(work / "prepare.json") : Json::object();
+  Json report = previousReport(work / "prepare.json", o.force);
+  const Json reportBefore = report;
   Json phases = report.value("phases", Json::object());
   const int initRes = o.resolutions.front();
   if (initRes % o.tileTexels != 0) fail("prepare: init resolution {} is not a multiple of the tile size {}", initRes, o.tileTexels);
@@ -195,8 +211,11 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   const std::string initPrint = fingerprintOf({}, fmt::format("init {} {}", visPrint, static_cast<int>(o.init)));
   runPhase("init", initPrint, {work / "albedo_init.exr", work / "coverage.exr", work / "coverage.png"}, [&] {
     const size_t skippedBefore = scene.skippedRays();
-    const VisibilityIndex vis = VisibilityIndex::read(work / "visibility.bin");
+    const VisibilityIndex vis = VisibilityIndex::read(work / "visibility.bin", cap.frames.size());
     const FrameStore store(work / "frames.bin");
+    if (store.frameCount() != cap.frames.size())
+      fail("{}: holds {} frames, the capture has {} (rerun with --force)", (work / "frames.bin").string(), store.frameCount(),
+           cap.frames.size());
     // For each frame, its tiles and its position in each tile's frame list.
     std::vector<std::vector<std::pair<uint32_t, uint32_t>>> tilesOf(cap.frames.size());
     for (size_t t = 0; t + 1 < vis.offsets.size(); ++t)
@@ -306,9 +325,13 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   report["capture"] = fs::absolute(capture).string();
   report["resolutions"] = o.resolutions;
   report["texel_map_bytes_per_texel"] = sizeof(uint32_t);
-  report["peak_rss_mib"] = peakRssMiB();
-  report["seconds_total_last_run"] = s.seconds;
-  writeJson(work / "prepare.json", report);
+  // Timings describe the last run that did something: an up-to-date folder (even a read-only one)
+  // is left untouched.
+  if (report != reportBefore) {
+    report["peak_rss_mib"] = peakRssMiB();
+    report["seconds_total_last_run"] = s.seconds;
+    writeJson(work / "prepare.json", report);
+  }
   return s;
 }
 

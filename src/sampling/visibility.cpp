@@ -1,5 +1,6 @@
 #include "sampling/visibility.h"
 
+#include <algorithm>
 #include <tbb/parallel_for.h>
 
 #include <cstring>
@@ -8,6 +9,7 @@
 #include "core/error.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
+#include "io/input_file.h"
 
 namespace relume {
 namespace fs = std::filesystem;
@@ -84,22 +86,33 @@ void VisibilityIndex::write(const fs::path& path) const {
   writeTextAtomically(path, bytes);
 }
 
-VisibilityIndex VisibilityIndex::read(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (bytes.size() < 24 || bytes.compare(0, 8, "RLMVIS01") != 0) fail("{}: not a relume visibility index", path.string());
+VisibilityIndex VisibilityIndex::read(const fs::path& path, size_t frameCount) {
+  const std::string file = path.string();
+  const std::string bytes = readRegularFile(path, "a relume visibility index");
+  if (bytes.size() < 24 || bytes.compare(0, 8, "RLMVIS01") != 0) fail("{}: not a relume visibility index", file);
   uint32_t header[4];
   std::memcpy(header, bytes.data() + 8, sizeof(header));
+  // Every number checked here, so tileOf/framesOf can index without checks.
+  constexpr uint32_t kMaxResolution = 65536;
+  if (header[0] < 1 || header[0] > kMaxResolution || header[1] < 1 || header[1] > header[0] || header[0] % header[1] != 0 ||
+      header[2] != header[0] / header[1])
+    fail("{}: resolution {}, tile {} texels, {} tiles per side: need resolution in [1, {}] = tile size x tiles per side",
+         file, header[0], header[1], header[2], kMaxResolution);
   VisibilityIndex v;
   v.resolution = static_cast<int>(header[0]), v.tileTexels = static_cast<int>(header[1]), v.tilesPerSide = static_cast<int>(header[2]);
   const size_t tiles = static_cast<size_t>(v.tilesPerSide) * v.tilesPerSide;
-  if (v.tilesPerSide <= 0 || v.tilesPerSide > 65536 || bytes.size() != 24 + (tiles + 1 + header[3]) * sizeof(uint32_t))
-    fail("{}: visibility index is truncated or corrupt", path.string());
+  if (bytes.size() != 24 + (tiles + 1 + header[3]) * sizeof(uint32_t))
+    fail("{}: visibility index is truncated or corrupt ({} bytes for {} tiles and {} entries)", file, bytes.size(), tiles, header[3]);
   v.offsets.resize(tiles + 1);
   v.frames.resize(header[3]);
   std::memcpy(v.offsets.data(), bytes.data() + 24, v.offsets.size() * sizeof(uint32_t));
-  std::memcpy(v.frames.data(), bytes.data() + 24 + v.offsets.size() * sizeof(uint32_t), v.frames.size() * sizeof(uint32_t));
-  if (v.offsets.back() != v.frames.size()) fail("{}: visibility index offsets are inconsistent", path.string());
+  // Guarded: an index with no entries has frames.data() == nullptr, and memcpy from/to null is undefined even for 0 bytes.
+  if (!v.frames.empty())
+    std::memcpy(v.frames.data(), bytes.data() + 24 + v.offsets.size() * sizeof(uint32_t), v.frames.size() * sizeof(uint32_t));
+  if (v.offsets.front() != 0 || v.offsets.back() != v.frames.size() || !std::is_sorted(v.offsets.begin(), v.offsets.end()))
+    fail("{}: visibility index offsets must rise from 0 to the entry count {}", file, v.frames.size());
+  for (const uint32_t f : v.frames)
+    if (f >= frameCount) fail("{}: visibility index names frame {}, the capture has {}", file, f, frameCount);
   return v;
 }
 

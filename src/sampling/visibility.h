@@ -3,6 +3,7 @@
 // the camera, unoccluded. The visibility index lists, per tile of texture space, the frames that
 // can see some point of it (CSR), so samplers only try plausible frames.
 #pragma once
+#include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <vector>
@@ -26,7 +27,8 @@ struct VisibilityIndex {
   size_t frameCount(size_t tile) const { return offsets[tile + 1] - offsets[tile]; }
   const uint32_t* framesOf(size_t tile) const { return frames.data() + offsets[tile]; }
   void write(const std::filesystem::path& path) const;
-  static VisibilityIndex read(const std::filesystem::path& path);  // throws relume::Error on a bad file
+  // Throws relume::Error on a bad file, or one naming a frame index >= frameCount.
+  static VisibilityIndex read(const std::filesystem::path& path, size_t frameCount = SIZE_MAX);
   size_t bytes() const { return (offsets.size() + frames.size()) * sizeof(uint32_t); }
 };
 

@@ -136,8 +136,10 @@ static SceneDescription parseSceneFile(const std::filesystem::path& path) {
       readConstantFields(o, id, where, a);
       if (o.contains("emission_texture")) {
         if (!s.mesh.hasUv()) fail("{}: emission_texture needs a mesh with uv", where);
+        // contains() first: operator[] of a const json on a missing key is undefined behaviour.
+        if (!o.contains("emission_window") || !o["emission_window"].is_array() || o["emission_window"].size() != 4)
+          fail("{}: 'emission_window' must be [x0, y0, atlas_width, atlas_height]", where);
         const Json& w = o["emission_window"];
-        if (!w.is_array() || w.size() != 4) fail("{}: 'emission_window' must be [x0, y0, atlas_width, atlas_height]", where);
         Texture t = readTexture(dir / o["emission_texture"].get<std::string>(), 0.0, kFloatMax, kEmissionRange);
         const int maxSide = std::numeric_limits<int>::max();
         t.x0 = intIn(w[0], 0, maxSide, where, "emission_window[0]"), t.y0 = intIn(w[1], 0, maxSide, where, "emission_window[1]");

@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <fstream>
+
 #include "capture/frame_store.h"
 #include "core/error.h"
 #include "io/image.h"
@@ -116,6 +118,35 @@ TEST(Prepare, RerunIsNearInstantAndChangesNothing) {
   writeExr(cap / "images" / "00.exr", img);
   prepareCapture(cap, cap / "work", smallOptions());
   EXPECT_NE(fs::last_write_time(cap / "work" / "frames.bin"), before);
+}
+
+TEST(Prepare, UpToDateRunDoesNotRewriteItsReport) {
+  // So `prepare` succeeds on an up-to-date folder that is read-only.
+  const fs::path cap = makeFloorCapture("relume_prep_readonly", 4, {});
+  const fs::path report = cap / "work" / "prepare.json";
+  prepareCapture(cap, cap / "work", smallOptions());
+  const auto written = fs::last_write_time(report);
+  const std::string text = readJson(report).dump();
+  prepareCapture(cap, cap / "work", smallOptions());
+  EXPECT_EQ(fs::last_write_time(report), written);
+  EXPECT_EQ(readJson(report).dump(), text);
+}
+
+TEST(Prepare, TruncatedReportAndKilledRunsTemporariesDoNotBlockARebuild) {
+  const fs::path cap = makeFloorCapture("relume_prep_truncated", 4, {});
+  const fs::path work = cap / "work", report = work / "prepare.json";
+  prepareCapture(cap, work, smallOptions());
+  for (const bool force : {true, false}) {
+    SCOPED_TRACE(force ? "--force" : "no --force");
+    const std::string text = readJson(report).dump();
+    std::ofstream(report, std::ios::trunc) << text.substr(0, text.size() / 2);
+    std::ofstream(work / ".frames.tmp999999999.bin") << "left by a killed run";  // no such pid
+    PrepareOptions o = smallOptions();
+    o.force = force;
+    EXPECT_NO_THROW(prepareCapture(cap, work, o));
+    EXPECT_TRUE(readJson(report)["phases"].contains("init"));
+    EXPECT_FALSE(fs::exists(work / ".frames.tmp999999999.bin"));
+  }
 }
 
 TEST(FrameStore, RoundTripMaskingAndCorruptFiles) {

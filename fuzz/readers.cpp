@@ -1,0 +1,116 @@
+#include "readers.h"
+
+#include <unistd.h>
+
+#include <fstream>
+#include <functional>
+#include <map>
+#include <stdexcept>
+
+#include "capture/frame_store.h"
+#include "capture/objects.h"
+#include "capture/transforms.h"
+#include "core/error.h"
+#include "io/image.h"
+#include "optim/checkpoint.h"
+#include "sampling/visibility.h"
+#include "scene/appearance.h"
+#include "scene/mesh.h"
+
+namespace relume::fuzz {
+namespace fs = std::filesystem;
+namespace {
+
+// A per-process folder holding the scratch input and what fuzzed files may refer to: scene.json's
+// mesh (two objects with uv) and texture.exr. Removed at exit.
+struct ScratchDir {
+  const fs::path path = fs::temp_directory_path() / fmt::format("relume_fuzz_{}", getpid());
+  ScratchDir() {
+    fs::create_directories(path);
+    MeshData quad;
+    quad.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+    quad.uvs = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+    quad.triangles = {{0, 1, 2}, {0, 2, 3}};
+    quad.faceObject = {0, 1};
+    writePly(path / "mesh.ply", quad);
+    Image texture(2, 2);
+    texture.rgb.assign(texture.rgb.size(), 0.5f);
+    writeExr(path / "texture.exr", texture);
+  }
+  ~ScratchDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+const fs::path& scratchDir() {
+  static const ScratchDir dir;
+  return dir.path;
+}
+
+struct Reader {
+  std::string fileName;  // the extension matters: mesh and image readers dispatch on it
+  std::function<void(const fs::path&)> read;
+};
+
+void touchFrameStore(const fs::path& file) {
+  const FrameStore store(file);
+  for (size_t f = 0; f < store.frameCount(); ++f) {
+    const FrameStats& s = store.stats(f);
+    const float w = static_cast<float>(s.width * s.downscale), h = static_cast<float>(s.height * s.downscale);
+    for (const Vec2& px : {Vec2(0.5f, 0.5f), Vec2(w / 2, h / 2), Vec2(w - 0.5f, h - 0.5f)}) (void)store.bilinear(f, px);
+  }
+}
+
+void touchVisibility(const fs::path& file) {
+  const VisibilityIndex v = VisibilityIndex::read(file, 64);
+  uint64_t sum = 0;
+  for (size_t tile = 0; tile + 1 < v.offsets.size(); ++tile)
+    for (size_t k = 0; k < v.frameCount(tile); ++k) sum += v.framesOf(tile)[k];
+  const size_t lastTexel = static_cast<size_t>(v.resolution) * v.resolution - 1;
+  if (v.tileOf(lastTexel, v.resolution) + 1 >= v.offsets.size()) throw std::logic_error("tileOf out of range");
+  (void)sum;
+}
+
+void touchCheckpoint(const fs::path& file) {
+  const Checkpoint c = Checkpoint::read(file);
+  (void)c.meta.dump();
+  (void)c.bytes("albedo");
+}
+
+const std::map<std::string, Reader>& readers() {
+  static const std::map<std::string, Reader> table = {
+      {"ply", {"input.ply", [](const fs::path& f) { (void)loadMesh(f); }}},
+      {"obj", {"input.obj", [](const fs::path& f) { (void)loadMesh(f); }}},
+      {"transforms", {"transforms.json", [](const fs::path& f) { (void)readTransforms(f); }}},
+      {"objects", {"objects.json", [](const fs::path& f) { (void)readObjectNames(f); }}},
+      {"scene", {"scene.json", [](const fs::path& f) { (void)loadSceneFile(f); }}},
+      {"image", {"input.exr", [](const fs::path& f) { (void)readImage(f); }}},
+      {"frames", {"frames.bin", touchFrameStore}},
+      {"visibility", {"visibility.bin", touchVisibility}},
+      {"checkpoint", {"checkpoint.bin", touchCheckpoint}},
+  };
+  return table;
+}
+
+}  // namespace
+
+std::vector<std::string> readerNames() {
+  std::vector<std::string> names;
+  for (const auto& [name, reader] : readers()) names.push_back(name);
+  return names;
+}
+
+void readBytes(const std::string& name, const uint8_t* data, size_t size) {
+  const auto it = readers().find(name);
+  if (it == readers().end()) throw std::invalid_argument("no reader named " + name);
+  const fs::path file = scratchDir() / it->second.fileName;
+  std::ofstream(file, std::ios::binary).write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
+  try {
+    it->second.read(file);
+  } catch (const Error&) {
+    // Bad input, reported as it should be.
+  }
+}
+
+}  // namespace relume::fuzz

@@ -1,0 +1,75 @@
+#!/usr/bin/env python3
+"""Writes the seed corpus tests/data/fuzz/<reader>/seed_* from relume's own outputs, cut small
+(a few KB per reader). Usage, from a build with build/relume:
+  relume synth --scene cornell --out S/cap --frames 3 --test-frames 1 --width 16 --height 12 --spp 1 --max-depth 2
+  relume prepare S/cap --out S/work --res 64 --gutter-res 64 --tile 16
+  echo '{"stop_after_iterations": 2, "checkpoint_every": 1}' > S/fit.json && relume fit S/work --config S/fit.json
+  scripts/fuzz_seeds.py S
+Inputs the fuzzer found (crash-*, timeout-*, oom-*) live next to the seeds and are never rewritten."""
+import json, os, shutil, struct, sys
+
+src, out = sys.argv[1], os.path.join(os.path.dirname(__file__), "..", "tests", "data", "fuzz")
+
+
+def put(reader, name, data):
+    os.makedirs(os.path.join(out, reader), exist_ok=True)
+    with open(os.path.join(out, reader, "seed_" + name), "wb") as f:
+        f.write(data if isinstance(data, bytes) else data.encode())
+
+
+def read(*path):
+    with open(os.path.join(src, *path), "rb") as f:
+        return f.read()
+
+
+def compact(j):
+    return json.dumps(j, separators=(",", ":"))
+
+
+# Meshes: relume's binary PLY, an ascii polygon mesh, and the two inputs that once hung prepare/the reader.
+put("ply", "cornell.ply", read("cap", "mesh.ply"))
+ascii_header = ("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                "element face 2\nproperty list uchar int vertex_indices\nproperty int segment_id\nend_header\n")
+put("ply", "ascii_quad.ply", ascii_header + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3 7\n3 0 1 2 1\n")
+put("ply", "coincident.ply", ascii_header + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2 0\n3 0 1 2 0\n")
+put("ply", "empty_element.ply", "ply\nformat binary_little_endian 1.0\nelement junk 18446744073709551615\nend_header\n")
+obj = "o box\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 1\ng front\nf 1/1/1 2/2/1 3/3/1 4/1/1\ng back\nf -1 -2 -3\n"
+put("obj", "groups.obj", obj)
+put("obj", "repeated_vertex.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 2 3\nf 1 2 3\n")
+
+# Capture files: cameras of synth, both objects.json forms.
+transforms = json.loads(read("cap", "transforms.json"))
+transforms["frames"] = transforms["frames"][:1]
+put("transforms", "synth.json", compact(transforms))
+put("transforms", "global_pinhole.json", compact({"camera_model": "PINHOLE", "fl_x": 20, "w": 16, "h": 12, "frames": [
+    {"file_path": "a.png", "exposure": 2, "clip_high": 0.9, "transform_matrix": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0]]}]}))
+put("objects", "list.json", compact(json.loads(read("cap", "objects.json"))))
+put("objects", "map.json", compact({"0": "floor", "1": "wall"}))
+
+# scene.json against the fuzz scratch folder: mesh.ply with objects 0 and 1 (uv), texture.exr.
+scene = json.loads(read("cap", "gt", "scene.json"))
+scene["albedo_texture"] = "texture.exr"
+scene["objects"] = scene["objects"][:2]
+put("scene", "cornell.json", compact(scene))
+scene["objects"][1]["emission_texture"] = "texture.exr"
+scene["objects"][1]["emission_window"] = [0, 0, 2, 2]
+del scene["albedo_texture"]
+put("scene", "emission_texture.json", compact(scene))
+
+# Images: a float EXR frame, 8-bit sRGB PNGs.
+put("image", "frame.exr", read("cap", "images", "frame_0000.exr"))
+put("image", "coverage.png", read("work", "coverage.png"))
+
+# Files of earlier runs: frame cache, visibility index, and a checkpoint with its arrays cut to 16 bytes.
+put("frames", "prepare.bin", read("work", "frames.bin"))
+put("frames", "header_only.bin", read("work", "frames.bin")[:16])
+put("visibility", "prepare.bin", read("work", "visibility.bin"))
+put("visibility", "header_only.bin", read("work", "visibility.bin")[:24])
+ck = read("work", "checkpoint.bin")
+(length,) = struct.unpack("<Q", ck[8:16])
+header = json.loads(ck[16:16 + length])
+header["arrays"] = [[name, min(n, 16)] for name, n in header["arrays"]]
+header["meta"] = {k: header["meta"][k] for k in list(header["meta"])[:4]}
+text = compact(header).encode()
+put("checkpoint", "fit.bin", ck[:8] + struct.pack("<Q", len(text)) + text + bytes(sum(n for _, n in header["arrays"])))
+put("checkpoint", "empty.bin", ck[:8] + struct.pack("<Q", 24) + b'{"arrays":[],"meta":{}} ')

@@ -1,0 +1,44 @@
+// Replays the fuzzing corpus (seeds and every input that once crashed a reader) through the
+// readers in the ordinary build: each file must be read or rejected with relume::Error.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+
+#include "readers.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const fs::path kCorpus = fs::path(RELUME_TEST_DATA) / "fuzz";
+
+class Corpus : public testing::TestWithParam<std::string> {};
+
+TEST_P(Corpus, EveryFileIsReadOrRejectedWithAnError) {
+  const fs::path dir = kCorpus / GetParam();
+  ASSERT_TRUE(fs::is_directory(dir)) << dir;
+  size_t files = 0;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    std::ifstream in(entry.path(), std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    SCOPED_TRACE(entry.path().string());
+    EXPECT_NO_THROW(relume::fuzz::readBytes(GetParam(), reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()));
+    ++files;
+  }
+  EXPECT_GE(files, 2u) << "corpus of " << GetParam() << " has no seeds";
+}
+
+INSTANTIATE_TEST_SUITE_P(Readers, Corpus, testing::ValuesIn(relume::fuzz::readerNames()),
+                         [](const testing::TestParamInfo<std::string>& p) { return p.param; });
+
+TEST(Corpus, EveryFolderHasAReader) {
+  const std::vector<std::string> names = relume::fuzz::readerNames();
+  for (const auto& entry : fs::directory_iterator(kCorpus)) {
+    if (!entry.is_directory()) continue;
+    EXPECT_NE(std::find(names.begin(), names.end(), entry.path().filename().string()), names.end()) << entry.path();
+  }
+}
+
+}  // namespace

@@ -49,7 +49,8 @@ TEST(Report, FitWritesASelfContainedPageWithCurvesImagesAndMaterials) {
   }
   EXPECT_EQ(curves, 3u);  // emission, albedo@64, materials
   EXPECT_EQ(points, records);
-  for (const Json& o : readJson(dir / "work" / "result" / "materials.json")["objects"])
+  const Json materials = readJson(dir / "work" / "result" / "materials.json");  // a range-for over a temporary's member dangles
+  for (const Json& o : materials["objects"])
     EXPECT_NE(html.find("<td>" + o["name"].get<std::string>() + "</td>"), std::string::npos);
   EXPECT_NE(html.find("\"lr_albedo\""), std::string::npos);  // the config
 }

@@ -241,7 +241,7 @@ std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, 
       Pcg32 rng(primalSeed(settings, iteration, j));
       rec.count = 0;
       estimate[j] = safeRadiance(tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rng, rec));
-      if (isFinite(estimate[j]) && (estimate[j] != 0.0f).any())
+      if ((estimate[j] != 0.0f).any())  // safeRadiance: finite; zero radiance has zero sensitivity
         (*albedoSensitivity)[j] = sweep(rec.records, rec.count, Color::Zero(), settings, none);
     }
   });

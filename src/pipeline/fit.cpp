@@ -743,14 +743,16 @@ class Fit {
       ck.get(g.name() + ".v", s.v);
       ck.get(g.name() + ".steps", s.steps);
       adam_[g.name()] = std::move(s);
-      if (ck.has(g.name() + ".mean")) {
-        PolyakAverage& p = polyak_[g.name()];
-        p.mean.resize(g.values.size());
-        ck.get(g.name() + ".mean", p.mean);
-        std::vector<uint32_t> count(1);
-        ck.get(g.name() + ".count", count);
-        p.count = count[0];
-      }
+    }
+    // Averages independently of Adam state: the albedo has none under the Gauss-Newton step.
+    for (ParamGroup& g : paramGroups(appearance_)) {
+      if (!ck.has(g.name() + ".mean")) continue;
+      PolyakAverage& p = polyak_[g.name()];
+      p.mean.resize(g.values.size());
+      ck.get(g.name() + ".mean", p.mean);
+      std::vector<uint32_t> count(1);
+      ck.get(g.name() + ".count", count);
+      p.count = count[0];
     }
     if (newtonAlbedo() && ck.has("albedo.curvature")) {
       newton_ = GaussNewtonState(appearance_.albedo.rgb.size());

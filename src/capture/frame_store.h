@@ -36,6 +36,7 @@ class FrameStore {
   FrameStore& operator=(const FrameStore&) = delete;
 
   size_t frameCount() const { return index_.size(); }
+  size_t mappedBytes() const { return size_; }
   const FrameStats& stats(size_t frame) const { return index_[frame].stats; }
   Color pixel(size_t frame, int x, int y) const;  // negative = masked
   // Bilinear at continuous pixel coordinates of the ORIGINAL image (pixel centres at +0.5; the

@@ -136,9 +136,50 @@ void registerPrepare(CLI::App& app, CommandTable& table) {
 
 struct ProfileArgs {
   std::string synth = "room", what = "render,adjoint";
+  std::string work, config, stage = "albedo", json, scratch = "out/room";
+  int iterations = 20;
+  bool maxDepthGiven = false;  // fit: --max-depth overrides the config's
   int width = 320, height = 240, spp = 4, maxDepth = kDefaultMaxDepth, rays = 65536, repeats = 3, batches = 32, studyRays = 4096;
   int scatterRes = 4096;
 };
+
+void printFitProfile(const ProfileArgs& a) {
+  std::filesystem::path work = a.work;
+  FitConfig cfg = DemoOptions::demoFitConfig();
+  cfg.emissionIterations = 20;  // warm-up only: the profiled stage is what counts
+  if (!a.config.empty()) cfg = FitConfig::load(a.config);
+  if (a.maxDepthGiven) cfg.maxDepth = a.maxDepth;
+  if (work.empty()) work = prepareDemoCapture(a.scratch).work;
+  const FitProfile p = profileFit(work, cfg, a.stage, a.iterations);
+  const Json j = p.toJson();
+  fmt::print("fit iteration  {}: stage {}, {} iterations timed, {} rays/iteration, depth {}, {} threads\n", work.string(),
+             p.stage, p.iterations, p.raysPerIteration, p.maxDepth, p.threads);
+  fmt::print("  {:<26} {:>9} {:>9} {:>9}\n", "phase (ms)", "mean", "min", "max");
+  const std::pair<const char*, const char*> rows[] = {{"sample", "texel sampling + connections"}, {"lights", "light sampler build"},
+                                                      {"primal", "primal"}, {"loss", "loss"}, {"adjoint", "adjoint (incl. scatter)"},
+                                                      {"optimiser", "optimiser"}, {"total", "iteration"}};
+  for (const auto& [key, label] : rows) {
+    const Json& ph = j["phases"][key];
+    fmt::print("  {:<26} {:9.2f} {:9.2f} {:9.2f}\n", label, ph["mean_ms"].get<double>(), ph["min_ms"].get<double>(),
+               ph["max_ms"].get<double>());
+  }
+  const double primalRays = static_cast<double>(p.primalClosestRays + p.primalShadowRays);
+  fmt::print("  last batch, replayed (best of 3):\n");
+  fmt::print("    connection rays, Embree alone   {:8.2f} ms ({} rays)\n", 1e3 * p.connectionTraceOnly, p.raysPerIteration);
+  fmt::print("    primal                          {:8.2f} ms  {:.3f} Mpaths/s  {:.2f} Mrays/s ({:.1f} rays/path)\n", 1e3 * p.primal,
+             p.raysPerIteration / p.primal * 1e-6, primalRays / p.primal * 1e-6, primalRays / p.raysPerIteration);
+  fmt::print("    primal's rays, Embree alone     {:8.2f} ms  efficiency {:.2f} (trace-only / primal)\n", 1e3 * p.primalTraceOnly,
+             p.primalTraceOnly / p.primal);
+  fmt::print("    adjoint                         {:8.2f} ms  iteration / primal = {:.2f}x\n", 1e3 * p.adjoint,
+             (p.primal + p.adjoint) / p.primal);
+  fmt::print("    adjoint, no parameter active    {:8.2f} ms  (derivatives + scatter: {:.2f} ms)\n", 1e3 * p.adjointNoScatter,
+             1e3 * (p.adjoint - p.adjointNoScatter));
+  fmt::print("  per ray {} B between the passes, vertex record {} B x (depth+1) per thread\n", p.rayStateBytes, p.recordBytes);
+  fmt::print("  memory held by the fit (MiB):");
+  for (const auto& [k, v] : p.memory.items()) fmt::print(" {} {:.1f},", k, v.get<double>() / 1048576.0);
+  fmt::print("\n  peak RSS {:.0f} MiB (whole process)\n", p.peakRssMiB);
+  if (!a.json.empty()) writeJson(a.json, j);
+}
 
 int runProfile(const ProfileArgs& a) {
   const SynthSceneKind kind = parseSynthScene(a.synth);
@@ -186,6 +227,7 @@ int runProfile(const ProfileArgs& a) {
                    st.biasZ, st.relStd);
     }
   }
+  if (wants("fit")) printFitProfile(a);
   if (wants("visibility")) {
     const TriangleMesh mesh = buildAtlas(makeScanLikeRoom(1000000, 0.004f), {});
     const Scene scene(mesh);
@@ -228,8 +270,14 @@ int runProfile(const ProfileArgs& a) {
 
 void registerProfile(CLI::App& app, CommandTable& table) {
   auto a = std::make_shared<ProfileArgs>();
-  CLI::App* c = app.add_subcommand("profile", "measure speed: renderer, adjoint passes, pairings, gradient scatter");
-  c->add_option("--what", a->what, "comma list of render, adjoint, pairing, scatter, leaks, visibility (+ texel maps)")->capture_default_str();
+  CLI::App* c = app.add_subcommand("profile", "measure speed: renderer, adjoint passes, fit iterations, pairings, gradient scatter");
+  c->add_option("--what", a->what, "comma list of render, adjoint, pairing, scatter, leaks, visibility (+ texel maps), fit")->capture_default_str();
+  c->add_option("--work", a->work, "fit: a prepared work folder (default: the demo's room, prepared in --scratch)")->check(CLI::ExistingDirectory);
+  c->add_option("--scratch", a->scratch, "fit: where the room is prepared when no --work is given (reused)")->capture_default_str();
+  c->add_option("--config", a->config, "fit: config JSON (default: the demo's, 20 warm-up emission iterations)")->check(CLI::ExistingFile);
+  c->add_option("--stage", a->stage, "fit: profile the first stage whose name starts with this")->capture_default_str();
+  c->add_option("--iterations", a->iterations, "fit: iterations timed")->capture_default_str()->check(inRange(1, 100000));
+  c->add_option("--json", a->json, "fit: also write the profile as JSON here");
   c->add_option("--synth", a->synth, "room, cornell or furnace")->capture_default_str();
   c->add_option("--width", a->width)->capture_default_str()->check(inRange(8, kMaxSide));
   c->add_option("--height", a->height)->capture_default_str()->check(inRange(8, kMaxSide));
@@ -240,7 +288,10 @@ void registerProfile(CLI::App& app, CommandTable& table) {
   c->add_option("--batches", a->batches, "pairing study batches")->capture_default_str()->check(inRange(2, 1 << 20));
   c->add_option("--study-rays", a->studyRays, "pairing study batch size")->capture_default_str()->check(inRange(1, 1 << 24));
   c->add_option("--scatter-res", a->scatterRes)->capture_default_str()->check(inRange(1, 1 << 15));
-  table[c] = [=] { return runProfile(*a); };
+  table[c] = [=] {
+    a->maxDepthGiven = c->count("--max-depth") > 0;
+    return runProfile(*a);
+  };
 }
 
 void registerFit(CLI::App& app, CommandTable& table) {

@@ -61,18 +61,27 @@ void writeReport(const fs::path& out, const Json& s) {
 
 }  // namespace
 
-Json runDemo(const DemoOptions& o) {
-  Timer total;
+DemoCapture prepareDemoCapture(const fs::path& out) {
+  DemoCapture d{out / "capture", out / "work"};
   SynthCaptureOptions so;
-  so.out = o.out / "capture";
+  so.out = d.capture;
   Timer ts;
-  writeSynthCapture(so);
-  const double synthSeconds = ts.seconds();
+  if (!fs::exists(so.out / "transforms_test.json")) writeSynthCapture(so);  // written last
+  d.synthSeconds = ts.seconds();
   PrepareOptions po;
   po.resolutions = {512, 1024};  // the demo's 256x192 frames resolve about 512^2 of this atlas
   po.atlas.gutterResolution = 512;
-  const PrepareSummary ps = prepareCapture(so.out, o.out / "work", po);
-  const FitSummary fs = runFit(o.out / "work", o.fit, false);
+  const PrepareSummary ps = prepareCapture(so.out, d.work, po);
+  d.prepareSeconds = ps.seconds;
+  d.frames = ps.frames;
+  return d;
+}
+
+Json runDemo(const DemoOptions& o) {
+  Timer total;
+  const DemoCapture d = prepareDemoCapture(o.out);
+  const SynthCaptureOptions so{.out = d.capture};
+  const FitSummary fs = runFit(d.work, o.fit, false);
 
   const SceneDescription fitted = loadSceneFile(fs.resultDir / "scene.json");
   const SceneDescription truth = loadSceneFile(so.out / "gt" / "scene.json");
@@ -95,8 +104,8 @@ Json runDemo(const DemoOptions& o) {
     views.push_back(f.image.stem().string());
     writePng(o.out / "reference_views" / (f.image.stem().string() + ".png"), loadFrameImage(f));
   }
-  Json s = {{"fit_seconds", fs.seconds}, {"fit_iterations", fs.iterations}, {"synth_seconds", synthSeconds},
-            {"prepare_seconds", ps.seconds}, {"frames", static_cast<int>(ps.frames)},
+  Json s = {{"fit_seconds", fs.seconds}, {"fit_iterations", fs.iterations}, {"synth_seconds", d.synthSeconds},
+            {"prepare_seconds", d.prepareSeconds}, {"frames", static_cast<int>(d.frames)},
             {"albedo_mae", tc.albedoMae}, {"albedo_psnr", tc.albedoPsnr}, {"roughness_mae", tc.roughnessMae},
             {"specular_mae", tc.specularMae}, {"emitters_true", tc.emittersTrue}, {"emitters_found", tc.emittersFound},
             {"emission_rel_error", tc.emissionRelError}, {"test_psnr", vc.psnr}, {"test_msre", vc.msre},

@@ -18,4 +18,13 @@ struct DemoOptions {
 
 Json runDemo(const DemoOptions& options);
 
+// The demo's capture of the room in OUT/capture, prepared in OUT/work (each phase skipped when
+// already current, so benchmarks reuse it). Returns the prepare summary.
+struct DemoCapture {
+  std::filesystem::path capture, work;
+  double synthSeconds = 0, prepareSeconds = 0;
+  size_t frames = 0;
+};
+DemoCapture prepareDemoCapture(const std::filesystem::path& out);
+
 }  // namespace relume

@@ -308,8 +308,8 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
 
 class Fit {
  public:
-  Fit(const fs::path& work, const FitConfig& config)
-      : c_(config), w_(work), appearance_(w_.mesh.objectCount) {
+  Fit(const fs::path& work, const FitConfig& config, const FitHooks& hooks)
+      : c_(config), hooks_(hooks), w_(work), appearance_(w_.mesh.objectCount) {
     settings_.mode = parseGradientMode(c_.gradients);
     settings_.emitters = parseEmitterGradients(c_.emitterGradients);
     settings_.pairing = parsePairing(c_.pairing);
@@ -326,7 +326,6 @@ class Fit {
   }
 
   FitSummary run(bool resume) {
-    Timer total;
     const fs::path checkpointPath = w_.dir / "checkpoint.bin";
     // Resolutions: the prepared ones up to what the frames resolve (or the cap).
     TexelSpace init(w_, w_.initResolution);
@@ -374,7 +373,7 @@ class Fit {
       }
       spdlog::info("fit: resumed at stage {} iteration {} from {}", startStage, startIteration, checkpointPath.string());
     } else {
-      fs::remove(w_.dir / "metrics.jsonl");
+      if (hooks_.writeFiles) fs::remove(w_.dir / "metrics.jsonl");
       space = std::make_unique<TexelSpace>(w_, stages.front().resolution);
       appearance_.albedo = Texture(space->resolution, space->resolution, Color::Constant(0.5f));
       if (!c_.emitterParameterisation) {
@@ -399,17 +398,23 @@ class Fit {
       runStage(st, si, si == static_cast<size_t>(startStage) ? startIteration : 0, *space, st.settles,
                checkpointPath);
       if (stopped_) {
-        spdlog::info("fit: stopped after {} iterations as asked; continue with --resume", globalIteration_);
+        spdlog::info("fit: stopped after {} iterations as asked{}", globalIteration_,
+                     hooks_.writeFiles ? "; continue with --resume" : "");
         summary.stopped = true;
         summary.iterations = globalIteration_;
+        summary.seconds = fitSeconds();
+        summary.memory = peakMemory_;
         return summary;
       }
       if (st.pruneAfter) prune();
       startIteration = 0;
     }
-    summary.resultDir = writeResult(*space);
-    writeFitReport(w_.dir);
-    summary.seconds = total.seconds();
+    if (hooks_.writeFiles) {
+      summary.resultDir = writeResult(*space);
+      writeFitReport(w_.dir);
+    }
+    summary.seconds = fitSeconds();
+    summary.memory = peakMemory_;
     summary.iterations = globalIteration_;
     summary.finalResolution = finalRes_;
     summary.finalLoss = lastLoss_;
@@ -554,7 +559,7 @@ class Fit {
                                 : st.iterations;
     Progress progress(st.name, static_cast<size_t>(st.iterations));
     progress.advance(static_cast<size_t>(firstIteration));
-    PhaseTimes times;
+    FitPhaseTimes times;
     // One buffer per stage, cleared every iteration; curvature only where the albedo steps by it.
     Gradients grads(appearance_, newtonAlbedo() && st.active.active(ParamKind::Albedo));
     for (int it = firstIteration; it < st.iterations; ++it) {
@@ -562,19 +567,20 @@ class Fit {
       // Constant, except over the second half of a settling stage: linear down to lr_final_fraction.
       const float half = 0.5f * st.iterations;
       const float lrScale = !settles || it < half ? 1.0f : 1.0f - (1.0f - c_.lrFinalFraction) * (it - half) / std::max(1.0f, half);
+      FitPhaseTimes now;
       Timer ts;
       const Batch batch = sampleBatch(space, iteration);
-      times.sample += ts.seconds();
+      now.sample = ts.seconds();
       stats_.add(batch.stats);
       if (st.pruneAfter)
         for (size_t j = 0; j < batch.rays.size(); ++j)
           observedSum_[batch.object[j]] += luminance(batch.rays[j].reference), ++observedCount_[batch.object[j]];
       Timer tl;
       const LightSampler lights(*w_.scene, appearance_);
-      times.lights += tl.seconds();
+      now.lights = tl.seconds();
       grads.clear();
       const GradientResult gr = computeGradients(*w_.scene, appearance_, lights, batch.rays, settings, iteration, grads);
-      times.primal += gr.times.primal, times.loss += gr.times.loss, times.adjoint += gr.times.adjoint;
+      now.primal = gr.times.primal, now.loss = gr.times.loss, now.adjoint = gr.times.adjoint;
       Timer to;
       for (ParamGroup& g : paramGroups(appearance_, &grads)) {
         if (!st.active.active(g.kind)) continue;
@@ -594,21 +600,41 @@ class Fit {
         }
         if (it >= averageFrom) polyak_[g.name()].add(g.values);
       }
-      times.optimiser += to.seconds();
+      now.optimiser = to.seconds();
+      times += now;
       lastLoss_ = gr.loss;
       ++globalIteration_;
+      if (it == firstIteration || it == averageFrom) {  // the stage's buffers are allocated now (averages at averageFrom)
+        const Json memory = memoryBreakdown(space, grads, batch, settings);
+        spdlog::info("fit: stage {} holds {:.1f} MiB", st.name, memory["total"].get<double>() / (1 << 20));
+        spdlog::debug("fit: bytes by part: {}", memory.dump());
+        if (peakMemory_.empty() || memory["total"] > peakMemory_["total"]) peakMemory_ = memory;
+      }
+      if (hooks_.afterIteration) {
+        Timer th;
+        const bool go = hooks_.afterIteration(FitIteration{st.name, globalIteration_, fitSeconds(), now, batch.rays, *w_.scene,
+                                                          lights, settings, !grads.albedoCurvature.empty(), appearance_,
+                                                          w_.mesh, peakMemory_});
+        hookSeconds_ += th.seconds();
+        if (!go) {
+          if (hooks_.writeFiles) writeCheckpoint(checkpointPath, stageIndex, it + 1, space);
+          stopped_ = true;
+          return;
+        }
+      }
       progress.advance();
       const double traceSeconds = gr.times.primal + gr.times.adjoint;
       progress.note(fmt::format("loss {:.3e}, {} rays, {:.2f} Mrays/s", gr.loss, batch.rays.size(),
                                 traceSeconds > 0 ? batch.rays.size() / traceSeconds * 1e-6 : 0.0));
-      if ((it + 1) % c_.metricsEvery == 0 || it + 1 == st.iterations) {
+      if (hooks_.writeFiles && ((it + 1) % c_.metricsEvery == 0 || it + 1 == st.iterations)) {
         appendMetrics({{"stage", st.name}, {"iteration", globalIteration_}, {"stage_iteration", it + 1}, {"loss", gr.loss},
                        {"rays", batch.rays.size()}, {"lr_scale", lrScale}, {"sampler", statsJson(batch.stats)},
                        {"seconds", times.toJson()}});
       }
-      if ((it + 1) % c_.checkpointEvery == 0 && it + 1 < st.iterations) writeCheckpoint(checkpointPath, stageIndex, it + 1, space);
-      if (c_.stopAfterIterations > 0 && globalIteration_ >= c_.stopAfterIterations && it + 1 < st.iterations) {
+      if (hooks_.writeFiles && (it + 1) % c_.checkpointEvery == 0 && it + 1 < st.iterations)
         writeCheckpoint(checkpointPath, stageIndex, it + 1, space);
+      if (c_.stopAfterIterations > 0 && globalIteration_ >= c_.stopAfterIterations && it + 1 < st.iterations) {
+        if (hooks_.writeFiles) writeCheckpoint(checkpointPath, stageIndex, it + 1, space);
         stopped_ = true;
         return;
       }
@@ -617,7 +643,7 @@ class Fit {
       for (ParamGroup& g : paramGroups(appearance_))
         if (auto p = polyak_.find(g.name()); p != polyak_.end() && p->second.mean.size() == g.values.size())
           std::copy(p->second.mean.begin(), p->second.mean.end(), g.values.begin());
-    writeCheckpoint(checkpointPath, stageIndex + 1, 0, space);
+    if (hooks_.writeFiles) writeCheckpoint(checkpointPath, stageIndex + 1, 0, space);
     spdlog::info("fit: stage {} done: {} iterations, loss {:.4e}; per iteration: sample {:.1f} ms, primal {:.1f} ms, adjoint {:.1f} ms, optimiser {:.1f} ms",
                  st.name, st.iterations - firstIteration, lastLoss_, 1e3 * times.sample / std::max(1, st.iterations - firstIteration),
                  1e3 * times.primal / std::max(1, st.iterations - firstIteration),
@@ -690,12 +716,34 @@ class Fit {
     }
   }
 
-  struct PhaseTimes {
-    double sample = 0, lights = 0, primal = 0, loss = 0, adjoint = 0, optimiser = 0;
-    Json toJson() const {
-      return {{"sample", sample}, {"lights", lights}, {"primal", primal}, {"loss", loss}, {"adjoint", adjoint}, {"optimiser", optimiser}};
-    }
-  };
+  double fitSeconds() const { return total_.seconds() - hookSeconds_; }
+
+  // Bytes the fit holds, by part, once a stage's buffers are allocated. The frame cache is a
+  // mapping of frames.bin: only the pages the sampler touches become resident.
+  Json memoryBreakdown(const TexelSpace& space, Gradients& grads, const Batch& batch, const AdjointSettings& settings) {
+    auto floats = [](size_t n) { return static_cast<double>(n * sizeof(float)); };
+    double parameters = 0, gradients = floats(grads.albedoCurvature.size()), optimiser = 0, averages = 0;
+    for (ParamGroup& g : paramGroups(appearance_, &grads))
+      parameters += floats(g.values.size()), gradients += floats(g.grads.size());
+    for (const auto& [name, a] : adam_) optimiser += floats(a.m.size() + a.v.size()) + a.steps.size() * sizeof(uint16_t);
+    optimiser += floats(newton_.numerator.size() + newton_.curvature.size()) + newton_.steps.size() * sizeof(uint16_t);
+    for (const auto& [name, p] : polyak_) averages += floats(p.mean.size());
+    const double texels = space.map.bytes() + space.sampleable.size() * sizeof(uint32_t) + space.updatable.size();
+    const TriangleMesh& m = w_.mesh;  // its arrays; Embree's BVH and the shading records not counted
+    const double mesh = (m.positions.size() + m.normals.size()) * sizeof(Vec3) + m.uvs.size() * sizeof(Vec2) +
+                        m.triangles.size() * (sizeof(Eigen::Vector3i) + sizeof(int32_t));
+    const double batchBytes = batch.rays.size() * (sizeof(BatchRay) + sizeof(uint32_t) + sizeof(int) + 3 * sizeof(Color));
+    const double records = 2.0 * threadCount() * (settings.path.maxDepth + 1) * adjointRecordBytes();
+    Json j = {{"parameters", parameters}, {"gradients", gradients}, {"optimiser_state", optimiser}, {"averages", averages},
+              {"texel_map", texels}, {"mesh", mesh}, {"visibility_index", static_cast<double>(w_.vis.bytes())},
+              {"frame_cache_mapped", static_cast<double>(w_.store->mappedBytes())}, {"batch", batchBytes},
+              {"path_records", records}};
+    double total = 0;
+    for (const auto& [k, v] : j.items())
+      if (k != "frame_cache_mapped") total += v.get<double>();
+    j["total"] = total;  // without the frame cache, which is file-backed and mostly not resident
+    return j;
+  }
 
   static Json statsJson(const SamplerStats& s) {
     return {{"slots", s.slots}, {"candidates", s.candidates}, {"not_seen", s.notSeen},
@@ -793,7 +841,7 @@ class Fit {
     }
     Json summary = {{"objects", materials}, {"albedo_resolution", space.resolution}, {"iterations", globalIteration_},
                     {"final_loss", lastLoss_}, {"sampler", statsJson(stats_)}, {"config", c_.toJson()},
-                    {"peak_rss_mib", peakRssMiB()}};
+                    {"peak_rss_mib", peakRssMiB()}, {"memory_bytes", peakMemory_}};
     writeJson(staging / "materials.json", summary);
     fs::remove_all(result);
     fs::rename(staging, result);
@@ -802,6 +850,10 @@ class Fit {
   }
 
   FitConfig c_;
+  FitHooks hooks_;
+  Timer total_;
+  double hookSeconds_ = 0;
+  Json peakMemory_;
   Workspace w_;
   Appearance appearance_;
   AdjointSettings settings_;
@@ -821,9 +873,18 @@ class Fit {
 
 }  // namespace
 
-FitSummary runFit(const fs::path& work, const FitConfig& config, bool resume) {
+FitPhaseTimes& FitPhaseTimes::operator+=(const FitPhaseTimes& o) {
+  sample += o.sample, lights += o.lights, primal += o.primal, loss += o.loss, adjoint += o.adjoint, optimiser += o.optimiser;
+  return *this;
+}
+
+Json FitPhaseTimes::toJson() const {
+  return {{"sample", sample}, {"lights", lights}, {"primal", primal}, {"loss", loss}, {"adjoint", adjoint}, {"optimiser", optimiser}};
+}
+
+FitSummary runFit(const fs::path& work, const FitConfig& config, bool resume, const FitHooks& hooks) {
   validate(config, "fit config");
-  Fit fit(work, config);
+  Fit fit(work, config, hooks);
   return fit.run(resume);
 }
 

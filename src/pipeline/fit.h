@@ -8,6 +8,7 @@
 // the paper's ablation can be rerun. Checkpoints allow `--resume` after a kill.
 #pragma once
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -78,10 +79,41 @@ struct FitSummary {
   std::vector<int> emitters;
   std::filesystem::path resultDir;   // empty when stopped
   bool stopped = false;
+  Json memory;                       // the largest stage's bytes by part
+};
+
+// Seconds spent in each phase of an iteration (or summed over several).
+struct FitPhaseTimes {
+  double sample = 0, lights = 0, primal = 0, loss = 0, adjoint = 0, optimiser = 0;
+  double total() const { return sample + lights + primal + loss + adjoint + optimiser; }
+  FitPhaseTimes& operator+=(const FitPhaseTimes& o);
+  Json toJson() const;
+};
+
+// What a caller sees after every iteration (profiling, benchmarks): the batch just used, the
+// settings and light sampler it was differentiated with, and the state after the step.
+struct FitIteration {
+  const std::string& stage;
+  int iteration = 0;          // global, 1-based after the step
+  double elapsed = 0;         // seconds of fitting so far, time spent in hooks excluded
+  FitPhaseTimes times;        // of this iteration
+  const std::vector<BatchRay>& rays;
+  const Scene& scene;
+  const LightSampler& lights;
+  const AdjointSettings& settings;  // with this stage's mask
+  bool albedoCurvature = false;     // the gradient buffer had Gauss-Newton curvature storage
+  const Appearance& appearance;     // albedo on `mesh`'s uv at the stage's resolution
+  const TriangleMesh& mesh;
+  const Json& memory;         // bytes held by the fit, by part (see memoryBreakdown in fit.cpp)
+};
+
+struct FitHooks {
+  std::function<bool(const FitIteration&)> afterIteration;  // returns false to stop the fit there
+  bool writeFiles = true;     // metrics, checkpoints and the result (off: a measurement leaves WORK as it was)
 };
 
 // Runs (or resumes) the fit; writes WORK/result/ (scene.json, albedo.exr/.png, emission
 // textures, materials.json), WORK/metrics.jsonl and WORK/checkpoint.bin.
-FitSummary runFit(const std::filesystem::path& work, const FitConfig& config, bool resume);
+FitSummary runFit(const std::filesystem::path& work, const FitConfig& config, bool resume, const FitHooks& hooks = {});
 
 }  // namespace relume

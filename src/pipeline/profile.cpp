@@ -4,6 +4,10 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
+#include <numeric>
+
+#include "core/error.h"
 #include "core/system.h"
 #include "core/warp.h"
 #include "render/film.h"
@@ -22,6 +26,48 @@ struct RayRecorder : NullPathObserver {
   void traced(const Vec3& o, const Vec3& d, float tmax, bool shadow) { out->push_back({o, d, tmax, shadow}); }
 };
 
+struct PathStart {
+  Vec3 origin, dir;
+  Pcg32 rng;
+};
+
+// Every ray that paths 0..count-1 trace (closest hits and shadow rays), path j started by
+// `start(j)` with the seed the measured pass used, so the replay traces exactly its rays.
+std::vector<RecordedRay> recordPathRays(const Scene& scene, const LightSampler& lights, const AppearanceScope& scope,
+                                        const PathSettings& path, size_t count,
+                                        const std::function<std::optional<PathStart>(size_t)>& start) {
+  tbb::enumerable_thread_specific<std::vector<RecordedRay>> recorded;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 256), [&](const tbb::blocked_range<size_t>& range) {
+    RayRecorder rec;
+    rec.out = &recorded.local();
+    for (size_t j = range.begin(); j < range.end(); ++j)
+      if (auto s = start(j)) tracePath(scene, lights, scope, path, s->origin, s->dir, s->rng, rec);
+  });
+  std::vector<RecordedRay> rays;
+  for (auto& v : recorded) rays.insert(rays.end(), v.begin(), v.end());
+  return rays;
+}
+
+// Embree alone on the recorded rays, best of `repeats`.
+double traceOnlySeconds(const Scene& scene, const std::vector<RecordedRay>& rays, int repeats) {
+  double best = INFINITY;
+  for (int rep = 0; rep < repeats; ++rep) {
+    Timer t;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 4096), [&](const tbb::blocked_range<size_t>& range) {
+      size_t hits = 0;
+      for (size_t i = range.begin(); i < range.end(); ++i) {
+        const RecordedRay& ray = rays[i];
+        if (ray.shadow) hits += scene.occluded(ray.origin, ray.dir, ray.tmax);
+        else hits += std::isfinite(scene.hitDistance(ray.origin, ray.dir, ray.tmax));
+      }
+      volatile size_t sink = hits;  // keep the traversal from being optimised away
+      (void)sink;
+    });
+    best = std::min(best, t.seconds());
+  }
+  return best;
+}
+
 }  // namespace
 
 RenderProfile profileRender(const SceneDescription& desc, const Camera& camera, int spp, int maxDepth) {
@@ -37,41 +83,20 @@ RenderProfile profileRender(const SceneDescription& desc, const Camera& camera, 
     RenderResult again = renderImage(scene, desc.appearance, lights, camera, ro);
     if (again.stats.seconds < r.stats.seconds) r = std::move(again);
   }
-
   // Record the same paths' rays (same seeds), then time Embree alone on them.
-  tbb::enumerable_thread_specific<std::vector<RecordedRay>> recorded;
-  const AppearanceScope scope = AppearanceScope::uniform(desc.appearance);
-  tbb::parallel_for(0, camera.height, [&](int y) {
-    RayRecorder rec;
-    rec.out = &recorded.local();
-    for (int x = 0; x < camera.width; ++x)
-      for (int s = 0; s < spp; ++s) {
-        CameraSample cs = cameraSample(camera, x, y, s, ro.seed);
-        if (cs.dir) tracePath(scene, lights, scope, ro.path, camera.position, *cs.dir, cs.rng, rec);
-      }
-  });
-  std::vector<RecordedRay> rays;
-  for (auto& v : recorded) rays.insert(rays.end(), v.begin(), v.end());
+  const size_t pixels = static_cast<size_t>(camera.width) * camera.height;
+  const std::vector<RecordedRay> rays =
+      recordPathRays(scene, lights, AppearanceScope::uniform(desc.appearance), ro.path, pixels * spp, [&](size_t j) {
+        const int x = static_cast<int>(j / spp % camera.width), y = static_cast<int>(j / spp / camera.width);
+        CameraSample cs = cameraSample(camera, x, y, static_cast<int>(j % spp), ro.seed);
+        return cs.dir ? std::optional<PathStart>({camera.position, *cs.dir, cs.rng}) : std::nullopt;
+      });
   RenderProfile p;
   p.width = camera.width, p.height = camera.height, p.spp = spp, p.maxDepth = maxDepth, p.threads = threadCount();
   p.renderSeconds = r.stats.seconds;
   p.paths = r.stats.paths;
   for (const RecordedRay& ray : rays) (ray.shadow ? p.shadowRays : p.closestRays)++;
-  p.traceOnlySeconds = INFINITY;
-  for (int rep = 0; rep < 5; ++rep) {
-    Timer t;
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 4096), [&](const tbb::blocked_range<size_t>& range) {
-      size_t hits = 0;
-      for (size_t i = range.begin(); i < range.end(); ++i) {
-        const RecordedRay& ray = rays[i];
-        if (ray.shadow) hits += scene.occluded(ray.origin, ray.dir, ray.tmax);
-        else hits += std::isfinite(scene.hitDistance(ray.origin, ray.dir, ray.tmax));
-      }
-      volatile size_t sink = hits;  // keep the traversal from being optimised away
-      (void)sink;
-    });
-    p.traceOnlySeconds = std::min(p.traceOnlySeconds, t.seconds());
-  }
+  p.traceOnlySeconds = traceOnlySeconds(scene, rays, 5);
   return p;
 }
 
@@ -231,6 +256,78 @@ std::vector<LeakStat> studyLeaks(const TriangleMesh& mesh, const Eigen::AlignedB
     out.push_back({robust, rays, misses.combine(std::plus<>()), rays / t.seconds() * 1e-6});
   }
   return out;
+}
+
+}  // namespace relume
+
+namespace relume {
+
+FitProfile profileFit(const std::filesystem::path& work, const FitConfig& config, const std::string& stage, int iterations) {
+  FitProfile p;
+  p.threads = threadCount();
+  p.maxDepth = config.maxDepth;
+  FitHooks hooks;
+  hooks.writeFiles = false;
+  hooks.afterIteration = [&](const FitIteration& it) {
+    if (it.stage.rfind(stage, 0) != 0) return p.perIteration.empty();  // warm-up; stop once the stage is over
+    p.stage = it.stage;
+    p.perIteration.push_back(it.times);
+    if (static_cast<int>(p.perIteration.size()) < iterations) return true;
+    // The last batch, replayed (at the iteration it was drawn in, i.e. with its seeds).
+    const uint64_t iteration = static_cast<uint64_t>(it.iteration - 1);
+    p.raysPerIteration = it.rays.size();
+    std::vector<RecordedRay> connections;
+    for (const BatchRay& r : it.rays) connections.push_back({r.origin, r.dir, INFINITY, false});
+    p.connectionTraceOnly = traceOnlySeconds(it.scene, connections, 3);
+    const std::vector<RecordedRay> primalRays =
+        recordPathRays(it.scene, it.lights, AppearanceScope::uniform(it.appearance), it.settings.path, it.rays.size(),
+                       [&](size_t j) {
+                         return std::optional<PathStart>({it.rays[j].origin, it.rays[j].dir, Pcg32(primalSeed(it.settings, iteration, j))});
+                       });
+    for (const RecordedRay& r : primalRays) (r.shadow ? p.primalShadowRays : p.primalClosestRays)++;
+    p.primalTraceOnly = traceOnlySeconds(it.scene, primalRays, 3);
+    AdjointSettings none = it.settings;
+    none.mask = ParamMask::only({});
+    Gradients grads(it.appearance, it.albedoCurvature);  // as the fit: paths recorded in the primal
+    auto best = [](double& slot, double v) { slot = slot == 0 ? v : std::min(slot, v); };
+    for (int rep = 0; rep < 3; ++rep) {
+      grads.clear();
+      const GradientResult g = computeGradients(it.scene, it.appearance, it.lights, it.rays, it.settings, iteration, grads);
+      best(p.primal, g.times.primal);
+      best(p.adjoint, g.times.adjoint);
+      grads.clear();
+      best(p.adjointNoScatter, computeGradients(it.scene, it.appearance, it.lights, it.rays, none, iteration, grads).times.adjoint);
+    }
+    p.memory = it.memory;
+    return false;
+  };
+  runFit(work, config, false, hooks);
+  if (p.perIteration.empty()) fail("profile: the fit has no stage named {}*", stage);
+  p.iterations = static_cast<int>(p.perIteration.size());
+  p.recordBytes = adjointRecordBytes();
+  p.rayStateBytes = sizeof(BatchRay) + sizeof(Color);  // the ray, and its delta between the passes
+  p.peakRssMiB = peakRssMiB();
+  return p;
+}
+
+Json FitProfile::toJson() const {
+  Json phases = Json::object();
+  for (const char* name : {"sample", "lights", "primal", "loss", "adjoint", "optimiser", "total"}) {
+    std::vector<double> v;
+    for (const FitPhaseTimes& t : perIteration) {
+      const Json j = t.toJson();
+      v.push_back(std::string(name) == "total" ? t.total() : j[name].get<double>());
+    }
+    phases[name] = {{"mean_ms", 1e3 * std::accumulate(v.begin(), v.end(), 0.0) / v.size()},
+                    {"min_ms", 1e3 * *std::min_element(v.begin(), v.end())},
+                    {"max_ms", 1e3 * *std::max_element(v.begin(), v.end())}};
+  }
+  return {{"stage", stage}, {"iterations", iterations}, {"threads", threads}, {"max_depth", maxDepth},
+          {"rays_per_iteration", raysPerIteration}, {"phases", phases},
+          {"connection_trace_only_ms", 1e3 * connectionTraceOnly}, {"primal_ms", 1e3 * primal},
+          {"primal_trace_only_ms", 1e3 * primalTraceOnly}, {"primal_closest_rays", primalClosestRays},
+          {"primal_shadow_rays", primalShadowRays}, {"adjoint_ms", 1e3 * adjoint}, {"adjoint_no_scatter_ms", 1e3 * adjointNoScatter},
+          {"record_bytes", recordBytes}, {"ray_state_bytes", rayStateBytes}, {"peak_rss_mib", peakRssMiB}, {"memory_bytes", memory}};
 }
 
 }  // namespace relume

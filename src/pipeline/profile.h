@@ -1,6 +1,7 @@
 // Measured cost of the renderer and (later) of an optimisation iteration, by phase.
 #pragma once
 #include "adjoint/solver.h"
+#include "pipeline/fit.h"
 #include "pipeline/synth.h"
 #include "render/path_tracer.h"
 
@@ -62,4 +63,30 @@ struct LeakStat {
 // Random rays from inside a closed scene's bounding box interior: every miss is a leak through a
 // shared edge. Compares Embree's default and robust intersection.
 std::vector<LeakStat> studyLeaks(const TriangleMesh& closedMesh, const Eigen::AlignedBox3f& interior, size_t rays);
+}  // namespace relume
+
+namespace relume {
+
+// Cost of real fit iterations, by phase. The fit runs from its start (nothing written to WORK);
+// iterations before the first stage whose name starts with `stage` are warm-up, then
+// `iterations` are timed and the fit stops. On the last one, splits the timers cannot see are
+// measured by replaying its batch: the connection rays and the primal's rays through Embree alone
+// (efficiency), and the adjoint pass without any active parameter (what derivatives + scatter cost).
+struct FitProfile {
+  std::string stage;
+  int iterations = 0, threads = 0, maxDepth = 0;
+  size_t raysPerIteration = 0;                 // training rays (connections) of the last batch
+  std::vector<FitPhaseTimes> perIteration;
+  double connectionTraceOnly = 0;              // the batch's camera rays, Embree alone
+  double primal = 0, primalTraceOnly = 0;      // best of 3 on the last batch
+  uint64_t primalClosestRays = 0, primalShadowRays = 0;
+  double adjoint = 0, adjointNoScatter = 0;    // best of 3: the stage's parameters, and none
+  size_t recordBytes = 0, rayStateBytes = 0;
+  double peakRssMiB = 0;
+  Json memory;
+  Json toJson() const;
+};
+
+FitProfile profileFit(const std::filesystem::path& work, const FitConfig& config, const std::string& stage, int iterations);
+
 }  // namespace relume

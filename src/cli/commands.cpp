@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "core/system.h"
 #include "adjoint/gradcheck.h"
+#include "pipeline/bench.h"
 #include "pipeline/demo.h"
 #include "pipeline/evaluate.h"
 #include "pipeline/experiment.h"
@@ -294,6 +295,33 @@ void registerProfile(CLI::App& app, CommandTable& table) {
   };
 }
 
+void registerBench(CLI::App& app, CommandTable& table) {
+  auto o = std::make_shared<BenchOptions>();
+  auto sweeps = std::make_shared<std::string>();
+  auto config = std::make_shared<std::string>();
+  std::string names;
+  for (const BenchSweep& sw : benchSweeps()) names += (names.empty() ? "" : ",") + sw.name;
+  CLI::App* c = app.add_subcommand("bench", "speed vs accuracy: fits with one setting changed at a time, error vs time");
+  c->add_option("--work", o->work, "a prepared work folder (default: the demo's room, prepared in --scratch)")->check(CLI::ExistingDirectory);
+  c->add_option("--scratch", o->scratch, "where the room is prepared when no --work is given (reused)")->capture_default_str();
+  c->add_option("--out", o->out, "where bench.md, bench.csv, curves.csv and the charts go")->capture_default_str();
+  c->add_option("--sweeps", *sweeps, "comma list of " + names + " (default: all)");
+  c->add_option("--config", *config, "base fit config JSON (default: the demo's, shortened; see the README)")->check(CLI::ExistingFile);
+  c->add_option("--truth", o->truth, "ground-truth scene.json (default: CAPTURE/gt/scene.json)")->check(CLI::ExistingFile);
+  c->add_option("--test-cameras", o->testCameras, "held-out frames (default: CAPTURE/transforms_test.json)")->check(CLI::ExistingFile);
+  c->add_option("--eval-every", o->evaluateEvery, "iterations between error-vs-time points")->capture_default_str()->check(inRange(1, 1 << 20));
+  c->add_option("--test-spp", o->testSpp, "samples per pixel of the held-out re-renders")->capture_default_str()->check(inRange(1, kMaxSpp));
+  table[c] = [=] {
+    std::stringstream ss(*sweeps);
+    for (std::string item; std::getline(ss, item, ',');)
+      if (!item.empty()) o->sweeps.push_back(item);
+    if (!config->empty()) o->base = FitConfig::load(*config);
+    runBench(*o);
+    spdlog::info("bench: {}", (o->out / "bench.md").string());
+    return 0;
+  };
+}
+
 void registerFit(CLI::App& app, CommandTable& table) {
   auto work = std::make_shared<std::string>();
   auto config = std::make_shared<std::string>();
@@ -475,6 +503,7 @@ CommandTable registerCommands(CLI::App& app) {
     return 0;
   };
   registerProfile(app, table);
+  registerBench(app, table);
   registerPrepare(app, table);
   registerFit(app, table);
   registerEval(app, table);

@@ -1,5 +1,7 @@
 #include "core/system.h"
 
+#include <sys/resource.h>
+
 #include <fmt/format.h>
 #include <pmmintrin.h>
 #include <unistd.h>
@@ -32,6 +34,13 @@ double peakRssMiB() {
     if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
   }
   return 0.0;
+}
+
+double processCpuSeconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  auto seconds = [](const timeval& t) { return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec); };
+  return seconds(u.ru_utime) + seconds(u.ru_stime);
 }
 
 Progress::Progress(std::string label, size_t total)

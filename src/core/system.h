@@ -17,6 +17,9 @@ std::unique_ptr<tbb::global_control> initThreads(int threads);
 int threadCount();
 
 double peakRssMiB();  // VmHWM of this process
+// User + system CPU seconds of this process, all threads: a cost that other processes sharing
+// the cores do not inflate (wall time does).
+double processCpuSeconds();
 
 class Timer {
  public:

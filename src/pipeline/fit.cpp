@@ -112,10 +112,10 @@ void validate(const FitConfig& c, const std::string& where) {
 
 }  // namespace
 
-FitConfig FitConfig::load(const fs::path& path) {
-  const Json j = readJson(path);
-  if (!j.is_object()) fail("{}: a fit config is a JSON object", path.string());
-  FitConfig c;
+FitConfig FitConfig::load(const fs::path& path) { return fromJson(readJson(path), path.string(), FitConfig{}); }
+
+FitConfig FitConfig::fromJson(const Json& j, const std::string& where, FitConfig c) {
+  if (!j.is_object()) fail("{}: a fit config is a JSON object", where);
   std::set<std::string> known;
   forEachConfigKey(c, [&](const char* key, ConfigField field) {
     known.insert(key);
@@ -128,14 +128,14 @@ FitConfig FitConfig::load(const fs::path& path) {
                           : std::is_same_v<T, std::string> ? v.is_string()
                           : std::is_same_v<T, float>       ? v.is_number()
                                                            : v.is_number_integer();
-          if (!ok) fail("{}: '{}' has the wrong type ({})", path.string(), key, v.type_name());
+          if (!ok) fail("{}: '{}' has the wrong type ({})", where, key, v.type_name());
           *p = v.get<T>();
         },
         field);
   });
   for (const auto& [key, value] : j.items())
-    if (!known.count(key)) fail("{}: unknown key '{}' (see the README's fit config table)", path.string(), key);
-  validate(c, path.string());
+    if (!known.count(key)) fail("{}: unknown key '{}' (see the README's fit config table)", where, key);
+  validate(c, where);
   return c;
 }
 
@@ -409,6 +409,7 @@ class Fit {
       if (st.pruneAfter) prune();
       startIteration = 0;
     }
+    if (hooks_.finished) hooks_.finished(appearance_, w_.mesh);
     if (hooks_.writeFiles) {
       summary.resultDir = writeResult(*space);
       writeFitReport(w_.dir);

@@ -68,6 +68,8 @@ struct FitConfig {
   int stopAfterIterations = 0;      // stop (with a checkpoint) after this many iterations; 0 = run to the end
 
   static FitConfig load(const std::filesystem::path& path);  // unknown key or wrong type: one-line error
+  // `base` with the keys `j` gives (the same checks; `where` names the source in errors).
+  static FitConfig fromJson(const Json& j, const std::string& where, FitConfig base);
   Json toJson() const;
 };
 
@@ -110,6 +112,8 @@ struct FitIteration {
 struct FitHooks {
   std::function<bool(const FitIteration&)> afterIteration;  // returns false to stop the fit there
   bool writeFiles = true;     // metrics, checkpoints and the result (off: a measurement leaves WORK as it was)
+  // Called once at the end with the final state (Polyak averages applied), files or not.
+  std::function<void(const Appearance&, const TriangleMesh&)> finished;
 };
 
 // Runs (or resumes) the fit; writes WORK/result/ (scene.json, albedo.exr/.png, emission

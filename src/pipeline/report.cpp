@@ -19,29 +19,48 @@ namespace relume {
 
 namespace fs = std::filesystem;
 
-std::string lossCurveSvg(const std::string& title, const std::vector<double>& x, const std::vector<double>& y) {
+std::string lineChartSvg(const std::string& title, const std::string& xLabel, const std::vector<ChartSeries>& series, bool logY) {
   constexpr double W = 420, H = 180, L = 60, R = 10, T = 24, B = 28;
-  std::vector<std::pair<double, double>> pts;
-  for (size_t i = 0; i < std::min(x.size(), y.size()); ++i)
-    if (y[i] > 0 && std::isfinite(y[i])) pts.push_back({x[i], std::log10(y[i])});
+  static const char* const colours[] = {"#1f5fbf", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b"};
+  std::vector<std::vector<std::pair<double, double>>> pts(series.size());
+  bool any = false;
+  double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+  for (size_t k = 0; k < series.size(); ++k)
+    for (size_t i = 0; i < std::min(series[k].x.size(), series[k].y.size()); ++i) {
+      const double y = series[k].y[i];
+      if (!std::isfinite(y) || (logY && y <= 0)) continue;
+      pts[k].push_back({series[k].x[i], logY ? std::log10(y) : y});
+      x0 = std::min(x0, series[k].x[i]), x1 = std::max(x1, series[k].x[i]);
+      y0 = std::min(y0, pts[k].back().second), y1 = std::max(y1, pts[k].back().second);
+      any = true;
+    }
   std::string svg = fmt::format(R"(<svg xmlns="http://www.w3.org/2000/svg" width="{}" height="{}" viewBox="0 0 {} {}">)", W, H, W, H);
   svg += fmt::format(R"(<rect width="{}" height="{}" fill="white" stroke="#ccc"/><text x="{}" y="16" font-size="12" font-family="sans-serif">{}</text>)",
                      W, H, L, title);
-  if (pts.empty()) return svg + R"(<text x="60" y="90" font-size="12">no data</text></svg>)";
-  double x0 = pts.front().first, x1 = pts.front().first, y0 = pts.front().second, y1 = y0;
-  for (const auto& [px, py] : pts) x0 = std::min(x0, px), x1 = std::max(x1, px), y0 = std::min(y0, py), y1 = std::max(y1, py);
+  if (!any) return svg + R"(<text x="60" y="90" font-size="12">no data</text></svg>)";
   if (x1 == x0) x1 = x0 + 1;
   if (y1 == y0) y0 -= 0.5, y1 += 0.5;
   auto sx = [&](double v) { return L + (v - x0) / (x1 - x0) * (W - L - R); };
   auto sy = [&](double v) { return T + (y1 - v) / (y1 - y0) * (H - T - B); };
-  std::string line;
-  for (const auto& [px, py] : pts) line += fmt::format("{:.1f},{:.1f} ", sx(px), sy(py));
-  svg += fmt::format(R"(<polyline fill="none" stroke="#1f5fbf" stroke-width="1.5" points="{}"/>)", line);
+  auto label = [&](double v) { return logY ? std::pow(10.0, v) : v; };
+  for (size_t k = 0; k < series.size(); ++k) {
+    std::string line;
+    for (const auto& [px, py] : pts[k]) line += fmt::format("{:.1f},{:.1f} ", sx(px), sy(py));
+    const char* colour = colours[k % std::size(colours)];
+    svg += fmt::format(R"(<polyline fill="none" stroke="{}" stroke-width="1.5" points="{}"/>)", colour, line);
+    if (!series[k].name.empty())
+      svg += fmt::format(R"(<text x="{}" y="{}" font-size="10" font-family="sans-serif" fill="{}" text-anchor="end">{}</text>)",
+                         W - R - 2, T + 12 * (k + 1), colour, series[k].name);
+  }
   svg += fmt::format(R"(<g font-size="10" font-family="sans-serif"><text x="2" y="{:.0f}">{:.3g}</text><text x="2" y="{:.0f}">{:.3g}</text>)",
-                     sy(y1) + 4, std::pow(10.0, y1), sy(y0) + 4, std::pow(10.0, y0));
-  svg += fmt::format(R"(<text x="{}" y="{}">{:g}</text><text x="{}" y="{}" text-anchor="end">{:g} (iteration; loss on a log scale)</text></g></svg>)",
-                     L, H - 8, x0, W - R, H - 8, x1);
+                     sy(y1) + 4, label(y1), sy(y0) + 4, label(y0));
+  svg += fmt::format(R"(<text x="{}" y="{}">{:g}</text><text x="{}" y="{}" text-anchor="end">{:g} ({})</text></g></svg>)",
+                     L, H - 8, x0, W - R, H - 8, x1, xLabel);
   return svg;
+}
+
+std::string lossCurveSvg(const std::string& title, const std::vector<double>& x, const std::vector<double>& y) {
+  return lineChartSvg(title, "iteration; loss on a log scale", {{"", x, y}}, true);
 }
 
 namespace {

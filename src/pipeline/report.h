@@ -18,8 +18,14 @@ struct ReportOptions {
 // Reads WORK (prepare.json, metrics.jsonl, result/) and writes WORK/report/; returns index.html.
 std::filesystem::path writeFitReport(const std::filesystem::path& work, const ReportOptions& options = {});
 
-// One line chart per call: polyline of (x, y) on a log-y axis with min/max labels; standalone
-// <svg> text. Non-positive y values are skipped (log scale).
+struct ChartSeries {
+  std::string name;  // legend entry (none when empty)
+  std::vector<double> x, y;
+};
+// A line chart, one polyline per series, with min/max labels and a legend; standalone <svg>
+// text. Non-finite y values are skipped, and on a log-y axis non-positive ones too.
+std::string lineChartSvg(const std::string& title, const std::string& xLabel, const std::vector<ChartSeries>& series, bool logY);
+// The loss of one stage against the iteration, log-y.
 std::string lossCurveSvg(const std::string& title, const std::vector<double>& x, const std::vector<double>& y);
 
 }  // namespace relume

@@ -32,8 +32,9 @@ const std::vector<BenchSweep>& benchSweeps() {
 
 FitConfig BenchOptions::baseConfig() {
   FitConfig c = DemoOptions::demoFitConfig();
-  c.materialIterations = 100;
-  c.albedoPasses = 20;
+  c.emissionIterations = 80;
+  c.materialIterations = 60;
+  c.albedoPasses = 10;
   c.emissionTextureIterations = 0;  // emission textures leave the albedo error alone
   c.maxResolution = 512;            // what the room's frames resolve (the resolution sweep goes beyond)
   return c;

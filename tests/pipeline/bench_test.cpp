@@ -12,9 +12,7 @@ namespace fs = std::filesystem;
 // `relume bench` on a tiny capture: the baseline and a sweep's other values, each with an
 // error-vs-time curve against the capture's ground truth, and nothing written to the work folder.
 TEST(Bench, SweepsOneSettingAgainstTheBaselineWithErrorCurves) {
-  SynthCaptureOptions so;
-  so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 2, so.atlasResolution = 128;
-  const fs::path dir = preparedCapture("bench", so, 128);
+  const fs::path dir = smallPreparedRoom("bench");
   BenchOptions o;
   o.work = dir / "work";
   o.out = dir / "bench";

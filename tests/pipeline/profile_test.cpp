@@ -9,9 +9,7 @@ namespace fs = std::filesystem;
 // `profile --what fit`: times the asked stage's iterations of a real fit and leaves the work
 // folder as it was.
 TEST(ProfileFit, TimesTheAskedStageAndWritesNothing) {
-  SynthCaptureOptions so;
-  so.frames = 8, so.testFrames = 1, so.width = 48, so.height = 36, so.spp = 2, so.atlasResolution = 128;
-  const fs::path dir = preparedCapture("profile_fit", so, 128);
+  const fs::path dir = smallPreparedRoom("profile_fit");
   const fs::path work = dir / "work";
   FitConfig c;
   c.batchTexels = 512;

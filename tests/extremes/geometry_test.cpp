@@ -1,21 +1,30 @@
 // Cameras at grazing angles and 1 cm from a surface, and degenerate and sliver triangles.
 #include "extremes.h"
 
+#include "capture/frame_store.h"
+#include "capture/transforms.h"
+#include "io/image.h"
+#include "render/film.h"
+#include "sampling/samplers.h"
+#include "sampling/visibility.h"
+#include "scene/texel_map.h"
+
 using namespace relume;
 using namespace relume::extremes;
+namespace fs = std::filesystem;
 
 namespace {
 
 // The texel-to-ray Jacobian is omitted (weight 1), so nothing geometric multiplies a ray's loss:
 // the batch loss is exactly the mean of the squared residuals of the primal estimates, however
 // close or slanted the camera. (Its cos / d^2 would be 1e4 at 1 cm and 0 at grazing.)
-void expectPlainMeanLoss(const GradientExperiment& e, const Appearance& a, const std::vector<BatchRay>& rays) {
-  const Scene scene(e.truth.mesh);
+void expectPlainMeanLoss(const Scene& scene, const Appearance& a, const std::vector<BatchRay>& rays) {
   const LightSampler lights(scene, a);
   AdjointSettings s;
   s.path.maxDepth = 4;
-  Gradients g(a);
+  Gradients g(a, true);
   const double loss = computeGradients(scene, a, lights, rays, s, 0, g).loss;
+  EXPECT_TRUE(allFinite(g));
   const std::vector<Color> est = estimates(scene, a, rays, 4);
   double mean = 0;
   for (size_t j = 0; j < rays.size(); ++j) mean += rayLoss(est[j], rays[j].reference, rays[j].clip) / rays.size();
@@ -51,7 +60,7 @@ TEST(ExtremeCameras, GrazingAndOneCentimetreFromTheFloor) {
   });
   for (const auto* e : {&grazing, &close}) {
     const std::string what = e == &grazing ? "grazing" : "1 cm";
-    expectPlainMeanLoss(*e, e->current, e->rays);
+    expectPlainMeanLoss(Scene(e->truth.mesh), e->current, e->rays);
     // Bound: gradients within gradcheck's 2e-3 of the frozen-sampling finite difference.
     expectFiniteAndRight(*e, {ParamKind::Albedo, ParamKind::Roughness, ParamKind::Specular}, what);
   }
@@ -116,4 +125,65 @@ TEST(ExtremeGeometry, DegenerateTrianglesAreDroppedAndSliversAreRight) {
     });
   };
   EXPECT_TRUE(checked(ParamKind::Roughness, 2) && checked(ParamKind::Emission, 3)) << r.table();
+}
+
+TEST(ExtremeCameras, ACaptureWithFramesOneCentimetreFromAWallAndGrazingTheFloor) {
+  // Frames 0 and 1 move 1 cm in front of the back wall (z = 0), looking along it 31 degrees
+  // towards it (they see it from 1.1 cm on: a frame that sees only a few cm of surface gets no
+  // visibility tile, which samples 6 points per 32^2 texels); frames 2 and 3 move 2 cm above the
+  // floor looking along it (up to 89.9 degrees from its normal). Each pair 5 cm apart, so prepare
+  // sees no motion blur. All are re-rendered from the truth, then prepared and sampled.
+  const Vec3 closePosition(1.0f, 1.0f, 0.01f), grazingPosition(1.0f, 0.02f, 1.9f);
+  const fs::path dir = tinyCapture("cameras", 4, [&](const fs::path& capture) {
+    Capture cap = readTransforms(capture / "transforms.json");
+    const SceneDescription truth = loadSceneFile(capture / "gt" / "scene.json");
+    const Scene scene(truth.mesh);
+    const LightSampler lights(scene, truth.appearance);
+    auto place = [&](Frame& f, const Vec3& position, const Vec3& forward) {
+      f.camera.position = position;
+      f.camera.rotation.col(2) = forward.normalized();
+      f.camera.rotation.col(1) = Vec3(0.0f, -1.0f, 0.0f);
+      f.camera.rotation.col(0) = f.camera.rotation.col(1).cross(f.camera.rotation.col(2));
+      RenderOptions o;
+      o.spp = 4;
+      writeExr(f.image, renderImage(scene, truth.appearance, lights, f.camera, o).color);
+    };
+    for (int i = 0; i < 4; ++i)
+      place(cap.frames[i], (i < 2 ? closePosition : grazingPosition) + Vec3(0.05f * (i % 2), 0.0f, 0.0f),
+            i < 2 ? Vec3(1.0f, 0.0f, -0.6f) : Vec3(0.0f, 0.0f, -1.0f));
+    writeTransforms(capture / "transforms.json", cap.frames);
+  });
+  const fs::path work = dir / "work";
+  const TriangleMesh mesh = loadMesh(work / "atlas_mesh.ply");
+  const Scene scene(mesh);
+  const TexelMap map(mesh, 64);
+  const VisibilityIndex vis = VisibilityIndex::read(work / "visibility.bin");
+  const Capture cap = readTransforms(dir / "capture" / "transforms.json");
+  const FrameStore store(work / "frames.bin");
+  std::vector<uint32_t> texels;
+  for (size_t t = 0; t < map.texelCount(); ++t)
+    if (map.covered(t)) texels.push_back(static_cast<uint32_t>(t));
+  ASSERT_EQ(readJson(work / "prepare.json")["phases"]["frames"]["kept"].size(), 4u);
+  const TextureSpaceSampler sampler(scene, map, texels, vis, {&cap.frames, &store, {0, 1, 2, 3}});
+  // Four batches as large as the texel count, all four frames: each connection of weight 1 (no
+  // Jacobian). The atlas texel is ~10 cm, so few texels lie within 10 cm of the wall cameras.
+  std::vector<BatchRay> close, grazing;
+  for (uint64_t it = 0; it < 4; ++it)
+    for (const BatchRay& r : sampler.sample(1, it, {static_cast<int>(texels.size()), 4}).rays) {
+      EXPECT_EQ(r.weight, 1.0f);
+      EXPECT_TRUE(r.reference.allFinite() && r.reference.minCoeff() >= 0.0f);
+      (r.origin.z() < 0.5f ? close : grazing).push_back(r);
+    }
+  ASSERT_GT(close.size(), 0u);
+  ASSERT_GT(grazing.size(), 0u);
+  float nearest = INFINITY, mostGrazing = 1;
+  for (const BatchRay& r : close) nearest = std::min(nearest, scene.intersect(r.origin, r.dir)->t);
+  for (const BatchRay& r : grazing) mostGrazing = std::min(mostGrazing, std::abs(scene.intersect(r.origin, r.dir)->ng.dot(r.dir)));
+  EXPECT_LT(nearest, 0.1f);      // texels within 10 cm (a Jacobian's 1 / d^2 would be >= 100)
+  EXPECT_LT(mostGrazing, 0.1f);  // and seen at more than 84 degrees (its cos would be < 0.1)
+  const SceneDescription truth = loadSceneFile(dir / "capture" / "gt" / "scene.json");
+  Appearance current = perturbAppearance(truth.appearance, 7);
+  for (const auto* rays : {&close, &grazing}) expectPlainMeanLoss(scene, current, *rays);
+  runFit(work, tinyFit(), false);
+  expectBoundedFit(dir);
 }

@@ -46,7 +46,7 @@ std::vector<float> valuesOf(Appearance& a) {
 
 }  // namespace
 
-TEST(ZeroGradient, MaskedAdamAndGaussNewtonLeaveValuesAndStateUntouched) {
+TEST(ExtremeOptimiser, AZeroGradientIterationLeavesAdamAndGaussNewtonUntouched) {
   GradientExperiment e = cornell();
   const Scene scene(e.truth.mesh);
   AdjointSettings settings;
@@ -74,7 +74,7 @@ TEST(ZeroGradient, MaskedAdamAndGaussNewtonLeaveValuesAndStateUntouched) {
   EXPECT_TRUE(opt == state);
 }
 
-TEST(ZeroGradient, ANonFiniteGradientEntryIsNoInformationEither) {
+TEST(ExtremeOptimiser, ANonFiniteGradientEntryIsNoInformation) {
   // With the clamp off (gradient_clamp 0) nothing filters a NaN or Inf before the optimiser; one
   // such entry must not poison its moments, which would freeze the entry for good.
   std::vector<float> x = {0.5f, 0.5f, 0.5f};

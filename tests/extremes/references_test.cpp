@@ -37,7 +37,7 @@ bool allZero(std::span<const float> v) {
 
 }  // namespace
 
-TEST(ClippedReferences, OnTheFreeSideCarryNoGradientAndBeyondItPullOneWay) {
+TEST(ExtremeReferences, ClippedReferencesCarryNoGradientOnTheFreeSideAndPullOneWayBeyondIt) {
   const GradientExperiment e = cornell();
   const float big = 1e3f;  // far beyond any estimate of the Cornell box (its light is 17)
   const Scene scene(e.truth.mesh);
@@ -67,7 +67,7 @@ TEST(ClippedReferences, OnTheFreeSideCarryNoGradientAndBeyondItPullOneWay) {
     for (int c = 0; c < 3; ++c) EXPECT_GE(down.grads.objects[down.grads.emissionSlot(o, c)], 0.0f);
 }
 
-TEST(ClippedReferences, ACaptureWithEveryPixelSaturatedIsAOneLineError) {
+TEST(ExtremeReferences, ACaptureWithEveryPixelSaturatedIsAOneLineError) {
   // Every frame is 100% overexposed, so prepare drops them all: an error, not a fit to nothing.
   EXPECT_THROW(tinyCapture("saturated", 2,
                            [](const fs::path& capture) {
@@ -78,7 +78,7 @@ TEST(ClippedReferences, ACaptureWithEveryPixelSaturatedIsAOneLineError) {
                Error);
 }
 
-TEST(NonFinitePixels, AreMaskedAndTheFitStaysBounded) {
+TEST(ExtremeReferences, NonFinitePixelsAreMaskedAndTheFitStaysBounded) {
   // A quarter of every frame's pixels NaN, +Inf or -Inf (a stripe of each).
   const fs::path dir = tinyCapture("nonfinite", 4, [](const fs::path& capture) {
     for (const Frame& f : readTransforms(capture / "transforms.json").frames) {
@@ -94,7 +94,7 @@ TEST(NonFinitePixels, AreMaskedAndTheFitStaysBounded) {
   expectBoundedFit(dir);
 }
 
-TEST(OneFrameCapture, EveryTexelSeenByOneFrameFitsToABoundedResult) {
+TEST(ExtremeReferences, AOneFrameCaptureFitsToABoundedResult) {
   // One frame: every texel's connections are that frame's pixels, so the Gauss-Newton albedo step
   // fits each texel to a single view and the light to what one view shows.
   const fs::path dir = tinyCapture("oneframe", 1);

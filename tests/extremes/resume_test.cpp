@@ -75,7 +75,7 @@ std::vector<float> fittedValues(const fs::path& work) {
 
 }  // namespace
 
-TEST(Resume, FromEachStageBoundaryEndsBitExactAsAnUninterruptedRun) {
+TEST(ExtremeResume, FromEachStageBoundaryEndsBitExactAsAnUninterruptedRun) {
   // Two resolutions, so that one boundary also upsamples the albedo and its Gauss-Newton state.
   const fs::path dir = tinyCapture("resume", 4, {}, {32, 64}), work = dir / "work";
   FitConfig c = tinyFit();

@@ -12,9 +12,12 @@ size_t AdamState::step(std::span<float> x, std::span<const float> g, float lo, f
   const float globalC1 = 1.0f - std::pow(b1, static_cast<float>(globalStep));
   const float globalC2 = 1.0f - std::pow(b2, static_cast<float>(globalStep));
   for (size_t i = 0; i < x.size(); ++i) {
-    if (s.masked && g[i] == 0.0f) continue;
-    m[i] = b1 * m[i] + (1.0f - b1) * g[i];
-    v[i] = b2 * v[i] + (1.0f - b2) * g[i] * g[i];
+    // A NaN or Inf entry carries no information (clampGradients drops them, but it can be off):
+    // once in m and v it would freeze the entry for good.
+    const float gi = std::isfinite(g[i]) ? g[i] : 0.0f;
+    if (s.masked && gi == 0.0f) continue;
+    m[i] = b1 * m[i] + (1.0f - b1) * gi;
+    v[i] = b2 * v[i] + (1.0f - b2) * gi * gi;
     float c1 = globalC1, c2 = globalC2;
     if (s.perEntrySteps) {
       if (steps[i] < 65535) ++steps[i];

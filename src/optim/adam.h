@@ -26,7 +26,8 @@ class AdamState {
   AdamState() = default;
   explicit AdamState(size_t entries) : m(entries, 0.0f), v(entries, 0.0f), steps(entries, 0) {}
   size_t size() const { return m.size(); }
-  // One step on x with gradient g (already clamped), then projection onto [lo, hi].
+  // One step on x with gradient g (already clamped; NaN or Inf entries count as 0), then projection
+  // onto [lo, hi].
   // `globalStep` (1-based) is used when per-entry steps are off. Returns the entries updated.
   size_t step(std::span<float> x, std::span<const float> g, float lo, float hi, const AdamSettings& s, uint32_t globalStep);
 

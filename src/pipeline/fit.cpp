@@ -406,7 +406,6 @@ class Fit {
         summary.memory = peakMemory_;
         return summary;
       }
-      if (st.pruneAfter) prune();
       startIteration = 0;
     }
     if (hooks_.finished) hooks_.finished(appearance_, w_.mesh);
@@ -644,6 +643,8 @@ class Fit {
       for (ParamGroup& g : paramGroups(appearance_))
         if (auto p = polyak_.find(g.name()); p != polyak_.end() && p->second.mean.size() == g.values.size())
           std::copy(p->second.mean.begin(), p->second.mean.end(), g.values.begin());
+    // Before the boundary checkpoint: a run resumed from it starts the next stage pruned.
+    if (st.pruneAfter) prune();
     if (hooks_.writeFiles) writeCheckpoint(checkpointPath, stageIndex + 1, 0, space);
     spdlog::info("fit: stage {} done: {} iterations, loss {:.4e}; per iteration: sample {:.1f} ms, primal {:.1f} ms, adjoint {:.1f} ms, optimiser {:.1f} ms",
                  st.name, st.iterations - firstIteration, lastLoss_, 1e3 * times.sample / std::max(1, st.iterations - firstIteration),

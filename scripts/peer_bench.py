@@ -1,0 +1,442 @@
+#!/usr/bin/env python3
+"""Mitsuba 3 side of scripts/peer_bench.sh (relume vs Mitsuba 3 prb, issue 12). Not part of the
+tests; Mitsuba (pip install mitsuba, variant llvm_ad_rgb) is never a dependency of relume.
+
+camera TRANSFORMS OUT_JSON --rays N
+  One camera (the first frame of TRANSFORMS) re-sized to a square image of N pixels (same focal
+  length in units of the width): the ray batch of one gradient iteration at 1 spp.
+
+iter SCENE_XML TRANSFORMS REF_EXR --depth D [--repeats 2] [--seed 1]
+  One gradient iteration, Mitsuba's way: prb integrator (max_depth = D + 1: relume's D scattering
+  vertices plus the emitter segment; no Russian roulette), mi.render of the camera at 1 spp with the
+  albedo texture and every area emitter's radiance attached to the AD graph, L2 loss against
+  REF_EXR, dr.backward, gradients evaluated. The scene is perturbed first as relume's profile does
+  (albedo 0.7 a + 0.1, emission x 0.8). One warm-up iteration (JIT tracing, kernel compilation or
+  cache), then REPEATS timed ones. Prints one JSON line: seconds per timed iteration, VmRSS after
+  loading (before any iteration), VmHWM at the end (peak RSS of this process).
+
+fit SCENE_XML TRANSFORMS OUT_DIR --snapshots S1,S2,... [--depth 9] [--lr 0.05] [--lr-emission 0.5]
+  Reconstruction: the albedo texture (bitmap on the export's uvs) and the radiance of every area
+  emitter of the scene, optimised by Adam(mask_updates=True) on prb gradients of the L2 loss of
+  1-spp renders of the training frames (one random frame per iteration, full resolution). The
+  clock starts after the scene and frames are loaded; at each snapshot time (seconds) the state
+  is written to OUT_DIR/t<k>/ (albedo.exr + scene.json for `relume eval`, clock paused meanwhile).
+
+initscene GT_SCENE WORK OUT_DIR --res 512
+  The starting point of the Mitsuba fit, as a relume scene.json on the work folder's atlas mesh
+  (the uv space relume's fit and eval use): albedo 0.5 grey (res^2), roughness and specular 0.5 on
+  every object (what relume's fit keeps with material_iterations 0), emission (1,1,1) on the
+  ground truth's emitters, 0 elsewhere.
+
+table OUT
+  Collects OUT/*.json and the relume logs into the markdown of OUT/peer.md.
+"""
+import argparse, glob, json, math, os, re, statistics, sys, time
+
+import numpy as np
+
+
+def rss_mib(field):
+    for line in open("/proc/self/status"):
+        if line.startswith(field + ":"):
+            return int(line.split()[1]) / 1024.0
+    return float("nan")
+
+
+def write_exr(path, rgb):
+    import OpenEXR
+    rgb = np.ascontiguousarray(rgb, dtype=np.float32)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with OpenEXR.File(header, {"RGB": rgb}) as f:
+        f.write(path)
+
+
+def mitsuba():
+    import mitsuba as mi
+    mi.set_variant("llvm_ad_rgb")
+    return mi
+
+
+def sensor_dict(mi, fr, get, spp):
+    w, h = int(get("w")), int(get("h"))
+    c2w = np.array(fr["transform_matrix"], dtype=float) @ np.diag([-1.0, 1.0, -1.0, 1.0])
+    fov = math.degrees(2 * math.atan(w / (2 * get("fl_x"))))
+    return {
+        "type": "perspective", "fov": fov, "fov_axis": "x", "to_world": mi.ScalarTransform4f(c2w.tolist()),
+        "principal_point_offset_x": (get("cx") - w / 2) / w, "principal_point_offset_y": (get("cy") - h / 2) / h,
+        "sampler": {"type": "independent", "sample_count": spp},
+        "film": {"type": "hdrfilm", "width": w, "height": h, "rfilter": {"type": "box"}, "pixel_format": "rgb",
+                 "sample_border": False},
+    }
+
+
+def frames(path):
+    t = json.load(open(path))
+    for fr in t["frames"]:
+        yield fr, (lambda k, fr=fr: float(fr.get(k, t.get(k))))
+
+
+def prb(mi, depth):
+    return mi.load_dict({"type": "prb", "max_depth": depth + 1, "rr_depth": 1 << 20})
+
+
+def opt_keys(mi, params):
+    """The albedo texture (the one 3-channel bitmap tensor) and every area emitter's radiance."""
+    tex = [k for k in params.keys() if k.endswith(".data") and len(params[k].shape) == 3 and params[k].shape[2] == 3]
+    emit = [k for k in params.keys() if k.endswith("emitter.radiance.value")]
+    if len(tex) != 1:
+        sys.exit("peer_bench.py: expected one albedo bitmap in the scene, found %s" % tex)
+    return tex[0], emit
+
+
+def cmd_camera(a):
+    t = json.load(open(a.transforms))
+    fr = dict(t["frames"][0])
+    for k in ("w", "h", "fl_x", "fl_y", "cx", "cy"):
+        fr.setdefault(k, t.get(k))
+    side = int(round(math.sqrt(a.rays)))
+    s = side / float(fr["w"])
+    fr.update({"w": side, "h": side, "fl_x": fr["fl_x"] * s, "fl_y": fr["fl_x"] * s, "cx": side / 2.0, "cy": side / 2.0,
+               "file_path": "ref_%d.exr" % side})
+    out = {k: v for k, v in t.items() if k not in ("frames", "w", "h", "fl_x", "fl_y", "cx", "cy")}
+    out["frames"] = [fr]
+    json.dump(out, open(a.out, "w"), indent=1)
+
+
+def cmd_iter(a):
+    mi = mitsuba()
+    import drjit as dr
+    scene = mi.load_file(a.scene_xml)
+    fr, get = next(frames(a.transforms))
+    sensor = mi.load_dict(sensor_dict(mi, fr, get, 1))
+    ref = mi.TensorXf(np.array(mi.Bitmap(a.ref), dtype=np.float32)[:, :, :3])
+    integrator = prb(mi, a.depth)
+    params = mi.traverse(scene)
+    ka, ke = opt_keys(mi, params)
+    params[ka] = 0.7 * params[ka] + 0.1
+    for k in ke:
+        params[k] = params[k] * 0.8
+    params.keep([ka] + ke)
+    params.update()
+    rss0 = rss_mib("VmRSS")
+    secs = []
+    for it in range(1 + a.repeats):
+        t0 = time.perf_counter()
+        for k in params.keys():
+            dr.enable_grad(params[k])
+        params.update()
+        img = mi.render(scene, params, sensor=sensor, integrator=integrator, spp=1, seed=a.seed + it)
+        loss = dr.mean(dr.square(img - ref), axis=None)
+        dr.backward(loss)
+        grads = [dr.grad(params[k]) for k in params.keys()]
+        dr.eval(*grads)
+        dr.sync_thread()
+        secs.append(time.perf_counter() - t0)
+        for k in params.keys():
+            dr.disable_grad(params[k])
+    nrays = int(get("w")) * int(get("h"))
+    gsum = [float(np.abs(np.array(g)).sum()) for g in grads]  # sanity: the gradients are not zero
+    print(json.dumps({"rays": nrays, "depth": a.depth, "warmup_s": secs[0], "seconds": secs[1:], "grad_abs_sum": gsum,
+                      "rss_loaded_mib": rss0, "peak_rss_mib": rss_mib("VmHWM"), "params": [ka] + ke}))
+
+
+def cmd_initscene(a):
+    gt = json.load(open(a.gt))
+    os.makedirs(a.out, exist_ok=True)
+    write_exr(os.path.join(a.out, "albedo.exr"), np.full((a.res, a.res, 3), 0.5, np.float32))
+    objs = []
+    for o in gt["objects"]:
+        e = [1.0, 1.0, 1.0] if max(o.get("emission", [0, 0, 0])) > 0 else [0.0, 0.0, 0.0]
+        objs.append({"id": o["id"], "name": o["name"], "roughness": 0.5, "specular": 0.5, "emission": e})
+    scene = {"mesh": os.path.abspath(os.path.join(a.work, "atlas_mesh.ply")), "model": gt.get("model", "principled-v1"),
+             "albedo_texture": "albedo.exr", "objects": objs}
+    json.dump(scene, open(os.path.join(a.out, "scene.json"), "w"), indent=1)
+
+
+def cmd_fit(a):
+    mi = mitsuba()
+    import drjit as dr
+    scene = mi.load_file(a.scene_xml)
+    base = os.path.dirname(os.path.abspath(a.transforms))
+    sensors, refs = [], []
+    for fr, get in frames(a.transforms):
+        sensors.append(mi.load_dict(sensor_dict(mi, fr, get, 1)))
+        refs.append(mi.TensorXf(np.array(mi.Bitmap(os.path.join(base, fr["file_path"])), dtype=np.float32)[:, :, :3]))
+    integrator = prb(mi, a.depth)
+    params = mi.traverse(scene)
+    ka, ke = opt_keys(mi, params)
+    params.keep([ka] + ke)
+    opt = mi.ad.Adam(lr=a.lr, mask_updates=True)
+    opt[ka] = params[ka]
+    for k in ke:
+        opt[k] = params[k]
+        opt.set_learning_rate({k: a.lr_emission})
+    params.update(opt)
+    init_scene = json.load(open(a.init_scene))
+    snapshots = sorted(float(s) for s in a.snapshots.split(","))
+    rng = np.random.default_rng(a.seed)
+    elapsed, it, losses, next_snap, iter_s = 0.0, 0, [], 0, []
+    os.makedirs(a.out, exist_ok=True)
+    while next_snap < len(snapshots):
+        t0 = time.perf_counter()
+        i = int(rng.integers(len(sensors)))
+        img = mi.render(scene, params, sensor=sensors[i], integrator=integrator, spp=1, seed=it)
+        loss = dr.mean(dr.square(img - refs[i]), axis=None)
+        dr.backward(loss)
+        opt.step()
+        opt[ka] = dr.clip(opt[ka], 0.0, 1.0)
+        for k in ke:
+            opt[k] = dr.maximum(opt[k], 0.0)
+        params.update(opt)
+        dr.eval(params[ka])
+        dr.sync_thread()
+        dt = time.perf_counter() - t0
+        elapsed += dt
+        iter_s.append(dt)
+        losses.append(float(loss.array[0]) if hasattr(loss, "array") else float(loss[0]))
+        it += 1
+        # Stop at a snapshot when the next iteration would overshoot it by more than half an iteration.
+        while next_snap < len(snapshots) and elapsed + 0.5 * dt >= snapshots[next_snap]:
+            d = os.path.join(a.out, "t%d" % next_snap)
+            os.makedirs(d, exist_ok=True)
+            alb = np.array(params[ka], dtype=np.float32)
+            write_exr(os.path.join(d, "albedo.exr"), np.clip(alb, 0, 1))
+            sc = json.loads(json.dumps(init_scene))
+            for o in sc["objects"]:
+                for k in ke:
+                    if k.split(".emitter")[0] == o["name"]:
+                        o["emission"] = [float(max(x, 0.0)) for x in np.array(params[k]).reshape(-1)[:3]]
+            json.dump(sc, open(os.path.join(d, "scene.json"), "w"), indent=1)
+            json.dump({"budget_s": snapshots[next_snap], "elapsed_s": elapsed, "iterations": it,
+                       "median_iteration_s": statistics.median(iter_s), "last_loss": losses[-1],
+                       "emission": {k: np.array(params[k]).reshape(-1).tolist() for k in ke}},
+                      open(os.path.join(d, "mitsuba_fit.json"), "w"), indent=1)
+            print("mitsuba fit: snapshot %d at %.1f s, %d iterations (%.2f s each), loss %.4g"
+                  % (next_snap, elapsed, it, statistics.median(iter_s), losses[-1]), flush=True)
+            next_snap += 1
+
+
+# ---------------------------------------------------------------------------------------------
+# table
+
+
+def med(xs):
+    return statistics.median(xs) if xs else float("nan")
+
+
+def parse_relume_profile(path):
+    txt = open(path).read()
+    f = lambda pat: float(re.search(pat, txt).group(1))
+    return {"primal": f(r"primal\s+([\d.]+) s"), "loss": f(r"loss\s+([\d.]+) s"),
+            "direct": f(r"adjoint \(direct\)\s+([\d.]+) s"), "full": f(r"adjoint \(full\)\s+([\d.]+) s"),
+            "rss": f(r"peak RSS ([\d.]+) MiB")}
+
+
+def read_or(path, default):
+    return open(path).read().strip() if os.path.exists(path) else default
+
+
+def cmd_table(a):
+    out = a.out
+    lines = []
+    P = lines.append
+    meta = json.load(open(os.path.join(out, "meta.json")))
+    P("# relume vs Mitsuba %s (prb, %s) on the room" % (meta["mitsuba"], meta["variant"]))
+    P("")
+    P("Machine: %s; %s. Load (uptime) at the start: %s; at the end: %s."
+      % (meta["cpu"], meta["cores"], meta["uptime_start"], read_or(os.path.join(out, "uptime_end.txt"), "?")))
+    P("")
+    # (a)
+    P("## (a) One gradient iteration")
+    P("")
+    P("relume: `relume profile --what adjoint --rays N --max-depth D --repeats 1`: primal + loss + adjoint pass "
+      "(N random pixels of 8 room views, 1 sample each; gradients of every parameter group: albedo texture 1024^2, "
+      "per-object roughness, specular, emission), 'full' = every vertex differentiated like prb, 'direct' = first vertex "
+      "(what `fit` uses). Mitsuba: `peer_bench.py iter`: prb (max_depth D+1, no RR), mi.render of one held-out view "
+      "at sqrt(N)^2 pixels and 1 spp + L2 loss against relume's 4-spp render + dr.backward over the albedo texture "
+      "(1024^2) and both emitters' radiance, gradients evaluated; one timed iteration after a warm-up one (JIT). "
+      "Each cell: median over %d interleaved rounds (relume, Mitsuba, relume, ...). Peak RSS = whole process "
+      "(relume: its own report; Mitsuba: VmHWM, in brackets VmRSS after loading, before the first iteration)."
+      % meta["rounds"])
+    P("")
+    P("| rays | depth | relume full (s) | relume direct (s) | Mitsuba prb (s) | Mitsuba / relume full | relume peak RSS (MiB) | Mitsuba peak RSS (MiB) [loaded] |")
+    P("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    ratios = []
+    rows = {}
+    for s in meta["settings"]:
+        n, d = s
+        rel = [parse_relume_profile(p) for p in sorted(glob.glob(os.path.join(out, "iter", "relume_%d_%d_r*.txt" % (n, d))))]
+        mts = [json.loads(open(p).read().strip().splitlines()[-1]) for p in
+               sorted(glob.glob(os.path.join(out, "iter", "mitsuba_%d_%d_r*.json" % (n, d))))]
+        if not rel or not mts:
+            continue
+        rf = med([r["primal"] + r["loss"] + r["full"] for r in rel])
+        rd = med([r["primal"] + r["loss"] + r["direct"] for r in rel])
+        mt = med([min(m["seconds"]) for m in mts])
+        # ratio: median of per-round ratios (paired, same load)
+        per = [min(m["seconds"]) / (r["primal"] + r["loss"] + r["full"]) for r, m in zip(rel, mts)]
+        ratios.append(med(per))
+        rows[(n, d)] = (rf, mt, med([r["rss"] for r in rel]), med([m["peak_rss_mib"] for m in mts]))
+        P("| %d | %d | %.3f | %.3f | %.3f | %.2fx (rounds: %s) | %.0f | %.0f [%.0f] |" % (
+            mts[0]["rays"], d, rf, rd, mt, med(per), ", ".join("%.2f" % x for x in per), med([r["rss"] for r in rel]),
+            med([m["peak_rss_mib"] for m in mts]), med([m["rss_loaded_mib"] for m in mts])))
+    P("")
+    depth_rows = sorted(k for k in rows if k[0] == meta["depth_rays"])
+    if len(depth_rows) >= 2:
+        lo, hi = depth_rows[0], depth_rows[-1]
+        P("Growth with depth (%d rays, depth %d -> %d): time relume x%.2f, Mitsuba x%.2f; peak RSS relume %+.0f MiB, Mitsuba %+.0f MiB."
+          % (lo[0], lo[1], hi[1], rows[hi][0] / rows[lo][0], rows[hi][1] / rows[lo][1], rows[hi][2] - rows[lo][2],
+             rows[hi][3] - rows[lo][3]))
+    batch_rows = sorted(k for k in rows if k[1] == meta["batch_depth"])
+    if len(batch_rows) >= 2:
+        lo, hi = batch_rows[0], batch_rows[-1]
+        P("Growth with batch (depth %d, %d -> %d rays): time relume x%.2f, Mitsuba x%.2f; peak RSS relume %+.0f MiB, Mitsuba %+.0f MiB."
+          % (lo[1], lo[0], hi[0], rows[hi][0] / rows[lo][0], rows[hi][1] / rows[lo][1], rows[hi][2] - rows[lo][2],
+             rows[hi][3] - rows[lo][3]))
+    P("")
+    # (b)
+    P("## (b) Forward agreement (scripts/mitsuba_compare.sh, Mitsuba scalar_rgb on the exported ground truth)")
+    P("")
+    fwd = open(os.path.join(out, "forward.txt")).read().strip().splitlines()
+    P("```")
+    for l in fwd:
+        P(l)
+    P("```")
+    P("")
+    # (c)
+    P("## (c) Time to accuracy: albedo texture + emission, equal wall clock")
+    P("")
+    P("relume: `relume prepare --res %d` once, then `relume fit` with `%s` (albedo_passes sized to the budget); "
+      "time = wall clock of the prepare process + the fit process up to its `fit: result in` line (loading, all stages, "
+      "writing the result; not the HTML report written after it). "
+      "Mitsuba: `peer_bench.py fit` (prb depth 9+1, Adam(mask_updates=True), lr 0.05 albedo / 0.5 emission, one random "
+      "training frame per iteration at 256x192, 1 spp; from albedo 0.5, emission (1,1,1) on the two true emitters), "
+      "its clock started after loading the scene and frames, snapshots at relume's times. "
+      "Both scored by `relume eval --truth cap/gt/scene.json --coverage work/coverage.exr` (albedo MAE over the "
+      "texels observed >= 5 times, in relume's atlas at %d^2; emission error over the true emitters)."
+      % (meta["res"], json.dumps(meta["fit_config"]), meta["res"]))
+    P("")
+    P("| budget | wall clock (s) | relume iterations | relume albedo MAE | Mitsuba iterations | Mitsuba albedo MAE | relume emission error | Mitsuba emission error | load (1 min) relume / Mitsuba |")
+    P("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    runs_path = os.path.join(out, "fit", "relume_runs.json")
+    fit = json.load(open(runs_path)) if os.path.exists(runs_path) else []
+    for k, r in enumerate(fit):
+        ev_r = json.load(open(os.path.join(out, "fit", "relume_%d" % k, "eval", "eval.json")))
+        mdir = os.path.join(out, "fit", "mitsuba", "t%d" % k)
+        if not os.path.exists(os.path.join(mdir, "eval", "eval.json")):
+            continue
+        ev_m = json.load(open(os.path.join(mdir, "eval", "eval.json")))
+        mf = json.load(open(os.path.join(mdir, "mitsuba_fit.json")))
+        tr, tm = ev_r["truth"], ev_m["truth"]
+        P("| %d s | %.0f (relume) / %.0f (Mitsuba) | %d | %.4f | %d (%.2f s each) | %.4f | %.1f%% | %.1f%% | %s / %s |" % (
+            r["budget"], r["seconds"], mf["elapsed_s"], r["iterations"], tr["albedo_mae"], mf["iterations"],
+            mf["median_iteration_s"], tm["albedo_mae"], 100 * tr["emission_rel_error"], 100 * tm["emission_rel_error"],
+            r["load"], open(os.path.join(out, "fit", "mitsuba_load.txt")).read().strip()))
+    P("")
+    P("Ratios across the whole of (a): Mitsuba / relume(full) per iteration, median %.2fx (range %.2f-%.2f)."
+      % (med(ratios), min(ratios), max(ratios)) if ratios else "")
+    text = "\n".join(lines) + "\n"
+    open(os.path.join(out, "peer.md"), "w").write(text)
+    sys.stdout.write(text)
+
+
+def cmd_relumefits(a):
+    """relume fit at each budget: albedo_passes sized from the previous run's speed; the time is the
+    wall clock from the process start to the line `fit: result in` (the HTML report written after it
+    is not counted) plus prepare's wall clock."""
+    import subprocess
+    budgets = [float(b) for b in a.budgets.split(",")]
+    base = json.loads(a.config)
+    per_iter, setup, it_per_pass = a.guess_iteration_s, 3.0, None
+    runs = []
+    for k, T in enumerate(budgets):
+        work = a.work
+        for f in ("checkpoint.bin", "metrics.jsonl"):
+            if os.path.exists(os.path.join(work, f)):
+                os.remove(os.path.join(work, f))
+        sampleable = None
+        cfg = dict(base)
+        if it_per_pass is None:
+            it_per_pass = 20.0
+        left = (T - a.prepare_seconds - setup) / per_iter - cfg.get("emission_iterations", 200)
+        cfg["albedo_passes"] = round(max(1.0, left / it_per_pass), 2)
+        cfgp = os.path.join(a.out, "fit_%d.json" % k)
+        json.dump(cfg, open(cfgp, "w"))
+        load = open("/proc/loadavg").read().split()[0]
+        t0 = time.perf_counter()
+        proc = subprocess.Popen([a.relume, "--log", "info", "fit", work, "--config", cfgp], stderr=subprocess.STDOUT,
+                                stdout=subprocess.PIPE, text=True, errors="replace")
+        t_result, iters, log = None, None, []
+        for line in proc.stdout:
+            for part in line.split("\r"):
+                if "info" in part:
+                    log.append(part.rstrip())
+            if "fit: result in" in line and t_result is None:
+                t_result = time.perf_counter() - t0
+            m = re.search(r"fit: (\d+) iterations in", line)
+            if m:
+                iters = int(m.group(1))
+            m = re.search(r"\((\d+) texels sampleable", line)
+            if m:
+                sampleable = int(m.group(1))
+        if proc.wait() != 0 or t_result is None:
+            sys.exit("peer_bench.py: relume fit failed:\n" + "\n".join(log[-20:]))
+        if sampleable:
+            it_per_pass = sampleable / float(cfg.get("batch_texels", 8192))
+        per_iter = max(0.02, (t_result - setup) / max(iters, 1))
+        dst = os.path.join(a.out, "relume_%d" % k)
+        if os.path.exists(dst):
+            import shutil
+            shutil.rmtree(dst)
+        os.rename(os.path.join(work, "result"), dst)
+        open(os.path.join(a.out, "relume_%d.log" % k), "w").write("\n".join(log) + "\n")
+        r = {"budget": T, "seconds": t_result + a.prepare_seconds, "fit_seconds": t_result, "iterations": iters,
+             "albedo_passes": cfg["albedo_passes"], "load": load}
+        print("relume fit: budget %.0f s: %.1f s (prepare %.1f + fit to result %.1f), %d iterations, load %s"
+              % (T, r["seconds"], a.prepare_seconds, t_result, iters, load), flush=True)
+        runs.append(r)
+    json.dump(runs, open(os.path.join(a.out, "relume_runs.json"), "w"), indent=1)
+    print(",".join("%.2f" % r["seconds"] for r in runs))
+
+
+def main():
+    mode = sys.argv[1] if len(sys.argv) > 1 else ""
+    ap = argparse.ArgumentParser(prog="peer_bench.py " + mode)
+    if mode == "camera":
+        ap.add_argument("transforms"); ap.add_argument("out"); ap.add_argument("--rays", type=int, required=True)
+        cmd_camera(ap.parse_args(sys.argv[2:]))
+    elif mode == "iter":
+        for k in ("scene_xml", "transforms", "ref"):
+            ap.add_argument(k)
+        ap.add_argument("--depth", type=int, required=True)
+        ap.add_argument("--repeats", type=int, default=2)
+        ap.add_argument("--seed", type=int, default=1)
+        cmd_iter(ap.parse_args(sys.argv[2:]))
+    elif mode == "initscene":
+        ap.add_argument("gt"); ap.add_argument("work"); ap.add_argument("out"); ap.add_argument("--res", type=int, default=512)
+        cmd_initscene(ap.parse_args(sys.argv[2:]))
+    elif mode == "fit":
+        for k in ("scene_xml", "transforms", "init_scene", "out"):
+            ap.add_argument(k)
+        ap.add_argument("--snapshots", required=True)
+        ap.add_argument("--depth", type=int, default=9)
+        ap.add_argument("--lr", type=float, default=0.05)
+        ap.add_argument("--lr-emission", type=float, default=0.5)
+        ap.add_argument("--seed", type=int, default=1)
+        cmd_fit(ap.parse_args(sys.argv[2:]))
+    elif mode == "relumefits":
+        for k in ("relume", "work", "out"):
+            ap.add_argument(k)
+        ap.add_argument("--budgets", required=True)
+        ap.add_argument("--config", required=True)
+        ap.add_argument("--prepare-seconds", type=float, required=True)
+        ap.add_argument("--guess-iteration-s", type=float, default=0.4)
+        cmd_relumefits(ap.parse_args(sys.argv[2:]))
+    elif mode == "table":
+        ap.add_argument("out")
+        cmd_table(ap.parse_args(sys.argv[2:]))
+    else:
+        sys.exit("peer_bench.py: mode must be camera, iter, initscene, fit or table, not '%s'" % mode)
+
+
+main()

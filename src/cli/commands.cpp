@@ -332,12 +332,16 @@ void registerFit(CLI::App& app, CommandTable& table) {
   c->add_option("--config", *config, "fit config JSON (every key in the README)")->check(CLI::ExistingFile);
   c->add_option("--res", *maxRes, "cap on the final albedo resolution (default: what the frames resolve)")->check(CLI::NonNegativeNumber);
   c->add_flag("--resume", *resume, "continue from WORK/checkpoint.bin");
+  auto noReport = std::make_shared<bool>(false);
+  c->add_flag("--no-report", *noReport, "skip WORK/report/ (`relume report WORK` writes it later)");
   table[c] = [=] {
     FitConfig cfg = config->empty() ? FitConfig{} : FitConfig::load(*config);
     if (*maxRes > 0) cfg.maxResolution = *maxRes;
     // Its checkpoint is written atomically into the work folder: clear what killed runs left.
     if (const size_t stale = removeStaleTemporaries(*work)) spdlog::info("fit: removed {} temporaries of killed runs", stale);
-    const FitSummary s = runFit(*work, cfg, *resume);
+    FitHooks run;
+    run.report = !*noReport;
+    const FitSummary s = runFit(*work, cfg, *resume, run);
     spdlog::info("fit: {} iterations in {:.0f}s, albedo {}^2, {} light source(s), result in {}", s.iterations, s.seconds,
                  s.finalResolution, s.emitters.size(), s.resultDir.string());
     return 0;

@@ -411,7 +411,7 @@ class Fit {
     if (hooks_.finished) hooks_.finished(appearance_, w_.mesh);
     if (hooks_.writeFiles) {
       summary.resultDir = writeResult(*space);
-      writeFitReport(w_.dir);
+      if (hooks_.report) writeFitReport(w_.dir);
     }
     summary.seconds = fitSeconds();
     summary.memory = peakMemory_;

@@ -112,6 +112,7 @@ struct FitIteration {
 struct FitHooks {
   std::function<bool(const FitIteration&)> afterIteration;  // returns false to stop the fit there
   bool writeFiles = true;     // metrics, checkpoints and the result (off: a measurement leaves WORK as it was)
+  bool report = true;         // with the result, WORK/report/ (re-renders a few frames: tens of seconds)
   // Called once at the end with the final state (Polyak averages applied), files or not.
   std::function<void(const Appearance&, const TriangleMesh&)> finished;
 };

@@ -540,12 +540,16 @@ class Fit {
     } else {
       b = ImageSpaceSampler(w_.trainingFrames()).sample(c_.seed, iteration, c_.imageRays, *w_.scene);
     }
-    if (c_.samplesPerRay > 1) {  // independent estimates of the same connection
-      std::vector<BatchRay> rays;
-      rays.reserve(b.rays.size() * c_.samplesPerRay);
-      for (const BatchRay& r : b.rays)
-        for (int s = 0; s < c_.samplesPerRay; ++s) rays.push_back(r);
-      b.rays = std::move(rays);
+    if (c_.samplesPerRay > 1) {  // independent estimates of the same connection (ray j keeps its slot and object)
+      Batch repeated;
+      repeated.stats = b.stats;
+      for (size_t j = 0; j < b.rays.size(); ++j)
+        for (int s = 0; s < c_.samplesPerRay; ++s) {
+          repeated.rays.push_back(b.rays[j]);
+          repeated.slot.push_back(b.slot[j]);
+          repeated.object.push_back(b.object[j]);
+        }
+      b = std::move(repeated);
     }
     return b;
   }

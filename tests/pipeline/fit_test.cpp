@@ -125,3 +125,18 @@ TEST(Fit, BadInputIsAOneLineError) {
   EXPECT_FALSE(c.maskedAdam);
   EXPECT_EQ(FitConfig::load(dir / "cfg.json").toJson(), c.toJson());
 }
+
+// samples_per_ray > 1 repeats each connection: every per-ray array of the batch (the object the
+// emission stage's observed radiance is summed into, the probes' objects) must repeat with it.
+// Before the fix the objects were not repeated, and the emission stage read past their end.
+TEST(Fit, SeveralSamplesPerRayKeepEachRayWithItsObject) {
+  const fs::path dir = cornellWork("samples_per_ray");
+  FitConfig c = smallConfig();
+  c.samplesPerRay = 3;
+  c.materialIterations = 5, c.albedoPasses = 2;
+  const FitSummary s = runFit(dir / "work", c, false);
+  EXPECT_FALSE(s.stopped);
+  const TruthComparison fit = score(dir);
+  EXPECT_EQ(fit.emittersFound, 2);
+  EXPECT_EQ(fit.emittersCorrect, 2);
+}

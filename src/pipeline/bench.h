@@ -15,6 +15,7 @@ namespace relume {
 struct BenchSweep {
   std::string name, key;   // e.g. "spp", "samples_per_ray"
   std::vector<Json> values;
+  Json with = Json::object();  // other keys every value of this sweep needs (then the baseline run is not reused)
 };
 // Every sweep `relume bench` knows.
 const std::vector<BenchSweep>& benchSweeps();

@@ -56,6 +56,7 @@ struct FitConfig {
   float albedoPasses = 60.0f;       // albedo stage length: expected draws per sampleable texel
   int maxStageIterations = 2000;    // cap on any albedo stage
   int maxResolution = 0;            // cap on the final albedo resolution; 0 = what the frames resolve
+  int emissionTextureResolution = 1024;  // cap on the emission textures' atlas resolution; 0 = the albedo's
   float pruneFraction = 0.02f;      // emitters below this fraction of the total power go to 0
   float emitterRadianceFraction = 0.75f;  // ... and those whose emission is below this fraction of
                                           // their own observed radiance (lit, not emitting)

@@ -3,15 +3,10 @@
 // float atomics, whose order varies between threads).
 #include "extremes.h"
 
-#include <poll.h>
-#include <sys/inotify.h>
 #include <tbb/task_arena.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <atomic>
 #include <map>
-#include <thread>
 
 #include "optim/checkpoint.h"
 
@@ -21,51 +16,35 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// Keeps every version of WORK/checkpoint.bin a fit writes, as WORK/boundary<n>.bin: a hard link to
-// each new file as it is renamed into place (checkpoints are written atomically). With
-// checkpoint_every beyond every stage's length, those are exactly the stage-boundary checkpoints,
-// at least one iteration apart, while a link takes microseconds.
+// Keeps every stage-boundary checkpoint a fit writes, as WORK/boundary<n>.bin. The boundary
+// checkpoint of stage k is WORK/checkpoint.bin when stage k + 1's first iteration ends (with
+// checkpoint_every beyond every stage's length nothing overwrites it before), and the last one is
+// what the fit leaves. A fit hook sees those moments exactly (watching the folder for renames
+// missed one under load).
 class CheckpointRecorder {
  public:
-  explicit CheckpointRecorder(fs::path work) : work_(std::move(work)), fd_(inotify_init1(IN_NONBLOCK)) {
-    EXPECT_GE(inotify_add_watch(fd_, work_.c_str(), IN_MOVED_TO), 0);
-    thread_ = std::thread([this] { watch(); });
+  explicit CheckpointRecorder(fs::path work) : work_(std::move(work)) {
+    hooks_.afterIteration = [this](const FitIteration& it) {
+      if (!stage_.empty() && it.stage != stage_) keep();
+      stage_ = it.stage;
+      return true;
+    };
   }
-  ~CheckpointRecorder() {
-    if (thread_.joinable()) stop();
-    close(fd_);
-  }
+  const FitHooks& hooks() const { return hooks_; }
   std::vector<fs::path> stop() {
-    stopping_ = true;
-    thread_.join();
+    keep();
     return versions_;
   }
 
  private:
-  void watch() {
-    alignas(inotify_event) char buffer[4096];
-    for (;;) {
-      pollfd p{fd_, POLLIN, 0};
-      if (poll(&p, 1, 20) <= 0) {
-        if (stopping_) return;  // nothing pending after the fit returned
-        continue;
-      }
-      const ssize_t n = read(fd_, buffer, sizeof buffer);
-      for (ssize_t i = 0; i < n;) {
-        const auto* event = reinterpret_cast<const inotify_event*>(buffer + i);
-        if (event->len > 0 && std::string(event->name) == "checkpoint.bin") {
-          versions_.push_back(work_ / ("boundary" + std::to_string(versions_.size()) + ".bin"));
-          fs::create_hard_link(work_ / "checkpoint.bin", versions_.back());
-        }
-        i += static_cast<ssize_t>(sizeof(inotify_event) + event->len);
-      }
-    }
+  void keep() {
+    versions_.push_back(work_ / ("boundary" + std::to_string(versions_.size()) + ".bin"));
+    fs::copy_file(work_ / "checkpoint.bin", versions_.back(), fs::copy_options::overwrite_existing);
   }
   fs::path work_;
-  int fd_;
-  std::atomic<bool> stopping_{false};
+  FitHooks hooks_;
+  std::string stage_;
   std::vector<fs::path> versions_;
-  std::thread thread_;
 };
 
 // Every fitted parameter, by group name (emission textures included).
@@ -103,12 +82,12 @@ TEST(ExtremeResume, FromEachStageBoundaryEndsBitExactAsAnUninterruptedRun) {
   c.checkpointEvery = 1000000;  // checkpoints at stage ends only
   tbb::task_arena one(1);
   CheckpointRecorder recorder(work);
-  one.execute([&] { runFit(work, c, false); });
+  one.execute([&] { runFit(work, c, false, recorder.hooks()); });
   const std::vector<fs::path> boundaries = recorder.stop();
   const auto whole = fittedValues(work);
   expectBoundedFit(dir);
   // emission | albedo@32 | materials | albedo@64 | emission_texture |: the checkpoint after stage k
-  // resumes at stage k + 1 (a run stopped after the recorder missed one would fail here).
+  // resumes at stage k + 1.
   ASSERT_EQ(boundaries.size(), 5u);
   for (size_t k = 0; k < boundaries.size(); ++k) {
     const Checkpoint ck = Checkpoint::read(boundaries[k]);
@@ -116,8 +95,7 @@ TEST(ExtremeResume, FromEachStageBoundaryEndsBitExactAsAnUninterruptedRun) {
     EXPECT_EQ(ck.meta.value("stage", -1), static_cast<int>(k) + 1);
     EXPECT_EQ(ck.meta.value("iteration", -1), 0);
     fs::remove_all(work / "result");
-    fs::remove(work / "checkpoint.bin");  // a link to the last boundary: copying onto it would truncate that
-    fs::copy_file(boundaries[k], work / "checkpoint.bin");
+    fs::copy_file(boundaries[k], work / "checkpoint.bin", fs::copy_options::overwrite_existing);
     one.execute([&] { runFit(work, c, true); });
     // Bound: bit-exact, every parameter of every group (emission textures included).
     expectSameFit(fittedValues(work), whole);

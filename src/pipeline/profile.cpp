@@ -311,13 +311,15 @@ FitProfile profileFit(const std::filesystem::path& work, const FitConfig& config
 }
 
 Json FitProfile::toJson() const {
+  std::vector<Json> rows;  // each iteration's phases, and their total
+  for (const FitPhaseTimes& t : perIteration) {
+    rows.push_back(t.toJson());
+    rows.back()["total"] = t.total();
+  }
   Json phases = Json::object();
-  for (const char* name : {"sample", "lights", "primal", "loss", "adjoint", "optimiser", "total"}) {
+  for (const auto& [name, unused] : rows.front().items()) {
     std::vector<double> v;
-    for (const FitPhaseTimes& t : perIteration) {
-      const Json j = t.toJson();
-      v.push_back(std::string(name) == "total" ? t.total() : j[name].get<double>());
-    }
+    for (const Json& r : rows) v.push_back(r[name].get<double>());
     phases[name] = {{"mean_ms", 1e3 * std::accumulate(v.begin(), v.end(), 0.0) / v.size()},
                     {"min_ms", 1e3 * *std::min_element(v.begin(), v.end())},
                     {"max_ms", 1e3 * *std::max_element(v.begin(), v.end())}};

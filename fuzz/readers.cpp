@@ -75,6 +75,11 @@ void touchVisibility(const fs::path& file) {
 void touchCheckpoint(const fs::path& file) {
   const Checkpoint c = Checkpoint::read(file);
   (void)c.meta.dump();
+  // The header fields `fit --resume` reads, each on its own so one missing field hides no other.
+  for (const char* key : {"stage", "iteration", "global_iteration", "resolution", "emission_texture_resolution"}) try {
+      (void)c.metaInteger(key, 0, INT32_MAX);
+    } catch (const Error&) {
+    }
   (void)c.bytes("albedo");
 }
 

@@ -32,4 +32,14 @@ double jsonNumberOr(const Json& j, const char* key, double fallback, const std::
   return j.is_object() && j.contains(key) ? jsonNumber(j, key, file) : fallback;
 }
 
+int64_t jsonInteger(const Json& v, int64_t lo, int64_t hi, const std::string& where, const std::string& field) {
+  if (!v.is_number_integer()) fail("{}: '{}' must be an integer", where, field);
+  const bool inRange = v.is_number_unsigned()
+                           ? hi >= 0 && v.get<uint64_t>() <= static_cast<uint64_t>(hi) && (lo <= 0 || v.get<uint64_t>() >= static_cast<uint64_t>(lo))
+                           : v.get<int64_t>() >= lo && v.get<int64_t>() <= hi;
+  if (!inRange)
+    fail("{}: '{}' is {}, must be in [{}, {}]", where, field, v.dump(), lo, hi);
+  return v.get<int64_t>();
+}
+
 }  // namespace relume

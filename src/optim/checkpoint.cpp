@@ -1,6 +1,7 @@
 #include "optim/checkpoint.h"
 
 #include <fstream>
+#include <limits>
 
 #include "core/error.h"
 #include "io/atomic_file.h"
@@ -65,7 +66,7 @@ Checkpoint Checkpoint::read(const std::filesystem::path& path) {
     c.meta = j.at("meta");
     for (const Json& entry : j.at("arrays")) {
       const std::string name = entry.at(0).get<std::string>();
-      const uint64_t n = entry.at(1).get<uint64_t>();
+      const uint64_t n = static_cast<uint64_t>(jsonInteger(entry.at(1), 0, std::numeric_limits<int64_t>::max(), path.string(), name));
       if (n > size - offset) fail("{}: checkpoint array '{}' is truncated", path.string(), name);
       std::vector<char>& b = c.arrays_[name];
       b.resize(n);
@@ -76,6 +77,11 @@ Checkpoint Checkpoint::read(const std::filesystem::path& path) {
   });
   if (!in || offset != size) fail("{}: checkpoint is truncated or has trailing bytes", path.string());
   return c;
+}
+
+int64_t Checkpoint::metaInteger(const char* key, int64_t lo, int64_t hi) const {
+  if (!meta.is_object() || !meta.contains(key)) fail("{}: checkpoint header has no '{}'", source_.string(), key);
+  return jsonInteger(meta.at(key), lo, hi, source_.string(), key);
 }
 
 }  // namespace relume

@@ -30,6 +30,8 @@ class Checkpoint {
   template <typename T> void get(const std::string& name, std::span<T> out) const { copyOut(name, out.data(), out.size_bytes()); }
   template <typename T> void get(const std::string& name, std::vector<T>& out) const { get(name, std::span<T>(out)); }
   size_t bytes(const std::string& name) const;
+  // Header field `key`, an integer in [lo, hi] (throws relume::Error naming the file otherwise).
+  int64_t metaInteger(const char* key, int64_t lo, int64_t hi) const;
 
   void write(const std::filesystem::path& path) const;
   static Checkpoint read(const std::filesystem::path& path);

@@ -189,10 +189,13 @@ struct Workspace {
     withJsonErrors(pj, [&] {
       const fs::path capture = prepare.at("capture").get<std::string>();
       frames = readTransforms(capture / "transforms.json").frames;
-      kept = prepare.at("phases").at("frames").at("kept").get<std::vector<uint32_t>>();
-      resolutions = prepare.at("resolutions").get<std::vector<int>>();
+      kept = jsonIntegers<uint32_t>(prepare.at("phases").at("frames").at("kept"), 0, UINT32_MAX, pj.string(), "kept");
+      resolutions = jsonIntegers<int>(prepare.at("resolutions"), 1, kMaxTextureResolution, pj.string(), "resolutions");
+      if (resolutions.empty()) fail("{}: no resolutions; rerun `relume prepare`", pj.string());
       const Json objectNames = prepare["phases"]["atlas"].value("object_names", Json::object());
-      for (const auto& [id, name] : objectNames.items()) names.push_back({std::stoi(id), name.get<std::string>()});
+      for (const auto& [id, name] : objectNames.items())
+        names.push_back({static_cast<int>(jsonInteger(Json::parse(id, nullptr, false), 0, INT32_MAX, pj.string(), "object_names")),
+                         name.get<std::string>()});
       return 0;
     });
     mesh = loadMesh(work / "atlas_mesh.ply");
@@ -366,15 +369,18 @@ class Fit {
       const Checkpoint ck = Checkpoint::read(checkpointPath);
       if (ck.meta.value("version", 0) != kCheckpointVersion || !sameRun(ck.meta.value("config", Json()), c_.toJson()))
         fail("{}: checkpoint was written with another config; rerun without --resume", checkpointPath.string());
-      startStage = ck.meta.value("stage", 0);
-      startIteration = ck.meta.value("iteration", 0);
-      globalIteration_ = ck.meta.value("global_iteration", 0);
-      const int res = ck.meta.value("resolution", w_.initResolution);
+      startStage = static_cast<int>(ck.metaInteger("stage", 0, static_cast<int64_t>(stages.size())));
+      startIteration = static_cast<int>(ck.metaInteger("iteration", 0, INT32_MAX));
+      globalIteration_ = static_cast<int>(ck.metaInteger("global_iteration", 0, INT32_MAX));
+      const int res = static_cast<int>(ck.metaInteger("resolution", 1, kMaxTextureResolution));
+      if (std::find(w_.resolutions.begin(), w_.resolutions.end(), res) == w_.resolutions.end())
+        fail("{}: checkpoint resolution {} is not one prepare wrote", checkpointPath.string(), res);
       space = std::make_unique<TexelSpace>(w_, res);
       appearance_.albedo = Texture(res, res);
       restore(ck);  // per-object emission first: it decides which objects get emission textures
       if (ck.meta.value("emission_textures", false)) {
-        allocateEmissionTextures(appearance_, w_.mesh, ck.meta.value("emission_texture_resolution", res),
+        const int emissionRes = static_cast<int>(ck.metaInteger("emission_texture_resolution", 1, kMaxTextureResolution));
+        allocateEmissionTextures(appearance_, w_.mesh, emissionRes,
                                  [](float, float) { return 1.0f; });
         restore(ck);
       }

@@ -51,12 +51,8 @@ Color readColor(const Json& j, const char* key, double lo, double hi, const char
   return c;
 }
 
-// 64-bit read, so 4294967296 cannot wrap to 0.
-int intIn(const Json& v, int64_t lo, int64_t hi, const std::string& where, const std::string& field) {
-  if (!v.is_number_integer()) fail("{}: '{}' must be an integer", where, field);
-  if (v.is_number_unsigned() ? v.get<uint64_t>() > static_cast<uint64_t>(hi) : (v.get<int64_t>() < lo || v.get<int64_t>() > hi))
-    fail("{}: '{}' is {}, must be in [{}, {}]", where, field, v.dump(), lo, hi);
-  return static_cast<int>(v.get<int64_t>());
+int intIn(const Json& v, int lo, int hi, const std::string& where, const std::string& field) {
+  return static_cast<int>(jsonInteger(v, lo, hi, where, field));
 }
 
 // Texels are checked like the constants: every channel finite in [lo, hi].

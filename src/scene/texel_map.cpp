@@ -23,7 +23,7 @@ Vec3 barycentricOf(const Vec2& p, const Vec2& a, const Vec2& b, const Vec2& c) {
 
 TexelMap::TexelMap(const TriangleMesh& mesh, int resolution, int rings) : resolution_(resolution) {
   if (!mesh.hasUv()) fail("texel map needs a mesh with a uv atlas");
-  if (resolution <= 0 || resolution > 32768) fail("texel map resolution {} out of range", resolution);
+  if (resolution <= 0 || resolution > kMaxTextureResolution) fail("texel map resolution {} out of range", resolution);
   const size_t n = static_cast<size_t>(resolution) * resolution;
   std::vector<std::atomic<uint32_t>> cover(n);
   for (auto& c : cover) c.store(kEmpty, std::memory_order_relaxed);

@@ -11,6 +11,8 @@
 
 namespace relume {
 
+inline constexpr int kMaxTextureResolution = 32768;
+
 class TexelMap {
  public:
   static constexpr uint32_t kEmpty = 0xFFFFFFFFu;

@@ -187,6 +187,31 @@ TEST(Checkpoint, RoundTripAndCorruptFiles) {
   fs::remove(path);
 }
 
+// Found by fuzz_checkpoint: a length or header integer written as a huge float (1.6e85) was cast
+// to an integer by nlohmann (undefined behaviour); both are now checked integers.
+TEST(Checkpoint, NumbersThatAreNotIntegersInRangeAreCleanErrors) {
+  const fs::path path = fs::temp_directory_path() / "relume_ck_numbers_test.bin";
+  auto writeRaw = [&](const std::string& header, const std::string& payload) {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    const uint64_t length = header.size();
+    out.write("RLMCKP01", 8).write(reinterpret_cast<const char*>(&length), 8) << header << payload;
+  };
+  writeRaw(R"({"meta":{},"arrays":[["a",1.6e85]]})", "");
+  EXPECT_THROW(Checkpoint::read(path), Error);
+  writeRaw(R"({"meta":{},"arrays":[["a",-4]]})", "");
+  EXPECT_THROW(Checkpoint::read(path), Error);
+  writeRaw(R"({"meta":{"stage":1.6e85,"iteration":-1,"resolution":4294967808,"global_iteration":3},"arrays":[["a",4]]})", "abcd");
+  const Checkpoint c = Checkpoint::read(path);
+  EXPECT_EQ(c.bytes("a"), 4u);
+  EXPECT_THROW(c.metaInteger("stage", 0, 10), Error);
+  EXPECT_THROW(c.metaInteger("iteration", 0, 10), Error);
+  EXPECT_THROW(c.metaInteger("resolution", 1, 32768), Error);
+  EXPECT_THROW(c.metaInteger("missing", 0, 10), Error);
+  EXPECT_EQ(c.metaInteger("global_iteration", 0, 10), 3);
+  EXPECT_THROW(c.metaInteger("global_iteration", 4, 10), Error);  // below a positive lower bound
+  fs::remove(path);
+}
+
 TEST(Upsample, KeepsConstantsAndNeverBleedsAcrossObjects) {
   // Two unit squares side by side in uv, objects 0 and 1, albedo 0.2 and 0.9.
   MeshData d;

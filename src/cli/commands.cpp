@@ -456,7 +456,10 @@ CommandTable registerCommands(CLI::App& app) {
   synth->add_option("--test-frames", synthArgs->testFrames, "held-out frames")->capture_default_str()->check(inRange(0, 1 << 20));
   synth->add_option("--width", synthArgs->width)->capture_default_str()->check(inRange(8, kMaxSide));
   synth->add_option("--height", synthArgs->height)->capture_default_str()->check(inRange(8, kMaxSide));
-  synth->add_option("--spp", synthArgs->spp, "samples per pixel")->capture_default_str()->check(inRange(1, kMaxSpp));
+  synth->add_option("--spp", synthArgs->spp, "samples per pixel of the training frames")->capture_default_str()->check(inRange(1, kMaxSpp));
+  synth->add_option("--test-spp", synthArgs->testSpp, "samples per pixel of the held-out frames (evaluation references)")
+      ->capture_default_str()
+      ->check(inRange(1, kMaxSpp));
   synth->add_option("--max-depth", synthArgs->maxDepth, kMaxDepthHelp)->capture_default_str()->check(inRange(0, kMaxDepthLimit));
   synth->add_option("--seed", synthArgs->seed)->capture_default_str();
   synth->add_option("--atlas-res", synthArgs->atlasResolution, "ground-truth albedo atlas resolution")->capture_default_str()->check(inRange(1, 1 << 15));

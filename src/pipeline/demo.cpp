@@ -93,8 +93,7 @@ Json runDemo(const DemoOptions& o) {
   writePng(o.out / "albedo_truth.png", truthAlbedo);
 
   RenderOptions ro;
-  ro.spp = o.testSpp;
-  ro.path.maxDepth = 8;
+  ro.spp = o.testSpp;  // at the capture's depth (kDefaultMaxDepth): a shallower re-render is darker
   fs::create_directories(o.out / "test_views");
   const ViewComparison vc = compareViews(fitted, so.out / "transforms_test.json", ro, o.out / "test_views");
   // References as PNG beside them, for the report.

@@ -171,7 +171,7 @@ std::string materialsSection(const Json& materials, const SceneDescription* trut
   s += "</tr>";
   auto rgb = [](const Json& e) { return fmt::format("{:.3g} {:.3g} {:.3g}", e[0].get<double>(), e[1].get<double>(), e[2].get<double>()); };
   for (const Json& o : materials.at("objects")) {
-    const int id = o.at("id").get<int>();
+    const int id = static_cast<int>(jsonInteger(o.at("id"), 0, INT32_MAX, "materials.json", "id"));  // indexes the truth
     s += fmt::format("<tr><td>{}</td><td>{}</td><td>{:.3f}</td><td>{:.3f}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.0f}%</td>", id,
                      html(o.at("name").get<std::string>()), o.at("roughness").get<double>(), o.at("specular").get<double>(),
                      rgb(o.at("emission")), o.at("is_emitter").get<bool>() ? "yes" : "", o.at("highlight_observed").get<bool>() ? "yes" : "no",

@@ -358,11 +358,11 @@ int writeSynthCapture(const SynthCaptureOptions& o) {
   Scene scene(gt.mesh);
   LightSampler lights(scene, gt.appearance);
   RenderOptions ro;
-  ro.spp = o.spp;
   ro.path.maxDepth = o.maxDepth;
   int rendered = 0;
-  for (const auto& [folder, json, count, phase] :
-       {std::tuple{"images", "transforms.json", o.frames, 0.0}, std::tuple{"test", "transforms_test.json", o.testFrames, 0.5}}) {
+  for (const auto& [folder, json, count, phase, spp] :
+       {std::tuple{"images", "transforms.json", o.frames, 0.0, o.spp}, std::tuple{"test", "transforms_test.json", o.testFrames, 0.5, o.testSpp}}) {
+    ro.spp = spp;
     std::vector<Frame> frames;
     const auto cams = synthCameraPath(o.kind, count, o.width, o.height, phase);
     for (size_t i = 0; i < cams.size(); ++i) {

@@ -102,7 +102,7 @@ inline std::filesystem::path tinyCapture(const std::string& name, int frames,
   SynthCaptureOptions c;
   c.kind = SynthSceneKind::Cornell;
   c.out = dir / "capture";
-  c.frames = frames, c.testFrames = 1, c.width = 32, c.height = 24, c.spp = 4, c.atlasResolution = 64;
+  c.frames = frames, c.testFrames = 1, c.width = 32, c.height = 24, c.spp = 4, c.testSpp = 4, c.atlasResolution = 64;
   writeSynthCapture(c);
   if (edit) edit(c.out);
   PrepareOptions po;

@@ -22,7 +22,7 @@ fs::path cornellWork(const std::string& name) {
   SynthCaptureOptions so;
   so.kind = SynthSceneKind::Room;
   so.out = dir / "capture";
-  so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 8, so.atlasResolution = 256;
+  so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 8, so.testSpp = 8, so.atlasResolution = 256;
   writeSynthCapture(so);
   PrepareOptions po;
   po.resolutions = {256};

@@ -190,7 +190,7 @@ std::vector<Image> renderAll(const SceneDescription& s, const std::vector<Camera
 TEST(SceneEdit, RelightingTheReconstructionMatchesTheEditedTruth) {
   SynthCaptureOptions so;
   so.kind = SynthSceneKind::Room;
-  so.frames = 16, so.testFrames = 2, so.width = 64, so.height = 48, so.spp = 8, so.atlasResolution = 256;
+  so.frames = 16, so.testFrames = 2, so.width = 64, so.height = 48, so.spp = 8, so.testSpp = 8, so.atlasResolution = 256;
   const fs::path dir = preparedCapture("edit_relight", so, 256);
   FitConfig fc;
   fc.batchTexels = 2048, fc.maxDepth = 4, fc.emissionIterations = 80, fc.materialIterations = 20, fc.albedoPasses = 6;

@@ -43,7 +43,7 @@ TEST(Synth, CaptureRoundTripsThroughTheReaders) {
   SynthCaptureOptions o;
   o.kind = SynthSceneKind::Cornell;
   o.out = dir;
-  o.frames = 2, o.testFrames = 1, o.width = 32, o.height = 24, o.spp = 2, o.atlasResolution = 64;
+  o.frames = 2, o.testFrames = 1, o.width = 32, o.height = 24, o.spp = 2, o.testSpp = 2, o.atlasResolution = 64;
   EXPECT_EQ(writeSynthCapture(o), 3);
   const Capture cap = readTransforms(dir / "transforms.json");
   ASSERT_EQ(cap.frames.size(), 2u);

@@ -17,6 +17,7 @@
 #include "optim/gauss_newton.h"
 #include "optim/upsample.h"
 #include "pipeline/report.h"
+#include "sampling/highlight_evidence.h"
 #include "sampling/samplers.h"
 #include "scene/atlas.h"
 
@@ -64,7 +65,8 @@ template <typename Fn> void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("max_resolution", ConfigField(&c.maxResolution));
   fn("prune_fraction", ConfigField(&c.pruneFraction));
   fn("emitter_radiance_fraction", ConfigField(&c.emitterRadianceFraction));
-  fn("highlight_min_observations", ConfigField(&c.highlightMinObservations));
+  fn("highlight_min_pairs", ConfigField(&c.highlightMinPairs));
+  fn("highlight_min_contrast", ConfigField(&c.highlightMinContrast));
   fn("emitter_parameterisation", ConfigField(&c.emitterParameterisation));
   fn("median_init", ConfigField(&c.medianInit));
   fn("init_white_point", ConfigField(&c.initWhitePoint));
@@ -111,7 +113,8 @@ void validate(const FitConfig& c, const std::string& where) {
   need(c.initWhitePoint >= 0 && c.initWhitePoint <= 1, "init_white_point must be in [0, 1] (0 = off)");
   need(c.pruneFraction >= 0 && c.pruneFraction < 1, "prune_fraction must be in [0, 1)");
   need(c.emitterRadianceFraction >= 0 && c.emitterRadianceFraction <= 1, "emitter_radiance_fraction must be in [0, 1]");
-  need(c.highlightMinObservations >= 0, "highlight_min_observations must be >= 0");
+  need(c.highlightMinPairs >= 1, "highlight_min_pairs must be >= 1");
+  need(std::isfinite(c.highlightMinContrast), "highlight_min_contrast must be finite");
   need(c.checkpointEvery >= 1 && c.metricsEvery >= 1, "checkpoint_every and metrics_every must be >= 1");
   need(c.stopAfterIterations >= 0, "stop_after_iterations must be >= 0 (0 = run to the end)");
 }
@@ -157,7 +160,8 @@ Json FitConfig::toJson() const {
 
 namespace {
 
-constexpr int kCheckpointVersion = 1;
+constexpr int kCheckpointVersion = 2;  // 2: highlight contrast per object
+constexpr uint64_t kHighlightProbeBatches = 16;
 
 // A checkpoint continues the run its config describes; where to stop is not part of the run.
 bool sameRun(Json a, Json b) {
@@ -332,6 +336,7 @@ class Fit {
     observedSum_.assign(appearance_.objectCount(), 0.0);
     observedCount_.assign(appearance_.objectCount(), 0);
     highlight_.assign(appearance_.objectCount(), 0);
+    highlightPairs_.assign(appearance_.objectCount(), 0), highlightContrast_.assign(appearance_.objectCount(), 0.0);
   }
 
   FitSummary run(bool resume) {
@@ -706,20 +711,29 @@ class Fit {
     }
   }
 
-  // Which objects the frames saw a light source reflected in. For probe connections (camera to
-  // surface point) the mirror direction about the geometric normal, and four directions 10
-  // degrees around it (a glossy lobe's width), are traced; reaching the front of an emitter is a
-  // highlight observation. Roughness and specular of objects with fewer than
-  // highlight_min_observations keep their init: nothing in the data constrains them.
+  // Which objects the frames show a highlight on. For probe connections (camera to surface point)
+  // the mirror direction about the geometric normal, and four directions 10 degrees around it (a
+  // glossy lobe's width), are traced; a connection whose directions reach the front of an emitter
+  // "sees a light reflected". A highlight is what that does to the pixel: for each texel with
+  // connections of both kinds, contrast = mean radiance seeing a light / mean radiance not - 1
+  // (the same texel from other frames, so albedo and irradiance cancel). Roughness and specular
+  // are fitted on objects whose mean contrast, less two standard errors, reaches
+  // highlight_min_contrast over at least highlight_min_pairs texels; elsewhere nothing in the data
+  // constrains them (a rough wall reflecting a lamp at a grazing angle is no brighter for it), so
+  // they keep their init and are reported unconstrained.
   void decideHighlights(const TexelSpace& space) {
-    std::vector<size_t> observations(appearance_.objectCount(), 0), connections(appearance_.objectCount(), 0);
-    for (uint64_t probe = 0; probe < 4; ++probe) {
+    const int objects = appearance_.objectCount();
+    HighlightEvidence evidence(objects);
+    for (uint64_t probe = 0; probe < kHighlightProbeBatches; ++probe) {
       const Batch batch = sampleBatch(space, (uint64_t{1} << 40) + probe);
       std::vector<int8_t> sawLight(batch.rays.size(), -1);
+      std::vector<float> lum(batch.rays.size(), 0.0f);
       tbb::parallel_for(size_t{0}, batch.rays.size(), [&](size_t j) {
         const BatchRay& r = batch.rays[j];
+        if (!(r.reference.minCoeff() >= 0)) return;  // masked
         const auto hit = w_.scene->intersect(r.origin, r.dir);
         if (!hit) return;
+        lum[j] = luminance(r.reference);
         const Vec3 n = hit->ng.dot(r.dir) < 0 ? hit->ng : Vec3(-hit->ng);
         const Vec3 mirror = r.dir - 2.0f * r.dir.dot(n) * n;
         const ShadingFrame frame(mirror);
@@ -732,13 +746,15 @@ class Fit {
           sawLight[j] = light && emitter_[light->object] && appearance_.isEmissive(light->object) && light->ng.dot(d) < 0;
         }
       });
-      for (size_t j = 0; j < batch.rays.size(); ++j)
-        if (sawLight[j] >= 0) ++connections[batch.object[j]], observations[batch.object[j]] += sawLight[j];
+      evidence.addBatch(batch.slot, batch.object, lum, sawLight);
     }
-    for (int o = 0; o < appearance_.objectCount(); ++o) {
-      highlight_[o] = !emitter_[o] && observations[o] >= static_cast<size_t>(c_.highlightMinObservations);
-      spdlog::info("fit: object {} ({}): {} of {} probe connections see a light reflected -> roughness/specular {}", o,
-                   appearance_.names[o], observations[o], connections[o], highlight_[o] ? "fitted" : "unconstrained (kept at init)");
+    for (int o = 0; o < objects; ++o) {
+      highlightPairs_[o] = evidence.texels(o), highlightContrast_[o] = evidence.contrast(o);
+      highlight_[o] = !emitter_[o] && evidence.observed(o, c_.highlightMinPairs, c_.highlightMinContrast);
+      spdlog::info("fit: object {} ({}): {} texels seen with and without a light reflected, {:+.1f}% +- {:.1f}% brighter with it -> "
+                   "roughness/specular {}",
+                   o, appearance_.names[o], evidence.texels(o), 100 * evidence.contrast(o), 100 * evidence.standardError(o),
+                   highlight_[o] ? "fitted" : "unconstrained (kept at init)");
     }
   }
 
@@ -804,6 +820,8 @@ class Fit {
     }
     ck.put("emitter", emitter_);
     ck.put("highlight", highlight_);
+    ck.put("highlight_pairs", highlightPairs_);
+    ck.put("highlight_contrast", highlightContrast_);
     ck.put("observed.sum", observedSum_);
     ck.put("observed.count", observedCount_);
     ck.write(path);
@@ -837,6 +855,8 @@ class Fit {
     }
     ck.get("emitter", emitter_);
     ck.get("highlight", highlight_);
+    ck.get("highlight_pairs", highlightPairs_);
+    ck.get("highlight_contrast", highlightContrast_);
     ck.get("observed.sum", observedSum_);
     ck.get("observed.count", observedCount_);
     lastLoss_ = ck.meta.value("loss", 0.0);
@@ -864,6 +884,7 @@ class Fit {
       materials.push_back({{"id", o}, {"name", appearance_.names[o]}, {"roughness", appearance_.roughness[o]},
                            {"specular", appearance_.specular[o]}, {"emission", {e[0], e[1], e[2]}},
                            {"is_emitter", appearance_.isEmissive(o)}, {"highlight_observed", highlight_[o] != 0},
+                           {"highlight_texels", highlightPairs_[o]}, {"highlight_contrast", highlightContrast_[o]},
                            {"observed_texel_fraction", total[o] ? double(observed[o]) / total[o] : 0.0}});
     }
     Json summary = {{"objects", materials}, {"albedo_resolution", space.resolution}, {"iterations", globalIteration_},
@@ -885,6 +906,8 @@ class Fit {
   Appearance appearance_;
   AdjointSettings settings_;
   std::vector<uint8_t> emitter_, highlight_;
+  std::vector<uint64_t> highlightPairs_;  // per object: texels compared with and without a light reflected
+  std::vector<double> highlightContrast_;  // their mean contrast
   std::vector<double> observedSum_;      // per object, luminance of the references seen in the emission stage
   std::vector<uint64_t> observedCount_;
   std::map<std::string, AdamState> adam_;

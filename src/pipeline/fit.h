@@ -28,11 +28,14 @@ struct FitConfig {
   std::string gradients = "direct", emitterGradients = "strict", pairing = "decorrelated";
   bool russianRoulette = false;
   // Optimiser
-  // Roughness and specular as in the paper (0.005). Albedo 0.02, not the paper's 0.1: a texel gets
-  // a few noisy rays per touch here (the paper's GPU batches gave it many), and masked Adam's
-  // sign-like steps then jitter it by ~lr. On the room at 256^2 (100 passes): lr 0.1 -> albedo
-  // MAE 0.129, 0.02 -> 0.063, 0.005 -> 0.074 (start 0.115).
-  float lrAlbedo = 0.02f, lrRoughness = 0.005f, lrSpecular = 0.005f;
+  // Albedo 0.02, not the paper's 0.1: a texel gets a few noisy rays per touch here (the paper's
+  // GPU batches gave it many), and masked Adam's sign-like steps then jitter it by ~lr. On the room
+  // at 256^2 (100 passes): lr 0.1 -> albedo MAE 0.129, 0.02 -> 0.063, 0.005 -> 0.074 (start 0.115).
+  // Roughness and specular 0.02, not the paper's 0.005: the material stage is 150 iterations, and
+  // a glossy object's few highlight rays per iteration make the steps smaller than lr. Room demo
+  // (table 0.2/0.7, ball 0.1/1.0, from 0.5): 0.005 -> 0.33/0.52 and 0.28/0.68; 0.005 over 450
+  // iterations -> 0.20/0.63 and 0.27/0.80; 0.02 -> 0.28/0.66 and 0.035/1.0.
+  float lrAlbedo = 0.02f, lrRoughness = 0.02f, lrSpecular = 0.02f;
   // Albedo step: "gauss-newton" (damped diagonal Gauss-Newton, optim/gauss_newton.h) or "adam"
   // (the paper's, at lr_albedo).
   std::string albedoStep = "gauss-newton";
@@ -60,7 +63,11 @@ struct FitConfig {
   float pruneFraction = 0.02f;      // emitters below this fraction of the total power go to 0
   float emitterRadianceFraction = 0.75f;  // ... and those whose emission is below this fraction of
                                           // their own observed radiance (lit, not emitting)
-  int highlightMinObservations = 20;  // probe connections that must see a light reflected in an object
+  // An object's roughness and specular are fitted only where the frames show a highlight: texels
+  // seen both with a light in the mirror direction and without, at least `highlightMinPairs` of
+  // them, brighter with it by at least `highlightMinContrast` (mean minus two standard errors).
+  int highlightMinPairs = 8;
+  float highlightMinContrast = 0.1f;
                                       // before its roughness and specular are fitted
   bool emitterParameterisation = true, medianInit = true, coarseToFine = true, emissionTextures = true;
   float initWhitePoint = 0.8f;      // the median init's 95th-percentile texel becomes this albedo; 0 = off

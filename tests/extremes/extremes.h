@@ -123,7 +123,7 @@ inline FitConfig tinyFit() {
   c.materialIterations = 10;
   c.albedoPasses = 4;
   c.emissionTextureIterations = 10;
-  c.highlightMinObservations = 1;
+  c.highlightMinPairs = 1, c.highlightMinContrast = -1e9f;  // fit every object seen with a light reflected
   return c;
 }
 

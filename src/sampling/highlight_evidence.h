@@ -1,0 +1,33 @@
+// Whether the frames show a highlight on an object: the same texel seen from frames where a light
+// sits in the mirror direction and from frames where none does. Their radiance ratio cancels the
+// albedo and the irradiance, so what is left (the contrast) is the view-dependent part. Decides
+// which objects' roughness and specular the data constrains.
+#pragma once
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace relume {
+
+class HighlightEvidence {
+ public:
+  explicit HighlightEvidence(int objects);
+
+  // One batch of connections, grouped by slot (a slot's rays contiguous, all on one texel of
+  // `object[i]`): `luminance` of each ray's reference, `sawLight` 1 if a light is reflected
+  // towards the camera there, 0 if not, -1 if the ray does not count (masked, no hit).
+  void addBatch(std::span<const uint32_t> slot, std::span<const int> object, std::span<const float> luminance,
+                std::span<const int8_t> sawLight);
+
+  uint64_t texels(int object) const { return texels_[object]; }  // texels seen both ways
+  double contrast(int object) const;                                // mean of (with / without - 1)
+  double standardError(int object) const;
+  // At least `minTexels` texels, and a mean contrast that exceeds `minContrast` by two standard errors.
+  bool observed(int object, int minTexels, double minContrast) const;
+
+ private:
+  std::vector<uint64_t> texels_;
+  std::vector<double> sum_, sumSquares_;
+};
+
+}  // namespace relume

@@ -85,9 +85,7 @@ Json runDemo(const DemoOptions& o) {
 
   const SceneDescription fitted = loadSceneFile(fs.resultDir / "scene.json");
   const SceneDescription truth = loadSceneFile(so.out / "gt" / "scene.json");
-  const Json materials = readJson(fs.resultDir / "materials.json");
-  TruthOptions to;
-  for (const Json& m : materials["objects"]) to.highlightObserved.push_back(m["highlight_observed"].get<bool>());
+  const TruthOptions to = truthOptionsFor(fs.resultDir / "scene.json");
   Image truthAlbedo;
   const TruthComparison tc = compareWithTruth(fitted, truth, readImage(o.out / "work" / "coverage.exr"), to, &truthAlbedo);
   writePng(o.out / "albedo_truth.png", truthAlbedo);

@@ -52,6 +52,18 @@ Json TruthComparison::toJson() const {
           {"emission_iou", emissionIou}, {"objects", perObject}};
 }
 
+TruthOptions truthOptionsFor(const std::filesystem::path& sceneFile) {
+  TruthOptions o;
+  const std::filesystem::path materials = sceneFile.parent_path() / "materials.json";
+  if (!std::filesystem::exists(materials)) return o;
+  const Json m = readJson(materials);
+  withJsonErrors(materials, [&] {
+    for (const Json& obj : m.at("objects")) o.highlightObserved.push_back(obj.at("highlight_observed").get<bool>());
+    return 0;
+  });
+  return o;
+}
+
 namespace {
 int srgb8(float linear) { return static_cast<int>(std::lround(std::clamp(linearToSrgb(std::max(linear, 0.0f)), 0.0f, 1.0f) * 255)); }
 int unit8(float v) { return static_cast<int>(std::lround(std::clamp(v, 0.0f, 1.0f) * 255)); }

@@ -27,6 +27,9 @@ struct TruthOptions {
   int minObservations = 5;           // albedo texels observed at least this often count
   std::vector<uint8_t> highlightObserved;  // per object: roughness/specular count (empty: all)
 };
+// The options a fit's result asks for: roughness/specular scored on the objects its materials.json
+// (beside scene.json) says the frames showed a highlight on; every object when there is none.
+TruthOptions truthOptionsFor(const std::filesystem::path& sceneFile);
 
 struct TruthComparison {
   size_t albedoTexels = 0;

@@ -39,8 +39,11 @@ struct FitConfig {
   // Albedo step: "gauss-newton" (damped diagonal Gauss-Newton, optim/gauss_newton.h) or "adam"
   // (the paper's, at lr_albedo).
   std::string albedoStep = "gauss-newton";
-  float albedoDamping = 0.1f;       // Gauss-Newton: fraction of the Newton step taken once a texel
-                                    // has had 1/damping visits (1/visit before)
+  // Gauss-Newton: fraction of the Newton step taken once a texel has had 1/damping visits (1/visit
+  // before), i.e. the estimate averages its last ~1/damping visits. That window sets the albedo's
+  // noise: room, default schedule, albedo MAE 0.057 / 0.041 / 0.034 at 0.1 / 0.03 / 0.01 (24
+  // frames), 0.063 / 0.044 at 0.1 / 0.03 (96 frames).
+  float albedoDamping = 0.01f;
   float lrEmission = 0.2f;          // relative: a step is lr * max(E, emissionFloor * brightest observation)
   float emissionFloor = 0.02f;
   // Relative, per texel. Every NEE sample from a lit surface splats onto some emitter texel, so

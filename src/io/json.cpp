@@ -34,12 +34,11 @@ double jsonNumberOr(const Json& j, const char* key, double fallback, const std::
 
 int64_t jsonInteger(const Json& v, int64_t lo, int64_t hi, const std::string& where, const std::string& field) {
   if (!v.is_number_integer()) fail("{}: '{}' must be an integer", where, field);
-  const bool inRange = v.is_number_unsigned()
-                           ? hi >= 0 && v.get<uint64_t>() <= static_cast<uint64_t>(hi) && (lo <= 0 || v.get<uint64_t>() >= static_cast<uint64_t>(lo))
-                           : v.get<int64_t>() >= lo && v.get<int64_t>() <= hi;
-  if (!inRange)
-    fail("{}: '{}' is {}, must be in [{}, {}]", where, field, v.dump(), lo, hi);
-  return v.get<int64_t>();
+  // Unsigned values above INT64_MAX are out of any int64 range; below it they read exactly as int64.
+  const bool fits = !v.is_number_unsigned() || v.get<uint64_t>() <= static_cast<uint64_t>(INT64_MAX);
+  const int64_t i = fits ? v.get<int64_t>() : 0;
+  if (!fits || i < lo || i > hi) fail("{}: '{}' is {}, must be in [{}, {}]", where, field, v.dump(), lo, hi);
+  return i;
 }
 
 }  // namespace relume

@@ -154,6 +154,17 @@ Color FrameStore::pixel(size_t frame, int x, int y) const {
   return {float(h[0]), float(h[1]), float(h[2])};
 }
 
+std::optional<FrameStore::StoredPixel> FrameStore::pixelAt(size_t frame, const Vec2& px) const {
+  const Entry& e = index_[frame];
+  const int ds = static_cast<int>(e.stats.downscale);
+  const float xf = std::floor(px.x() / ds), yf = std::floor(px.y() / ds);
+  if (!(xf >= 0 && yf >= 0 && xf < e.stats.width && yf < e.stats.height)) return std::nullopt;
+  const int x = static_cast<int>(xf), y = static_cast<int>(yf);
+  const Color c = pixel(frame, x, y);
+  if (c.minCoeff() < 0) return std::nullopt;
+  return StoredPixel{c, Vec2(static_cast<float>(x * ds), static_cast<float>(y * ds)), static_cast<float>(ds)};
+}
+
 std::optional<Color> FrameStore::bilinear(size_t frame, const Vec2& px) const {
   const Entry& e = index_[frame];
   const float inv = 1.0f / static_cast<float>(e.stats.downscale);

@@ -42,6 +42,15 @@ class FrameStore {
   // Bilinear at continuous pixel coordinates of the ORIGINAL image (pixel centres at +0.5; the
   // downscale is applied here); nullopt if outside the image or any of the four pixels is masked.
   std::optional<Color> bilinear(size_t frame, const Vec2& pixel) const;
+  // The stored pixel containing `pixel` (ORIGINAL image coordinates) and its extent there: the
+  // square of `size` x `size` original pixels from `corner` (size = the downscale). nullopt if
+  // outside the image or masked.
+  struct StoredPixel {
+    Color value;
+    Vec2 corner;
+    float size = 1;
+  };
+  std::optional<StoredPixel> pixelAt(size_t frame, const Vec2& pixel) const;
 
  private:
   struct Entry {

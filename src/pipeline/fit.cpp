@@ -37,7 +37,9 @@ template <typename Fn> void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("sampler", ConfigField(&c.sampler));
   fn("batch_texels", ConfigField(&c.batchTexels));
   fn("frames_per_texel", ConfigField(&c.framesPerTexel));
+  fn("material_batch_texels", ConfigField(&c.materialBatchTexels));
   fn("image_rays", ConfigField(&c.imageRays));
+  fn("ray_footprint", ConfigField(&c.rayFootprint));
   fn("samples_per_ray", ConfigField(&c.samplesPerRay));
   fn("max_depth", ConfigField(&c.maxDepth));
   fn("gradients", ConfigField(&c.gradients));
@@ -86,12 +88,14 @@ void validate(const FitConfig& c, const std::string& where) {
   need(c.sampler == "texture" || c.sampler == "image", "sampler must be texture or image");
   need(c.batchTexels >= 1 && c.batchTexels <= (1 << 24), "batch_texels must be in [1, 2^24]");
   need(c.framesPerTexel >= 1 && c.framesPerTexel <= 64, "frames_per_texel must be in [1, 64]");
+  need(c.materialBatchTexels >= 0 && c.materialBatchTexels <= (1 << 24), "material_batch_texels must be in [0, 2^24]");
   need(c.imageRays >= 1 && c.imageRays <= (1 << 24), "image_rays must be in [1, 2^24]");
   need(c.samplesPerRay >= 1 && c.samplesPerRay <= 64, "samples_per_ray must be in [1, 64]");
   need(c.maxDepth >= 0 && c.maxDepth <= 64, "max_depth must be in [0, 64]");
   parseGradientMode(c.gradients);
   parseEmitterGradients(c.emitterGradients);
   parsePairing(c.pairing);
+  parseRayFootprint(c.rayFootprint);
   need(c.albedoStep == "gauss-newton" || c.albedoStep == "adam", "albedo_step must be gauss-newton or adam");
   // The Gauss-Newton step models a texel's pixels as linear in the albedo at their first vertex;
   // `full` gradients add the albedo's terms at deeper vertices, which that curvature does not
@@ -345,7 +349,7 @@ class Fit {
     TexelSpace init(w_, w_.initResolution);
     {
       TextureSpaceSampler probe(*w_.scene, init.map, init.sampleable, w_.vis, w_.trainingFrames());
-      const Batch b = probe.sample(c_.seed, 0xFFFFFFFF, {std::min(c_.batchTexels, 4096), c_.framesPerTexel});
+      const Batch b = probe.sample(c_.seed, 0xFFFFFFFF, {std::min(c_.batchTexels, 4096), c_.framesPerTexel, footprint()});
       finalRes_ = c_.maxResolution > 0 ? c_.maxResolution : resolvedResolution(w_, b);
       // The brightest observation sets the scale of emission steps (lights are what is brightest).
       if (b.rays.empty()) fail("{}: no frame connection survived (every texel occluded or off-frame?)", w_.dir.string());
@@ -510,6 +514,7 @@ class Fit {
   }
 
   bool newtonAlbedo() const { return c_.albedoStep == "gauss-newton"; }
+  RayFootprint footprint() const { return parseRayFootprint(c_.rayFootprint); }
 
   // Emission textures cover each emitter's uv window; an emitter with a large window (a wall
   // wrongly kept as a light, a window) would otherwise hold a 4096^2-scale texture with its Adam
@@ -557,13 +562,32 @@ class Fit {
     }
   }
 
-  Batch sampleBatch(const TexelSpace& space, uint64_t iteration) const {
+  // The sampleable texels of the objects whose roughness and specular are fitted.
+  std::vector<uint32_t> fittedObjectTexels(const TexelSpace& space) const {
+    std::vector<uint32_t> texels;
+    for (uint32_t t : space.sampleable)
+      if (highlight_[w_.mesh.faceObject[space.map.triangle(t)]]) texels.push_back(t);
+    return texels;
+  }
+
+  // `focus`: texels of which material_batch_texels more are drawn (their own seed stream).
+  Batch sampleBatch(const TexelSpace& space, uint64_t iteration, const std::vector<uint32_t>& focus = {}) const {
     Batch b;
     if (c_.sampler == "texture") {
       const TextureSpaceSampler sampler(*w_.scene, space.map, space.sampleable, w_.vis, w_.trainingFrames());
-      b = sampler.sample(c_.seed, iteration, {c_.batchTexels, c_.framesPerTexel});
+      b = sampler.sample(c_.seed, iteration, {c_.batchTexels, c_.framesPerTexel, footprint()});
+      if (!focus.empty() && c_.materialBatchTexels > 0) {
+        const TextureSpaceSampler focused(*w_.scene, space.map, focus, w_.vis, w_.trainingFrames());
+        const Batch f = focused.sample(hashTuple({c_.seed, 0x6d6174}), iteration, {c_.materialBatchTexels, c_.framesPerTexel, footprint()});
+        for (size_t j = 0; j < f.rays.size(); ++j) {
+          b.rays.push_back(f.rays[j]);
+          b.slot.push_back(static_cast<uint32_t>(c_.batchTexels) + f.slot[j]);
+          b.object.push_back(f.object[j]);
+        }
+        b.stats.add(f.stats);
+      }
     } else {
-      b = ImageSpaceSampler(w_.trainingFrames()).sample(c_.seed, iteration, c_.imageRays, *w_.scene);
+      b = ImageSpaceSampler(w_.trainingFrames()).sample(c_.seed, iteration, c_.imageRays, *w_.scene, footprint());
     }
     if (c_.samplesPerRay > 1) {  // independent estimates of the same connection (ray j keeps its slot and object)
       Batch repeated;
@@ -591,6 +615,7 @@ class Fit {
     FitPhaseTimes times;
     // One buffer per stage, cleared every iteration; curvature only where the albedo steps by it.
     Gradients grads(appearance_, newtonAlbedo() && st.active.active(ParamKind::Albedo));
+    const std::vector<uint32_t> focus = st.active.active(ParamKind::Roughness) ? fittedObjectTexels(space) : std::vector<uint32_t>{};
     for (int it = firstIteration; it < st.iterations; ++it) {
       const uint64_t iteration = static_cast<uint64_t>(globalIteration_);
       // Constant, except over the second half of a settling stage: linear down to lr_final_fraction.
@@ -598,7 +623,7 @@ class Fit {
       const float lrScale = !settles || it < half ? 1.0f : 1.0f - (1.0f - c_.lrFinalFraction) * (it - half) / std::max(1.0f, half);
       FitPhaseTimes now;
       Timer ts;
-      const Batch batch = sampleBatch(space, iteration);
+      const Batch batch = sampleBatch(space, iteration, focus);
       now.sample = ts.seconds();
       stats_.add(batch.stats);
       if (st.pruneAfter)
@@ -641,7 +666,7 @@ class Fit {
       }
       if (hooks_.afterIteration) {
         Timer th;
-        const bool go = hooks_.afterIteration(FitIteration{st.name, globalIteration_, fitSeconds(), now, batch.rays, *w_.scene,
+        const bool go = hooks_.afterIteration(FitIteration{st.name, globalIteration_, fitSeconds(), now, batch.rays, batch.object, *w_.scene,
                                                           lights, settings, !grads.albedoCurvature.empty(), appearance_,
                                                           w_.mesh, peakMemory_});
         hookSeconds_ += th.seconds();
@@ -656,9 +681,13 @@ class Fit {
       progress.note(fmt::format("loss {:.3e}, {} rays, {:.2f} Mrays/s", gr.loss, batch.rays.size(),
                                 traceSeconds > 0 ? batch.rays.size() / traceSeconds * 1e-6 : 0.0));
       if (hooks_.writeFiles && ((it + 1) % c_.metricsEvery == 0 || it + 1 == st.iterations)) {
-        appendMetrics({{"stage", st.name}, {"iteration", globalIteration_}, {"stage_iteration", it + 1}, {"loss", gr.loss},
-                       {"rays", batch.rays.size()}, {"lr_scale", lrScale}, {"sampler", statsJson(batch.stats)},
-                       {"seconds", times.toJson()}});
+        Json line = {{"stage", st.name}, {"iteration", globalIteration_}, {"stage_iteration", it + 1}, {"loss", gr.loss},
+                     {"rays", batch.rays.size()}, {"lr_scale", lrScale}, {"sampler", statsJson(batch.stats)},
+                     {"seconds", times.toJson()}};
+        if (st.active.active(ParamKind::Roughness))  // the fitted objects' trajectories: how settled they are
+          for (int o = 0; o < appearance_.objectCount(); ++o)
+            if (highlight_[o]) line["materials"][appearance_.names[o]] = {appearance_.roughness[o], appearance_.specular[o]};
+        appendMetrics(line);
       }
       if (hooks_.writeFiles && (it + 1) % c_.checkpointEvery == 0 && it + 1 < st.iterations)
         writeCheckpoint(checkpointPath, stageIndex, it + 1, space);

@@ -22,7 +22,12 @@ struct FitConfig {
   std::string sampler = "texture";  // texture | image (the ablation's baseline)
   int batchTexels = 8192;           // B: texels per iteration (texture sampler)
   int framesPerTexel = 4;           // K: frames connected per texel
+  // While roughness and specular are fitted, this many more texels per iteration drawn from the
+  // objects being fitted only: a glossy object is a few percent of the texels and its highlight a
+  // few percent of its rays, so its per-object gradient is otherwise too noisy to settle.
+  int materialBatchTexels = 2048;
   int imageRays = 16384;            // rays per iteration (image sampler)
+  std::string rayFootprint = "point";  // point (the paper's) or pixel: what a ray is compared with (sampling/samplers.h)
   int samplesPerRay = 1;            // independent (primal, adjoint) pairs per connection
   int maxDepth = kDefaultMaxDepth;  // scattering vertices (9 = Cycles' max bounces 8), as synth renders
   std::string gradients = "direct", emitterGradients = "strict", pairing = "decorrelated";
@@ -58,7 +63,7 @@ struct FitConfig {
   float gradientClamp = 10.0f;      // x the median nonzero gradient magnitude of the group; 0 = off
   float polyakFraction = 0.1f;      // of the final stage; 0 = off
   // Schedule
-  int emissionIterations = 200, materialIterations = 150, emissionTextureIterations = 100;
+  int emissionIterations = 200, materialIterations = 300, emissionTextureIterations = 100;
   float albedoPasses = 60.0f;       // albedo stage length: expected draws per sampleable texel
   int maxStageIterations = 2000;    // cap on any albedo stage
   int maxResolution = 0;            // cap on the final albedo resolution; 0 = what the frames resolve
@@ -111,6 +116,7 @@ struct FitIteration {
   double elapsed = 0;         // seconds of fitting so far, time spent in hooks excluded
   FitPhaseTimes times;        // of this iteration
   const std::vector<BatchRay>& rays;
+  const std::vector<int>& rayObjects;  // per ray, the object of the surface point it was aimed at
   const Scene& scene;
   const LightSampler& lights;
   const AdjointSettings& settings;  // with this stage's mask

@@ -39,6 +39,12 @@ ClipThresholds clipOf(const Frame& f) { return {f.clipLow, f.clipHigh}; }
 
 }  // namespace
 
+RayFootprint parseRayFootprint(const std::string& name) {
+  if (name == "pixel") return RayFootprint::Pixel;
+  if (name == "point") return RayFootprint::Point;
+  fail("ray footprint '{}': must be pixel or point", name);
+}
+
 TextureSpaceSampler::TextureSpaceSampler(const Scene& scene, const TexelMap& map, std::vector<uint32_t> texels,
                                          const VisibilityIndex& vis, const TrainingFrames& frames)
     : scene_(scene), map_(map), texels_(std::move(texels)), vis_(vis), frames_(frames), usable_(frames.frames->size(), 0) {
@@ -90,12 +96,27 @@ Batch TextureSpaceSampler::sample(uint64_t seed, uint64_t iteration, const Textu
         ++out.stats.firstHitElsewhere;
         continue;
       }
-      const auto reference = frames_.store->bilinear(f, *px);
-      if (!reference) {
+      if (s.footprint == RayFootprint::Point) {
+        const auto reference = frames_.store->bilinear(f, *px);
+        if (!reference) {
+          ++out.stats.masked;
+          continue;
+        }
+        out.rays.push_back({cam.position, dir, *reference, clipOf(frame)});
+        continue;
+      }
+      const auto stored = frames_.store->pixelAt(f, *px);
+      if (!stored) {
         ++out.stats.masked;
         continue;
       }
-      out.rays.push_back({cam.position, dir, *reference, clipOf(frame)});
+      const Vec2 jittered = stored->corner + stored->size * Vec2(rng.next1D(), rng.next1D());
+      const auto jitteredDir = cam.rayDirection(jittered);
+      if (!jitteredDir) {  // outside the distortion model's valid domain
+        ++out.stats.notSeen;
+        continue;
+      }
+      out.rays.push_back({cam.position, *jitteredDir, stored->value, clipOf(frame)});
     }
   });
   return compact(slots);
@@ -108,7 +129,7 @@ std::optional<std::pair<Vec2, Vec3>> randomPixelRay(const Camera& cam, Pcg32& rn
   return std::pair{px, *dir};
 }
 
-Batch ImageSpaceSampler::sample(uint64_t seed, uint64_t iteration, int rays, const Scene& scene) const {
+Batch ImageSpaceSampler::sample(uint64_t seed, uint64_t iteration, int rays, const Scene& scene, RayFootprint footprint) const {
   std::vector<SlotRays> slots(frames_.usable.empty() ? 0 : rays);
   tbb::parallel_for(size_t{0}, slots.size(), [&](size_t j) {
     Pcg32 rng(hashTuple({seed, iteration, j, 0x6973}));
@@ -123,7 +144,13 @@ Batch ImageSpaceSampler::sample(uint64_t seed, uint64_t iteration, int rays, con
       return;
     }
     out.object = hit->object;
-    const auto reference = frames_.store->bilinear(f, ray->first);
+    // The ray's pixel position is uniform in the image, so uniform within the pixel it falls in.
+    std::optional<Color> reference;
+    if (footprint == RayFootprint::Pixel) {
+      if (const auto stored = frames_.store->pixelAt(f, ray->first)) reference = stored->value;
+    } else {
+      reference = frames_.store->bilinear(f, ray->first);
+    }
     if (!reference) {
       ++out.stats.masked;
       return;

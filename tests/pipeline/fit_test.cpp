@@ -1,4 +1,5 @@
 #include <gtest/gtest.h>
+#include <map>
 #include <tbb/task_arena.h>
 
 #include "core/error.h"
@@ -141,4 +142,48 @@ TEST(Fit, SeveralSamplesPerRayKeepEachRayWithItsObject) {
   const TruthComparison fit = score(dir);
   EXPECT_EQ(fit.emittersFound, 2);
   EXPECT_EQ(fit.emittersCorrect, 2);
+}
+
+// While roughness and specular are fitted, material_batch_texels more texels per iteration come
+// from the fitted objects only (a glossy object is a few percent of the texels): the rays on
+// those objects multiply, the rays on the rest stay as they were.
+TEST(Fit, MaterialStageDrawsExtraTexelsFromTheFittedObjectsOnly) {
+  const fs::path dir = cornellWork("material_focus");
+  FitConfig c = smallConfig();
+  c.emissionIterations = 30, c.albedoPasses = 4, c.materialIterations = 10;
+  c.highlightMinPairs = 1, c.highlightMinContrast = -1e9f;  // every object seen both ways is fitted
+  struct RaysPerIteration {
+    double fittedBefore = 0, fittedDuring = 0, othersBefore = 0, othersDuring = 0;  // albedo stage, material stage
+  };
+  auto run = [&](int focusTexels) {
+    FitConfig config = c;
+    config.materialBatchTexels = focusTexels;
+    std::map<std::string, std::vector<int>> rayObjects;  // by stage
+    std::map<std::string, int> iterations;
+    FitHooks hooks;
+    hooks.writeFiles = false;
+    hooks.afterIteration = [&](const FitIteration& f) {
+      rayObjects[f.stage].insert(rayObjects[f.stage].end(), f.rayObjects.begin(), f.rayObjects.end());
+      ++iterations[f.stage];
+      return true;
+    };
+    std::vector<uint8_t> fitted;  // objects whose roughness moved from its init
+    hooks.finished = [&](const Appearance& a, const TriangleMesh&) {
+      for (int o = 0; o < a.objectCount(); ++o) fitted.push_back(a.roughness[o] != 0.5f);
+    };
+    runFit(dir / "work", config, false, hooks);
+    auto perIteration = [&](const std::string& stage, bool onFitted) {
+      double n = 0;
+      for (int o : rayObjects[stage]) n += fitted.at(o) == onFitted;
+      return n / std::max(1, iterations[stage]);
+    };
+    return RaysPerIteration{perIteration("albedo@256", true), perIteration("materials", true),
+                            perIteration("albedo@256", false), perIteration("materials", false)};
+  };
+  const RaysPerIteration on = run(1024), off = run(0);
+  ASSERT_GT(on.fittedBefore, 0);
+  // 1024 extra texels x up to K = 4 connections each, about half of which survive at 64x48.
+  EXPECT_GT(on.fittedDuring, on.fittedBefore + 1000) << on.fittedBefore << " -> " << on.fittedDuring;
+  EXPECT_NEAR(on.othersDuring, on.othersBefore, 0.1 * on.othersBefore);
+  EXPECT_NEAR(off.fittedDuring, off.fittedBefore, 0.1 * off.fittedBefore);  // off: the uniform batch only
 }

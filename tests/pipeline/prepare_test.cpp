@@ -170,6 +170,16 @@ TEST(FrameStore, RoundTripMaskingAndCorruptFiles) {
   EXPECT_FALSE(store.bilinear(0, Vec2(5.5f, 2.5f)));
   EXPECT_TRUE(store.bilinear(0, Vec2(2.0f, 2.0f)));
   EXPECT_FALSE(store.bilinear(0, Vec2(0.2f, 2.0f)));  // outside the pixel centres
+  // The pixel containing a point: its value and extent; nothing outside or where masked.
+  const auto stored = store.pixelAt(1, Vec2(3.9f, 1.1f));
+  ASSERT_TRUE(stored);
+  EXPECT_NEAR(stored->value[0], 0.3f, 1e-3f);
+  EXPECT_EQ(stored->corner, Vec2(3, 1));
+  EXPECT_EQ(stored->size, 1.0f);
+  EXPECT_FALSE(store.pixelAt(0, Vec2(5.5f, 2.5f)));
+  EXPECT_FALSE(store.pixelAt(0, Vec2(-0.1f, 2.0f)));
+  EXPECT_FALSE(store.pixelAt(0, Vec2(8.0f, 2.0f)));
+  EXPECT_TRUE(store.pixelAt(0, Vec2(0.0f, 3.99f)));
   // Downscaled by 2: block means, addressed with the original pixel coordinates.
   Image flat(8, 4);
   for (int y = 0; y < 4; ++y)
@@ -181,6 +191,11 @@ TEST(FrameStore, RoundTripMaskingAndCorruptFiles) {
   EXPECT_EQ(half.stats(0).width, 4u);
   EXPECT_NEAR(half.pixel(0, 1, 0)[0], 2.5f, 1e-3f);                    // mean of columns 2 and 3
   EXPECT_NEAR((*half.bilinear(0, Vec2(4.0f, 2.0f)))[0], 3.5f, 1e-3f);  // original x = 4 -> halfway between blocks 1 and 2
+  const auto block = half.pixelAt(0, Vec2(3.5f, 1.0f));  // original pixel 3 is in block 1: columns 2-3, rows 0-1
+  ASSERT_TRUE(block);
+  EXPECT_NEAR(block->value[0], 2.5f, 1e-3f);
+  EXPECT_EQ(block->corner, Vec2(2, 0));
+  EXPECT_EQ(block->size, 2.0f);
   EXPECT_THROW(writeFrameStore(dir / "bad_scale.bin", {f}, 0), Error);
   std::string bytes(64, 'x');
   writeTextAtomically(dir / "bad.bin", bytes);

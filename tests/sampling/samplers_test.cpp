@@ -13,7 +13,8 @@ namespace {
 
 // A 2 x 2 m floor (object 0) seen from above by 6 cameras, with a 0.6 m quad (object 1) hovering
 // at 1 m, facing down: it hides part of the floor from some cameras and is never seen itself.
-// Frame i shows radiance 0.1 + 0.1 i everywhere, so a reference says which frame it came from.
+// Pixel (x, y) of frame i has radiance (x, y, 0.1 + 0.1 i): a reference says which frame and
+// which pixel it came from (exact in the frame cache's half floats).
 fs::path makeCapture() {
   // One folder per test: CTest runs the tests of this file in parallel processes.
   const fs::path dir = fs::temp_directory_path() /
@@ -33,7 +34,11 @@ fs::path makeCapture() {
     c.position = Vec3(0.4f * (i % 3) - 0.4f, 2.5f, 0.5f * (i / 3) - 0.25f);
     c.rotation.col(0) = Vec3(1, 0, 0), c.rotation.col(1) = Vec3(0, 0, 1), c.rotation.col(2) = Vec3(0, -1, 0);
     Image img(c.width, c.height);
-    for (float& v : img.rgb) v = 0.1f + 0.1f * i;
+    for (int y = 0; y < c.height; ++y)
+      for (int x = 0; x < c.width; ++x) {
+        float* p = &img.rgb[3 * (static_cast<size_t>(y) * c.width + x)];
+        p[0] = static_cast<float>(x), p[1] = static_cast<float>(y), p[2] = 0.1f + 0.1f * i;
+      }
     f.image = dir / "images" / fmt::format("{:02d}.exr", i);
     writeExr(f.image, img);
     frames.push_back(f);
@@ -67,7 +72,7 @@ struct Fixture {
 TEST(TextureSampler, EveryRayFirstHitsItsSurfacePointWithThatFramesReference) {
   Fixture f;
   const TextureSpaceSampler sampler(f.scene, f.map, f.texels, f.vis, f.frames());
-  const Batch b = sampler.sample(3, 0, {2048, 3});
+  const Batch b = sampler.sample(3, 0, {2048, 3, RayFootprint::Point});
   ASSERT_GT(b.rays.size(), 2000u);
   EXPECT_EQ(b.stats.slots, 2048u);
   EXPECT_GT(b.stats.notSeen, 0u);  // the hovering quad hides some of the floor, and is never seen itself
@@ -82,10 +87,42 @@ TEST(TextureSampler, EveryRayFirstHitsItsSurfacePointWithThatFramesReference) {
     for (int i = 0; i < 6; ++i)
       if ((f.cap.frames[i].camera.position - r.origin).norm() < 1e-6f) frame = i;
     ASSERT_GE(frame, 0);
-    EXPECT_NEAR(r.reference[0], 0.1f + 0.1f * frame, 1e-3f);
+    EXPECT_NEAR(r.reference[2], 0.1f + 0.1f * frame, 1e-3f);
+    // Bilinear at the surface point's projection (pixel centres at +0.5).
+    const auto px = f.cap.frames[frame].camera.project(hit->p);
+    ASSERT_TRUE(px);
+    EXPECT_NEAR(r.reference[0], px->x() - 0.5f, 2e-3f);
+    EXPECT_NEAR(r.reference[1], px->y() - 0.5f, 2e-3f);
   }
   // At most K rays per texel slot, slots in order.
   for (size_t j = 1; j < b.slot.size(); ++j) EXPECT_LE(b.slot[j - 1], b.slot[j]);
+}
+
+// Pixel footprint: each ray passes through a random point of the pixel its texel's
+// point projects into and carries that pixel's value, so its expectation is the pixel.
+TEST(TextureSampler, PixelFootprintRaysCrossThePixelWhoseValueTheyCarry) {
+  Fixture f;
+  const TextureSpaceSampler sampler(f.scene, f.map, f.texels, f.vis, f.frames());
+  const Batch b = sampler.sample(3, 0, {2048, 3, RayFootprint::Pixel});
+  ASSERT_GT(b.rays.size(), 2000u);
+  double offX = 0, offY = 0;  // where in its pixel each ray passes: uniform, so mean 0.5 and spread 1/sqrt(12)
+  double offX2 = 0;
+  for (const BatchRay& r : b.rays) {
+    int frame = -1;
+    for (int i = 0; i < 6; ++i)
+      if ((f.cap.frames[i].camera.position - r.origin).norm() < 1e-6f) frame = i;
+    ASSERT_GE(frame, 0);
+    EXPECT_NEAR(r.reference[2], 0.1f + 0.1f * frame, 1e-3f);
+    const auto px = f.cap.frames[frame].camera.project(r.origin + r.dir);
+    ASSERT_TRUE(px);
+    EXPECT_NEAR(px->x(), r.reference[0] + 0.5f, 0.501f);  // inside pixel (x, y), to rounding
+    EXPECT_NEAR(px->y(), r.reference[1] + 0.5f, 0.501f);
+    offX += px->x() - r.reference[0], offY += px->y() - r.reference[1], offX2 += std::pow(px->x() - r.reference[0] - 0.5, 2);
+  }
+  const double n = static_cast<double>(b.rays.size());
+  EXPECT_NEAR(offX / n, 0.5, 0.03);
+  EXPECT_NEAR(offY / n, 0.5, 0.03);
+  EXPECT_NEAR(std::sqrt(offX2 / n), 1.0 / std::sqrt(12.0), 0.02);
 }
 
 TEST(TextureSampler, SameBatchAtAnyThreadCount) {
@@ -107,14 +144,19 @@ TEST(ImageSampler, RaysThroughRandomPixelsOfUsableFrames) {
   Fixture f;
   TrainingFrames tf = f.frames();
   tf.usable = {2};
-  const Batch b = ImageSpaceSampler(tf).sample(1, 0, 512, f.scene);
+  const Batch b = ImageSpaceSampler(tf).sample(1, 0, 512, f.scene, RayFootprint::Pixel);
   // The wide camera sees the floor in part of the image only: pixels that see nothing give no ray.
   EXPECT_EQ(b.stats.slots, 512u);
   EXPECT_EQ(b.rays.size() + b.stats.notSeen + b.stats.masked, 512u);
   ASSERT_GT(b.rays.size(), 50u);
   for (const BatchRay& r : b.rays) {
     EXPECT_LT((r.origin - f.cap.frames[2].camera.position).norm(), 1e-6f);
-    EXPECT_NEAR(r.reference[0], 0.3f, 1e-3f);
+    EXPECT_NEAR(r.reference[2], 0.3f, 1e-3f);
+    // The pixel the ray crosses is the one whose value it carries.
+    const auto px = f.cap.frames[2].camera.project(r.origin + r.dir);
+    ASSERT_TRUE(px);
+    EXPECT_NEAR(px->x(), r.reference[0] + 0.5f, 0.501f);
+    EXPECT_NEAR(px->y(), r.reference[1] + 0.5f, 0.501f);
   }
 }
 

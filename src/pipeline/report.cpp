@@ -135,9 +135,16 @@ std::string figure(const std::string& file, const std::string& caption) {
 // Albedo init / fit / truth (in the fit's atlas), coverage, emission textures.
 std::string texturesSection(const fs::path& work, const fs::path& out, const SceneDescription& fit,
                             const SceneDescription* truth, TruthComparison* scores) {
-  fs::copy_file(work / "albedo_init.png", out / "albedo_init.png", fs::copy_options::overwrite_existing);
-  fs::copy_file(work / "coverage.png", out / "coverage.png", fs::copy_options::overwrite_existing);
-  std::string s = figure("albedo_init.png", "albedo init (median)");
+  // prepare's pictures: a work folder copied without them still gets its report.
+  auto prepared = [&](const std::string& file, const std::string& caption) -> std::string {
+    if (!fs::exists(work / file)) {
+      spdlog::warn("report: {} is missing (prepare writes it): figure skipped", (work / file).string());
+      return "";
+    }
+    fs::copy_file(work / file, out / file, fs::copy_options::overwrite_existing);
+    return figure(file, caption);
+  };
+  std::string s = prepared("albedo_init.png", "albedo init (median)");
   Image albedo(fit.appearance.albedo.width, fit.appearance.albedo.height);
   albedo.rgb = fit.appearance.albedo.rgb;
   writeSrgbPng(out / "albedo.png", albedo, 8);
@@ -150,7 +157,7 @@ std::string texturesSection(const fs::path& work, const fs::path& out, const Sce
       s += figure("albedo_truth.png", "albedo (truth, in the fit's atlas)");
     }
   }
-  s += figure("coverage.png", "coverage (observations per texel: black never, blue once, red most)");
+  s += prepared("coverage.png", "coverage (observations per texel: black never, blue once, red most)");
   for (int o = 0; o < fit.appearance.objectCount(); ++o)
     if (const Texture* t = fit.appearance.emissionTexture(o)) {
       Image img(t->width, t->height);

@@ -120,6 +120,9 @@ TEST(Fit, BadInputIsAOneLineError) {
   EXPECT_THROW(loadText(R"({"batch_texels": 1.5})"), Error);       // not an integer
   EXPECT_THROW(loadText(R"({"lr_albedo": -1})"), Error);           // out of range
   EXPECT_THROW(loadText(R"({"pairing": "both"})"), Error);
+  EXPECT_THROW(loadText(R"({"ray_footprint": "area"})"), Error);
+  EXPECT_THROW(loadText(R"({"material_batch_texels": -1})"), Error);
+  EXPECT_NO_THROW(loadText(R"({"ray_footprint": "pixel", "material_batch_texels": 0})"));
   EXPECT_THROW(loadText(R"({"gradients": "full"})"), Error);      // the Gauss-Newton step is first-vertex only
   EXPECT_NO_THROW(loadText(R"({"gradients": "full", "albedo_step": "adam"})"));
   EXPECT_THROW(loadText(R"([1, 2])"), Error);

@@ -53,6 +53,14 @@ TEST(Report, FitWritesASelfContainedPageWithCurvesImagesAndMaterials) {
   for (const Json& o : materials["objects"])
     EXPECT_NE(html.find("<td>" + o["name"].get<std::string>() + "</td>"), std::string::npos);
   EXPECT_NE(html.find("\"lr_albedo\""), std::string::npos);  // the config
+  // A work folder copied without prepare's pictures still gets its report, without those figures.
+  fs::remove(dir / "work" / "albedo_init.png");
+  fs::remove(dir / "work" / "report" / "albedo_init.png");
+  EXPECT_NO_THROW(writeFitReport(dir / "work"));
+  std::stringstream again;
+  again << std::ifstream(page).rdbuf();
+  EXPECT_EQ(again.str().find("albedo_init.png"), std::string::npos);
+  EXPECT_NE(again.str().find("coverage.png"), std::string::npos);
 }
 
 TEST(Report, LossCurveSkipsNonPositiveLossesOnItsLogAxis) {

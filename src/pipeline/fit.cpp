@@ -349,7 +349,7 @@ class Fit {
     TexelSpace init(w_, w_.initResolution);
     {
       TextureSpaceSampler probe(*w_.scene, init.map, init.sampleable, w_.vis, w_.trainingFrames());
-      const Batch b = probe.sample(c_.seed, 0xFFFFFFFF, {std::min(c_.batchTexels, 4096), c_.framesPerTexel, footprint()});
+      const Batch b = probe.sample(c_.seed, 0xFFFFFFFF, {std::min(c_.batchTexels, 4096), c_.framesPerTexel, footprint_});
       finalRes_ = c_.maxResolution > 0 ? c_.maxResolution : resolvedResolution(w_, b);
       // The brightest observation sets the scale of emission steps (lights are what is brightest).
       if (b.rays.empty()) fail("{}: no frame connection survived (every texel occluded or off-frame?)", w_.dir.string());
@@ -514,7 +514,6 @@ class Fit {
   }
 
   bool newtonAlbedo() const { return c_.albedoStep == "gauss-newton"; }
-  RayFootprint footprint() const { return parseRayFootprint(c_.rayFootprint); }
 
   // Emission textures cover each emitter's uv window; an emitter with a large window (a wall
   // wrongly kept as a light, a window) would otherwise hold a 4096^2-scale texture with its Adam
@@ -575,19 +574,14 @@ class Fit {
     Batch b;
     if (c_.sampler == "texture") {
       const TextureSpaceSampler sampler(*w_.scene, space.map, space.sampleable, w_.vis, w_.trainingFrames());
-      b = sampler.sample(c_.seed, iteration, {c_.batchTexels, c_.framesPerTexel, footprint()});
+      b = sampler.sample(c_.seed, iteration, {c_.batchTexels, c_.framesPerTexel, footprint_});
       if (!focus.empty() && c_.materialBatchTexels > 0) {
         const TextureSpaceSampler focused(*w_.scene, space.map, focus, w_.vis, w_.trainingFrames());
-        const Batch f = focused.sample(hashTuple({c_.seed, 0x6d6174}), iteration, {c_.materialBatchTexels, c_.framesPerTexel, footprint()});
-        for (size_t j = 0; j < f.rays.size(); ++j) {
-          b.rays.push_back(f.rays[j]);
-          b.slot.push_back(static_cast<uint32_t>(c_.batchTexels) + f.slot[j]);
-          b.object.push_back(f.object[j]);
-        }
-        b.stats.add(f.stats);
+        b.append(focused.sample(hashTuple({c_.seed, 0x6d6174}), iteration, {c_.materialBatchTexels, c_.framesPerTexel, footprint_}),
+                 static_cast<uint32_t>(c_.batchTexels));
       }
     } else {
-      b = ImageSpaceSampler(w_.trainingFrames()).sample(c_.seed, iteration, c_.imageRays, *w_.scene, footprint());
+      b = ImageSpaceSampler(w_.trainingFrames()).sample(c_.seed, iteration, c_.imageRays, *w_.scene, footprint_);
     }
     if (c_.samplesPerRay > 1) {  // independent estimates of the same connection (ray j keeps its slot and object)
       Batch repeated;
@@ -935,6 +929,7 @@ class Fit {
   Appearance appearance_;
   AdjointSettings settings_;
   std::vector<uint8_t> emitter_, highlight_;
+  const RayFootprint footprint_ = parseRayFootprint(c_.rayFootprint);
   std::vector<uint64_t> highlightPairs_;  // per object: texels compared with and without a light reflected
   std::vector<double> highlightContrast_;  // their mean contrast
   std::vector<double> observedSum_;      // per object, luminance of the references seen in the emission stage

@@ -12,6 +12,13 @@ void SamplerStats::add(const SamplerStats& o) {
   masked += o.masked, rays += o.rays;
 }
 
+void Batch::append(const Batch& other, uint32_t slotOffset) {
+  rays.insert(rays.end(), other.rays.begin(), other.rays.end());
+  for (uint32_t s : other.slot) slot.push_back(slotOffset + s);
+  object.insert(object.end(), other.object.begin(), other.object.end());
+  stats.add(other.stats);
+}
+
 namespace {
 
 // Per-slot output, compacted in slot order afterwards so the batch does not depend on threads.

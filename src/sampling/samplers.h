@@ -40,6 +40,8 @@ struct Batch {
   std::vector<uint32_t> slot;    // which drawn texel (or pixel) produced the ray
   std::vector<int> object;       // the object of the targeted surface point
   SamplerStats stats;
+  // Appends `other`'s rays, its slots shifted by `slotOffset` (past this batch's slots).
+  void append(const Batch& other, uint32_t slotOffset);
 };
 
 // What a training ray is compared with. A frame's pixel is the average of the radiance over its

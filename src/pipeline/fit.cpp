@@ -38,6 +38,8 @@ template <typename Fn> void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("batch_texels", ConfigField(&c.batchTexels));
   fn("frames_per_texel", ConfigField(&c.framesPerTexel));
   fn("material_batch_texels", ConfigField(&c.materialBatchTexels));
+  fn("highlight_batch_texels", ConfigField(&c.highlightBatchTexels));
+  fn("highlight_footprint", ConfigField(&c.highlightFootprint));
   fn("image_rays", ConfigField(&c.imageRays));
   fn("ray_footprint", ConfigField(&c.rayFootprint));
   fn("samples_per_ray", ConfigField(&c.samplesPerRay));
@@ -89,6 +91,7 @@ void validate(const FitConfig& c, const std::string& where) {
   need(c.batchTexels >= 1 && c.batchTexels <= (1 << 24), "batch_texels must be in [1, 2^24]");
   need(c.framesPerTexel >= 1 && c.framesPerTexel <= 64, "frames_per_texel must be in [1, 64]");
   need(c.materialBatchTexels >= 0 && c.materialBatchTexels <= (1 << 24), "material_batch_texels must be in [0, 2^24]");
+  need(c.highlightBatchTexels >= 0 && c.highlightBatchTexels <= (1 << 24), "highlight_batch_texels must be in [0, 2^24]");
   need(c.imageRays >= 1 && c.imageRays <= (1 << 24), "image_rays must be in [1, 2^24]");
   need(c.samplesPerRay >= 1 && c.samplesPerRay <= 64, "samples_per_ray must be in [1, 64]");
   need(c.maxDepth >= 0 && c.maxDepth <= 64, "max_depth must be in [0, 64]");
@@ -96,6 +99,7 @@ void validate(const FitConfig& c, const std::string& where) {
   parseEmitterGradients(c.emitterGradients);
   parsePairing(c.pairing);
   parseRayFootprint(c.rayFootprint);
+  parseRayFootprint(c.highlightFootprint);
   need(c.albedoStep == "gauss-newton" || c.albedoStep == "adam", "albedo_step must be gauss-newton or adam");
   // The Gauss-Newton step models a texel's pixels as linear in the albedo at their first vertex;
   // `full` gradients add the albedo's terms at deeper vertices, which that curvature does not
@@ -569,23 +573,54 @@ class Fit {
     return texels;
   }
 
-  // `focus`: texels of which material_batch_texels more are drawn (their own seed stream).
-  Batch sampleBatch(const TexelSpace& space, uint64_t iteration, const std::vector<uint32_t>& focus = {}) const {
+  // The texels the material stage draws more of: the fitted objects' (material_batch_texels) and
+  // their highlights (highlight_batch_texels).
+  struct MaterialFocus {
+    std::vector<uint32_t> objects, highlights;
+  };
+
+  // Highlight texels: each fitted texel is connected to every frame that sees it (8 draws per
+  // texel, so one is missed with p ~ 3e-4) and kept if one of those connections sees a light
+  // reflected. Depends on the geometry, the frames and the emitter set only, so a resumed fit
+  // finds the same texels.
+  MaterialFocus materialFocus(const TexelSpace& space) const {
+    MaterialFocus f{fittedObjectTexels(space), {}};
+    if (f.objects.empty() || c_.highlightBatchTexels == 0) return f;
+    const TextureSpaceSampler all(*w_.scene, space.map, f.objects, w_.vis, w_.trainingFrames());
+    const int draws = static_cast<int>(std::min<size_t>(8 * f.objects.size(), 1 << 24));
+    const Batch b = all.sample(hashTuple({c_.seed, 0x70726f}), 0, {draws, 1 << 20, RayFootprint::Point});
+    std::vector<uint8_t> lit(space.map.texelCount(), 0);
+    tbb::parallel_for(size_t{0}, b.rays.size(), [&](size_t j) {
+      if (seesLightReflected(b.rays[j]) == 1) lit[b.texel[b.slot[j]]] = 1;  // benign race: every writer stores 1
+    });
+    for (uint32_t t : f.objects)
+      if (lit[t]) f.highlights.push_back(t);
+    spdlog::info("fit: {} of the fitted objects' {} texels show a light reflected", f.highlights.size(), f.objects.size());
+    return f;
+  }
+
+  // The uniform batch, then (in the material stage) the focused texels, each set with its own
+  // seed stream.
+  Batch sampleBatch(const TexelSpace& space, uint64_t iteration, const MaterialFocus& focus = {}) const {
     Batch b;
     if (c_.sampler == "texture") {
       const TextureSpaceSampler sampler(*w_.scene, space.map, space.sampleable, w_.vis, w_.trainingFrames());
       b = sampler.sample(c_.seed, iteration, {c_.batchTexels, c_.framesPerTexel, footprint_});
-      if (!focus.empty() && c_.materialBatchTexels > 0) {
-        const TextureSpaceSampler focused(*w_.scene, space.map, focus, w_.vis, w_.trainingFrames());
-        b.append(focused.sample(hashTuple({c_.seed, 0x6d6174}), iteration, {c_.materialBatchTexels, c_.framesPerTexel, footprint_}),
-                 static_cast<uint32_t>(c_.batchTexels));
-      }
+      auto add = [&](const std::vector<uint32_t>& texels, int count, uint64_t stream, RayFootprint footprint) {
+        if (texels.empty() || count == 0) return;
+        const TextureSpaceSampler focused(*w_.scene, space.map, texels, w_.vis, w_.trainingFrames());
+        b.append(focused.sample(hashTuple({c_.seed, stream}), iteration, {count, c_.framesPerTexel, footprint}),
+                 static_cast<uint32_t>(b.texel.size()));
+      };
+      add(focus.objects, c_.materialBatchTexels, 0x6d6174, footprint_);
+      add(focus.highlights, c_.highlightBatchTexels, 0x686c74, highlightFootprint_);
     } else {
       b = ImageSpaceSampler(w_.trainingFrames()).sample(c_.seed, iteration, c_.imageRays, *w_.scene, footprint_);
     }
     if (c_.samplesPerRay > 1) {  // independent estimates of the same connection (ray j keeps its slot and object)
       Batch repeated;
       repeated.stats = b.stats;
+      repeated.texel = b.texel;
       for (size_t j = 0; j < b.rays.size(); ++j)
         for (int s = 0; s < c_.samplesPerRay; ++s) {
           repeated.rays.push_back(b.rays[j]);
@@ -609,7 +644,7 @@ class Fit {
     FitPhaseTimes times;
     // One buffer per stage, cleared every iteration; curvature only where the albedo steps by it.
     Gradients grads(appearance_, newtonAlbedo() && st.active.active(ParamKind::Albedo));
-    const std::vector<uint32_t> focus = st.active.active(ParamKind::Roughness) ? fittedObjectTexels(space) : std::vector<uint32_t>{};
+    const MaterialFocus focus = st.active.active(ParamKind::Roughness) ? materialFocus(space) : MaterialFocus{};
     for (int it = firstIteration; it < st.iterations; ++it) {
       const uint64_t iteration = static_cast<uint64_t>(globalIteration_);
       // Constant, except over the second half of a settling stage: linear down to lr_final_fraction.
@@ -734,10 +769,28 @@ class Fit {
     }
   }
 
-  // Which objects the frames show a highlight on. For probe connections (camera to surface point)
-  // the mirror direction about the geometric normal, and four directions 10 degrees around it (a
-  // glossy lobe's width), are traced; a connection whose directions reach the front of an emitter
-  // "sees a light reflected". A highlight is what that does to the pixel: for each texel with
+  // Whether a connection sees a light reflected: the mirror direction about the geometric normal,
+  // or one of four directions 10 degrees around it (a glossy lobe's width), reaches the front of
+  // an emitter. -1: the reference is masked or the ray hits nothing.
+  int8_t seesLightReflected(const BatchRay& r) const {
+    if (!(r.reference.minCoeff() >= 0)) return -1;
+    const auto hit = w_.scene->intersect(r.origin, r.dir);
+    if (!hit) return -1;
+    const Vec3 n = hit->ng.dot(r.dir) < 0 ? hit->ng : Vec3(-hit->ng);
+    const Vec3 mirror = r.dir - 2.0f * r.dir.dot(n) * n;
+    const ShadingFrame frame(mirror);
+    for (int k = 0; k < 5; ++k) {
+      const float phi = 0.5f * kPi * k, tilt = k == 0 ? 0.0f : std::sin(10.0f * kPi / 180.0f);
+      const Vec3 d = frame.toWorld(Vec3(tilt * std::cos(phi), tilt * std::sin(phi), std::sqrt(1 - tilt * tilt)));
+      if (d.dot(n) <= 0) continue;
+      const auto light = w_.scene->intersect(Scene::offsetOrigin(*hit, d), d);
+      if (light && emitter_[light->object] && appearance_.isEmissive(light->object) && light->ng.dot(d) < 0) return 1;
+    }
+    return 0;
+  }
+
+  // Which objects the frames show a highlight on. Probe connections either see a light reflected
+  // or not (seesLightReflected); a highlight is what that does to the pixel: for each texel with
   // connections of both kinds, contrast = mean radiance seeing a light / mean radiance not - 1
   // (the same texel from other frames, so albedo and irradiance cancel). Roughness and specular
   // are fitted on objects whose mean contrast, less two standard errors, reaches
@@ -752,22 +805,8 @@ class Fit {
       std::vector<int8_t> sawLight(batch.rays.size(), -1);
       std::vector<float> lum(batch.rays.size(), 0.0f);
       tbb::parallel_for(size_t{0}, batch.rays.size(), [&](size_t j) {
-        const BatchRay& r = batch.rays[j];
-        if (!(r.reference.minCoeff() >= 0)) return;  // masked
-        const auto hit = w_.scene->intersect(r.origin, r.dir);
-        if (!hit) return;
-        lum[j] = luminance(r.reference);
-        const Vec3 n = hit->ng.dot(r.dir) < 0 ? hit->ng : Vec3(-hit->ng);
-        const Vec3 mirror = r.dir - 2.0f * r.dir.dot(n) * n;
-        const ShadingFrame frame(mirror);
-        sawLight[j] = 0;
-        for (int k = 0; k < 5 && !sawLight[j]; ++k) {
-          const float phi = 0.5f * kPi * k, tilt = k == 0 ? 0.0f : std::sin(10.0f * kPi / 180.0f);
-          const Vec3 d = frame.toWorld(Vec3(tilt * std::cos(phi), tilt * std::sin(phi), std::sqrt(1 - tilt * tilt)));
-          if (d.dot(n) <= 0) continue;
-          const auto light = w_.scene->intersect(Scene::offsetOrigin(*hit, d), d);
-          sawLight[j] = light && emitter_[light->object] && appearance_.isEmissive(light->object) && light->ng.dot(d) < 0;
-        }
+        sawLight[j] = seesLightReflected(batch.rays[j]);
+        if (sawLight[j] >= 0) lum[j] = luminance(batch.rays[j].reference);
       });
       evidence.addBatch(batch.slot, batch.object, lum, sawLight);
     }
@@ -930,6 +969,7 @@ class Fit {
   AdjointSettings settings_;
   std::vector<uint8_t> emitter_, highlight_;
   const RayFootprint footprint_ = parseRayFootprint(c_.rayFootprint);
+  const RayFootprint highlightFootprint_ = parseRayFootprint(c_.highlightFootprint);
   std::vector<uint64_t> highlightPairs_;  // per object: texels compared with and without a light reflected
   std::vector<double> highlightContrast_;  // their mean contrast
   std::vector<double> observedSum_;      // per object, luminance of the references seen in the emission stage

@@ -16,6 +16,8 @@ void Batch::append(const Batch& other, uint32_t slotOffset) {
   rays.insert(rays.end(), other.rays.begin(), other.rays.end());
   for (uint32_t s : other.slot) slot.push_back(slotOffset + s);
   object.insert(object.end(), other.object.begin(), other.object.end());
+  texel.resize(slotOffset, 0xFFFFFFFFu);  // slots this batch drew no texel for (none, for a texture-space batch)
+  texel.insert(texel.end(), other.texel.begin(), other.texel.end());
   stats.add(other.stats);
 }
 
@@ -25,12 +27,14 @@ namespace {
 struct SlotRays {
   std::vector<BatchRay> rays;
   int object = 0;
+  uint32_t texel = 0;
   SamplerStats stats;
 };
 
-Batch compact(std::vector<SlotRays>& slots) {
+Batch compact(std::vector<SlotRays>& slots, bool texels) {
   Batch b;
   for (size_t s = 0; s < slots.size(); ++s) {
+    if (texels) b.texel.push_back(slots[s].texel);
     for (BatchRay& r : slots[s].rays) {
       b.rays.push_back(r);
       b.slot.push_back(static_cast<uint32_t>(s));
@@ -67,7 +71,7 @@ Batch TextureSpaceSampler::sample(uint64_t seed, uint64_t iteration, const Textu
     Pcg32 rng(hashTuple({seed, iteration, j, 0x7473}));
     SlotRays& out = slots[j];
     out.stats.slots = 1;
-    const uint32_t texel = texels_[rng.nextU32() % texels_.size()];
+    const uint32_t texel = out.texel = texels_[rng.nextU32() % texels_.size()];
     const uint32_t tri = map_.triangle(texel);
     out.object = mesh.faceObject[tri];
     const Vec3 p = map_.point(mesh, texel), n = map_.normal(mesh, texel);  // as prepare tested visibility
@@ -126,7 +130,7 @@ Batch TextureSpaceSampler::sample(uint64_t seed, uint64_t iteration, const Textu
       out.rays.push_back({cam.position, *jitteredDir, stored->value, clipOf(frame)});
     }
   });
-  return compact(slots);
+  return compact(slots, true);
 }
 
 std::optional<std::pair<Vec2, Vec3>> randomPixelRay(const Camera& cam, Pcg32& rng) {
@@ -164,7 +168,7 @@ Batch ImageSpaceSampler::sample(uint64_t seed, uint64_t iteration, int rays, con
     }
     out.rays.push_back({frame.camera.position, ray->second, *reference, clipOf(frame)});
   });
-  return compact(slots);
+  return compact(slots, false);
 }
 
 }  // namespace relume

@@ -39,6 +39,7 @@ struct Batch {
   std::vector<BatchRay> rays;
   std::vector<uint32_t> slot;    // which drawn texel (or pixel) produced the ray
   std::vector<int> object;       // the object of the targeted surface point
+  std::vector<uint32_t> texel;   // per slot: the texel drawn (texture-space sampler; empty for image space)
   SamplerStats stats;
   // Appends `other`'s rays, its slots shifted by `slotOffset` (past this batch's slots).
   void append(const Batch& other, uint32_t slotOffset);

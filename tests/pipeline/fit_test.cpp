@@ -3,6 +3,7 @@
 #include <tbb/task_arena.h>
 
 #include "core/error.h"
+#include "core/math.h"
 #include "io/atomic_file.h"
 #include "io/image.h"
 #include "pipeline/evaluate.h"
@@ -153,7 +154,7 @@ TEST(Fit, SeveralSamplesPerRayKeepEachRayWithItsObject) {
 TEST(Fit, MaterialStageDrawsExtraTexelsFromTheFittedObjectsOnly) {
   const fs::path dir = cornellWork("material_focus");
   FitConfig c = smallConfig();
-  c.emissionIterations = 30, c.albedoPasses = 4, c.materialIterations = 10;
+  c.emissionIterations = 30, c.albedoPasses = 4, c.materialIterations = 10, c.highlightBatchTexels = 0;
   c.highlightMinPairs = 1, c.highlightMinContrast = -1e9f;  // every object seen both ways is fitted
   struct RaysPerIteration {
     double fittedBefore = 0, fittedDuring = 0, othersBefore = 0, othersDuring = 0;  // albedo stage, material stage
@@ -189,4 +190,46 @@ TEST(Fit, MaterialStageDrawsExtraTexelsFromTheFittedObjectsOnly) {
   EXPECT_GT(on.fittedDuring, on.fittedBefore + 1000) << on.fittedBefore << " -> " << on.fittedDuring;
   EXPECT_NEAR(on.othersDuring, on.othersBefore, 0.1 * on.othersBefore);
   EXPECT_NEAR(off.fittedDuring, off.fittedBefore, 0.1 * off.fittedBefore);  // off: the uniform batch only
+}
+
+// highlight_batch_texels are drawn from where some frame sees a light reflected: in the material
+// stage, far more of the batch's rays see one than with as many texels drawn from the whole of
+// the fitted objects. "Sees a light" is restated here from its definition (the mirror direction,
+// or one 10 degrees around it, reaches the front of an emitter).
+TEST(Fit, HighlightBatchDrawsTheTexelsThatReflectALight) {
+  const fs::path dir = cornellWork("material_focus");
+  FitConfig c = smallConfig();
+  c.emissionIterations = 30, c.albedoPasses = 4, c.materialIterations = 10;
+  c.highlightMinPairs = 1, c.highlightMinContrast = -1e9f;  // every object seen both ways is fitted
+  auto seesLight = [](const FitIteration& f, const BatchRay& r) {
+    const auto hit = f.scene.intersect(r.origin, r.dir);
+    if (!hit) return false;
+    const Vec3 n = hit->ng.dot(r.dir) < 0 ? hit->ng : Vec3(-hit->ng);
+    const Vec3 mirror = r.dir - 2.0f * r.dir.dot(n) * n;
+    const ShadingFrame frame(mirror);
+    for (int k = 0; k < 5; ++k) {
+      const float tilt = k == 0 ? 0.0f : std::sin(10.0f * kPi / 180.0f), phi = 0.5f * kPi * k;
+      const Vec3 d = frame.toWorld(Vec3(tilt * std::cos(phi), tilt * std::sin(phi), std::sqrt(1 - tilt * tilt)));
+      if (d.dot(n) <= 0) continue;
+      const auto light = f.scene.intersect(Scene::offsetOrigin(*hit, d), d);
+      if (light && f.appearance.isEmissive(light->object) && light->ng.dot(d) < 0) return true;
+    }
+    return false;
+  };
+  auto fractionSeeingALight = [&](int objectTexels, int highlightTexels) {
+    FitConfig config = c;
+    config.materialBatchTexels = objectTexels, config.highlightBatchTexels = highlightTexels;
+    double seeing = 0, rays = 0;
+    FitHooks hooks;
+    hooks.writeFiles = false;
+    hooks.afterIteration = [&](const FitIteration& f) {
+      if (f.stage == "materials")
+        for (const BatchRay& r : f.rays) seeing += seesLight(f, r), ++rays;
+      return true;
+    };
+    runFit(dir / "work", config, false, hooks);
+    return seeing / std::max(1.0, rays);
+  };
+  const double highlights = fractionSeeingALight(0, 2048), objects = fractionSeeingALight(2048, 0);
+  EXPECT_GT(highlights, 2 * objects) << highlights << " vs " << objects;
 }

@@ -197,7 +197,7 @@ TEST(Fit, MaterialStageDrawsExtraTexelsFromTheFittedObjectsOnly) {
 // the fitted objects. "Sees a light" is restated here from its definition (the mirror direction,
 // or one 10 degrees around it, reaches the front of an emitter).
 TEST(Fit, HighlightBatchDrawsTheTexelsThatReflectALight) {
-  const fs::path dir = cornellWork("material_focus");
+  const fs::path dir = cornellWork("highlight_batch");
   FitConfig c = smallConfig();
   c.emissionIterations = 30, c.albedoPasses = 4, c.materialIterations = 10;
   c.highlightMinPairs = 1, c.highlightMinContrast = -1e9f;  // every object seen both ways is fitted

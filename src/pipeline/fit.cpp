@@ -609,8 +609,7 @@ class Fit {
       auto add = [&](const std::vector<uint32_t>& texels, int count, uint64_t stream, RayFootprint footprint) {
         if (texels.empty() || count == 0) return;
         const TextureSpaceSampler focused(*w_.scene, space.map, texels, w_.vis, w_.trainingFrames());
-        b.append(focused.sample(hashTuple({c_.seed, stream}), iteration, {count, c_.framesPerTexel, footprint}),
-                 static_cast<uint32_t>(b.texel.size()));
+        b.append(focused.sample(hashTuple({c_.seed, stream}), iteration, {count, c_.framesPerTexel, footprint}));
       };
       add(focus.objects, c_.materialBatchTexels, 0x6d6174, footprint_);
       add(focus.highlights, c_.highlightBatchTexels, 0x686c74, highlightFootprint_);

@@ -12,11 +12,11 @@ void SamplerStats::add(const SamplerStats& o) {
   masked += o.masked, rays += o.rays;
 }
 
-void Batch::append(const Batch& other, uint32_t slotOffset) {
+void Batch::append(const Batch& other) {
+  const auto slotOffset = static_cast<uint32_t>(texel.size());
   rays.insert(rays.end(), other.rays.begin(), other.rays.end());
   for (uint32_t s : other.slot) slot.push_back(slotOffset + s);
   object.insert(object.end(), other.object.begin(), other.object.end());
-  texel.resize(slotOffset, 0xFFFFFFFFu);  // slots this batch drew no texel for (none, for a texture-space batch)
   texel.insert(texel.end(), other.texel.begin(), other.texel.end());
   stats.add(other.stats);
 }

@@ -41,8 +41,8 @@ struct Batch {
   std::vector<int> object;       // the object of the targeted surface point
   std::vector<uint32_t> texel;   // per slot: the texel drawn (texture-space sampler; empty for image space)
   SamplerStats stats;
-  // Appends `other`'s rays, its slots shifted by `slotOffset` (past this batch's slots).
-  void append(const Batch& other, uint32_t slotOffset);
+  // Appends another texture-space batch: its slots follow this batch's (texel.size() of them).
+  void append(const Batch& other);
 };
 
 // What a training ray is compared with. A frame's pixel is the average of the radiance over its

@@ -35,9 +35,10 @@ struct FitConfig {
   std::string highlightFootprint = "pixel";
   int imageRays = 16384;            // rays per iteration (image sampler)
   std::string rayFootprint = "point";  // point (the paper's) or pixel: what a ray is compared with (sampling/samplers.h)
-  // Independent (primal, adjoint) pairs per connection. 2 (with albedo_passes 100 and
-  // albedo_damping 0.005) takes the room's albedo MAE from 0.033 to 0.028 (README).
-  int samplesPerRay = 1;
+  // Independent (primal, adjoint) pairs per connection. 2 halves the variance of each ray's
+  // albedo sensitivity (the indirectly lit ceiling sees the room through 1-spp paths): with
+  // albedo_passes 100 and albedo_damping 0.005, the room's albedo MAE 0.033 -> 0.028 (README).
+  int samplesPerRay = 2;
   int maxDepth = kDefaultMaxDepth;  // scattering vertices (9 = Cycles' max bounces 8), as synth renders
   std::string gradients = "direct", emitterGradients = "strict", pairing = "decorrelated";
   bool russianRoulette = false;
@@ -58,7 +59,7 @@ struct FitConfig {
   // noise: room, default schedule, albedo MAE 0.057 / 0.041 / 0.034 at 0.1 / 0.03 / 0.01 (24
   // frames), 0.063 / 0.044 at 0.1 / 0.03 (96 frames); 0.005 with 100 passes and 2 samples per
   // ray: 0.028 (README).
-  float albedoDamping = 0.01f;
+  float albedoDamping = 0.005f;
   float lrEmission = 0.2f;          // relative: a step is lr * max(E, emissionFloor * brightest observation)
   float emissionFloor = 0.02f;
   // Relative, per texel. Every NEE sample from a lit surface splats onto some emitter texel, so
@@ -74,7 +75,7 @@ struct FitConfig {
   float polyakFraction = 0.1f;      // of the final stage; 0 = off
   // Schedule
   int emissionIterations = 200, materialIterations = 300, emissionTextureIterations = 100;
-  float albedoPasses = 60.0f;       // albedo stage length: expected draws per sampleable texel
+  float albedoPasses = 100.0f;      // albedo stage length: expected draws per sampleable texel
   int maxStageIterations = 2000;    // cap on any albedo stage
   int maxResolution = 0;            // cap on the final albedo resolution; 0 = what the frames resolve
   int emissionTextureResolution = 1024;  // cap on the emission textures' atlas resolution; 0 = the albedo's
@@ -86,7 +87,6 @@ struct FitConfig {
   // them, brighter with it by at least `highlightMinContrast` (mean minus two standard errors).
   int highlightMinPairs = 8;
   float highlightMinContrast = 0.1f;
-                                      // before its roughness and specular are fitted
   bool emitterParameterisation = true, medianInit = true, coarseToFine = true, emissionTextures = true;
   float initWhitePoint = 0.8f;      // the median init's 95th-percentile texel becomes this albedo; 0 = off
   uint64_t seed = 1;

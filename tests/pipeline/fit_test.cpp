@@ -148,6 +148,36 @@ TEST(Fit, SeveralSamplesPerRayKeepEachRayWithItsObject) {
   EXPECT_EQ(fit.emittersCorrect, 2);
 }
 
+// An object no frame sees (the 16-frame room never shows its painting) is constrained only by the
+// light it would throw on others: its emission must stay 0 from the first iteration on, not be
+// fitted and then pruned or kept.
+TEST(Fit, AnObjectNoFrameSeesIsNeverALightSource) {
+  const fs::path dir = cornellWork("unseen_emitter");
+  FitConfig c = smallConfig();
+  c.materialIterations = 5, c.albedoPasses = 2;
+  std::vector<float> maxEmission;
+  FitHooks hooks;
+  hooks.afterIteration = [&](const FitIteration& it) {
+    maxEmission.resize(it.appearance.objectCount(), 0.0f);
+    for (int o = 0; o < it.appearance.objectCount(); ++o)
+      maxEmission[o] = std::max(maxEmission[o], it.appearance.emission[o].maxCoeff());
+    return true;
+  };
+  runFit(dir / "work", c, false, hooks);
+  const Json materials = readJson(dir / "work" / "result" / "materials.json");
+  int unseen = 0, lights = 0;
+  for (const Json& m : materials["objects"]) {
+    const int o = m["id"];
+    lights += maxEmission[o] > 0;
+    if (m["observed_texel_fraction"].get<double>() > 0) continue;
+    ++unseen;
+    EXPECT_EQ(maxEmission[o], 0.0f) << m["name"];
+    EXPECT_FALSE(m["is_emitter"].get<bool>()) << m["name"];
+  }
+  EXPECT_GE(unseen, 1);  // the painting: otherwise this test checks nothing
+  EXPECT_GE(lights, 2);  // and the emission stage did move the seen objects' emission
+}
+
 // While roughness and specular are fitted, material_batch_texels more texels per iteration come
 // from the fitted objects only (a glossy object is a few percent of the texels): the rays on
 // those objects multiply, the rays on the rest stay as they were.

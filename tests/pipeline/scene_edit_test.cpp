@@ -211,7 +211,9 @@ TEST(SceneEdit, RelightingTheReconstructionMatchesTheEditedTruth) {
   fmt::print("relight: fit vs truth {:.2f} dB; relit vs edited truth {:.2f} dB; unedited fit vs edited truth {:.2f} dB\n",
              reached, relit, unedited);
   // Stated bound: the relit reconstruction agrees with the edited truth to within 2 dB of what
-  // the fit reached on the unedited scene, and far better than the unedited reconstruction (measured: 23.2, 27.3 and 12.4 dB).
+  // the fit reached on the unedited scene, and far better than the unedited reconstruction (measured: 28.2, 28.8 and 11.7 dB;
+  // seeds 1-4: relit 27.3-28.8 dB; before the unseen painting was excluded from the emitters, one
+  // seed in three made it a light and relit at 22-23 dB).
   EXPECT_GT(relit, reached - 2.0) << "fit vs truth " << reached << " dB, relit " << relit << " dB";
   EXPECT_GT(relit, unedited + 8.0) << "unedited fit vs edited truth " << unedited << " dB, relit " << relit << " dB";
 }

@@ -20,7 +20,7 @@ mkdir -p "$OUT"
 RES="${ABLATION_RES:-512,1024}"
 "$R" --log warn prepare "$OUT/capture" --out "$OUT/prepared" --res "$RES" --gutter-res "${RES%%,*}" --force
 # Variant name and its config (each adds one ingredient to the previous one).
-base='"albedo_step": "adam", "sampler": "image", "image_rays": 24576, "emitter_parameterisation": false, "median_init": false, "init_white_point": 0, "gradient_clamp": 0, "masked_adam": false, "per_entry_steps": false, "polyak_fraction": 0, "coarse_to_fine": false'
+base='"albedo_step": "adam", "sampler": "image", "image_rays": 24576, "emitter_parameterisation": false, "median_init": false, "init_white_point": 0, "gradient_clamp": 0, "masked_adam": false, "per_entry_steps": false, "polyak_fraction": 0, "material_polyak_fraction": 0, "coarse_to_fine": false'
 variants=(
   "a_image_space|$base"
   "b_texture_space|${base/\"sampler\": \"image\"/\"sampler\": \"texture\"}"
@@ -34,7 +34,7 @@ f="${e/\"gradient_clamp\": 0/\"gradient_clamp\": 10}"
 variants+=("f_gradient_clamp|$f")
 g="${f/\"masked_adam\": false, \"per_entry_steps\": false/\"masked_adam\": true, \"per_entry_steps\": true}"
 variants+=("g_masked_adam|$g")
-h="${g/\"polyak_fraction\": 0/\"polyak_fraction\": 0.1}"
+h="${g/\"polyak_fraction\": 0, \"material_polyak_fraction\": 0/\"polyak_fraction\": 0.1, \"material_polyak_fraction\": 0.5}"
 variants+=("h_polyak|$h")
 i="${h/\"coarse_to_fine\": false/\"coarse_to_fine\": true}"
 variants+=("i_full_method|$i")

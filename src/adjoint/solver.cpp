@@ -264,7 +264,7 @@ void adjointPass(const Scene& scene, const Appearance& appearance, const LightSa
       Pcg32 rng(adjointSeed(settings, iteration, j));
       rec.count = 0;
       const BatchRay& ray = rays[j];
-      const Color L = tracePath(scene, lights, scope, settings.path, ray.origin, ray.dir, rng, rec);
+      const Color L = tracePath(scene, lights, scope, settings.path, ray.origin, ray.adjointDirection(), rng, rec);
       if (!isFinite(L)) continue;
       const Color slope = lossResidualSlope(L, ray.reference, ray.clip);
       const Color x = slope * sweep(rec.records, rec.count, delta[j] * slope, settings, out);
@@ -335,7 +335,7 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
       }
       Pcg32 rngB(adjointSeed(settings, iteration, j));
       recB.count = 0;
-      const Color b = tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rngB, recB);
+      const Color b = tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].adjointDirection(), rngB, recB);
       const Color sa = safeRadiance(a), sb = safeRadiance(b);
       loss.local() += 0.5 * (lossOf(j, sa) + lossOf(j, sb));
       // Each sample's delta drives the other's path: the derivative of r(a) r(b), a product of

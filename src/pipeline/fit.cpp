@@ -39,7 +39,7 @@ template <typename Fn> void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("frames_per_texel", ConfigField(&c.framesPerTexel));
   fn("material_batch_texels", ConfigField(&c.materialBatchTexels));
   fn("highlight_batch_texels", ConfigField(&c.highlightBatchTexels));
-  fn("highlight_footprint", ConfigField(&c.highlightFootprint));
+  fn("material_footprint", ConfigField(&c.materialFootprint));
   fn("image_rays", ConfigField(&c.imageRays));
   fn("ray_footprint", ConfigField(&c.rayFootprint));
   fn("samples_per_ray", ConfigField(&c.samplesPerRay));
@@ -61,6 +61,7 @@ template <typename Fn> void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("per_entry_steps", ConfigField(&c.perEntrySteps));
   fn("gradient_clamp", ConfigField(&c.gradientClamp));
   fn("polyak_fraction", ConfigField(&c.polyakFraction));
+  fn("material_polyak_fraction", ConfigField(&c.materialPolyakFraction));
   fn("emission_iterations", ConfigField(&c.emissionIterations));
   fn("material_iterations", ConfigField(&c.materialIterations));
   fn("emission_texture_iterations", ConfigField(&c.emissionTextureIterations));
@@ -99,7 +100,7 @@ void validate(const FitConfig& c, const std::string& where) {
   parseEmitterGradients(c.emitterGradients);
   parsePairing(c.pairing);
   parseRayFootprint(c.rayFootprint);
-  parseRayFootprint(c.highlightFootprint);
+  parseRayFootprint(c.materialFootprint);
   need(c.albedoStep == "gauss-newton" || c.albedoStep == "adam", "albedo_step must be gauss-newton or adam");
   // The Gauss-Newton step models a texel's pixels as linear in the albedo at their first vertex;
   // `full` gradients add the albedo's terms at deeper vertices, which that curvature does not
@@ -112,6 +113,7 @@ void validate(const FitConfig& c, const std::string& where) {
   need(std::isfinite(c.emissionFloor) && c.emissionFloor > 0 && c.emissionFloor <= 1, "emission_floor must be in (0, 1]");
   need(std::isfinite(c.gradientClamp) && c.gradientClamp >= 0, "gradient_clamp must be >= 0 (0 = off)");
   need(c.polyakFraction >= 0 && c.polyakFraction <= 1, "polyak_fraction must be in [0, 1]");
+  need(c.materialPolyakFraction >= 0 && c.materialPolyakFraction <= 1, "material_polyak_fraction must be in [0, 1]");
   need(c.emissionIterations >= 0 && c.materialIterations >= 0 && c.emissionTextureIterations >= 0 &&
            c.maxStageIterations >= 1,
        "stage lengths must be >= 0 (max_stage_iterations >= 1)");
@@ -601,34 +603,19 @@ class Fit {
   }
 
   // The uniform batch, then (in the material stage) the focused texels, each set with its own
-  // seed stream.
+  // seed stream; every connection traced samples_per_ray times.
   Batch sampleBatch(const TexelSpace& space, uint64_t iteration, const MaterialFocus& focus = {}) const {
-    Batch b;
-    if (c_.sampler == "texture") {
-      const TextureSpaceSampler sampler(*w_.scene, space.map, space.sampleable, w_.vis, w_.trainingFrames());
-      b = sampler.sample(c_.seed, iteration, {c_.batchTexels, c_.framesPerTexel, footprint_});
-      auto add = [&](const std::vector<uint32_t>& texels, int count, uint64_t stream, RayFootprint footprint) {
-        if (texels.empty() || count == 0) return;
-        const TextureSpaceSampler focused(*w_.scene, space.map, texels, w_.vis, w_.trainingFrames());
-        b.append(focused.sample(hashTuple({c_.seed, stream}), iteration, {count, c_.framesPerTexel, footprint}));
-      };
-      add(focus.objects, c_.materialBatchTexels, 0x6d6174, footprint_);
-      add(focus.highlights, c_.highlightBatchTexels, 0x686c74, highlightFootprint_);
-    } else {
-      b = ImageSpaceSampler(w_.trainingFrames()).sample(c_.seed, iteration, c_.imageRays, *w_.scene, footprint_);
-    }
-    if (c_.samplesPerRay > 1) {  // independent estimates of the same connection (ray j keeps its slot and object)
-      Batch repeated;
-      repeated.stats = b.stats;
-      repeated.texel = b.texel;
-      for (size_t j = 0; j < b.rays.size(); ++j)
-        for (int s = 0; s < c_.samplesPerRay; ++s) {
-          repeated.rays.push_back(b.rays[j]);
-          repeated.slot.push_back(b.slot[j]);
-          repeated.object.push_back(b.object[j]);
-        }
-      b = std::move(repeated);
-    }
+    if (c_.sampler != "texture")
+      return ImageSpaceSampler(w_.trainingFrames()).sample(c_.seed, iteration, c_.imageRays, *w_.scene, footprint_, c_.samplesPerRay);
+    const TextureSpaceSampler sampler(*w_.scene, space.map, space.sampleable, w_.vis, w_.trainingFrames());
+    Batch b = sampler.sample(c_.seed, iteration, {c_.batchTexels, c_.framesPerTexel, footprint_, c_.samplesPerRay});
+    auto add = [&](const std::vector<uint32_t>& texels, int count, uint64_t stream) {
+      if (texels.empty() || count == 0) return;
+      const TextureSpaceSampler focused(*w_.scene, space.map, texels, w_.vis, w_.trainingFrames());
+      b.append(focused.sample(hashTuple({c_.seed, stream}), iteration, {count, c_.framesPerTexel, materialFootprint_, c_.samplesPerRay}));
+    };
+    add(focus.objects, c_.materialBatchTexels, 0x6d6174);
+    add(focus.highlights, c_.highlightBatchTexels, 0x686c74);
     return b;
   }
 
@@ -636,9 +623,11 @@ class Fit {
                 const fs::path& checkpointPath) {
     AdjointSettings settings = settings_;
     settings.mask = st.active;
-    const int averageFrom = settles && c_.polyakFraction > 0
-                                ? st.iterations - std::max(1, static_cast<int>(std::lround(c_.polyakFraction * st.iterations)))
-                                : st.iterations;
+    auto averageStart = [&](float fraction) {
+      return settles && fraction > 0 ? st.iterations - std::max(1, static_cast<int>(std::lround(fraction * st.iterations)))
+                                     : st.iterations;
+    };
+    const int averageFrom = averageStart(c_.polyakFraction), materialAverageFrom = averageStart(c_.materialPolyakFraction);
     Progress progress(st.name, static_cast<size_t>(st.iterations));
     progress.advance(static_cast<size_t>(firstIteration));
     FitPhaseTimes times;
@@ -681,7 +670,8 @@ class Fit {
           if (state->second.size() != g.values.size()) state->second = AdamState(g.values.size());
           state->second.step(g.values, g.grads, g.lo, g.hi, adamFor(g, lrScale), static_cast<uint32_t>(it + 1));
         }
-        if (it >= averageFrom) polyak_[g.name()].add(g.values);
+        const bool perObjectMaterial = g.kind == ParamKind::Roughness || g.kind == ParamKind::Specular;
+        if (it >= (perObjectMaterial ? materialAverageFrom : averageFrom)) polyak_[g.name()].add(g.values);
       }
       now.optimiser = to.seconds();
       times += now;
@@ -983,7 +973,7 @@ class Fit {
   AdjointSettings settings_;
   std::vector<uint8_t> emitter_, highlight_;
   const RayFootprint footprint_ = parseRayFootprint(c_.rayFootprint);
-  const RayFootprint highlightFootprint_ = parseRayFootprint(c_.highlightFootprint);
+  const RayFootprint materialFootprint_ = parseRayFootprint(c_.materialFootprint);
   std::vector<uint64_t> highlightPairs_;  // per object: texels compared with and without a light reflected
   std::vector<double> highlightContrast_;  // their mean contrast
   std::vector<double> observedSum_;      // per object, luminance of the references seen in the emission stage

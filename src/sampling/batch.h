@@ -18,6 +18,12 @@ struct BatchRay {
   Color reference;
   ClipThresholds clip;
   float weight = 1.0f;  // optional per-ray Jacobian weight (ablation); 1 = omitted, as in the paper
+  // The adjoint pass's direction; zero = `dir`. A ray compared with a whole pixel (a pixel
+  // footprint) has one: an independent point of the same pixel. The gradient is then that of
+  // (E[I_hat] - I)^2; with one point for both passes it would be that of E[(I_hat - I)^2], which
+  // adds the radiance's variance within the pixel and so favours a blurrier material.
+  Vec3 adjointDir = Vec3::Zero();
+  const Vec3& adjointDirection() const { return adjointDir.isZero() ? dir : adjointDir; }
 };
 
 }  // namespace relume

@@ -48,6 +48,27 @@ Batch compact(std::vector<SlotRays>& slots, bool texels) {
 
 ClipThresholds clipOf(const Frame& f) { return {f.clipLow, f.clipHigh}; }
 
+std::optional<Vec3> randomDirectionIn(const Camera& cam, const FrameStore::StoredPixel& pixel, Pcg32& rng) {
+  return cam.rayDirection(pixel.corner + pixel.size * Vec2(rng.next1D(), rng.next1D()));
+}
+
+// A pixel footprint's rays: `samples` rays compared with `pixel`, each through its own random
+// point of it and with another, independent one for the adjoint pass (BatchRay::adjointDir).
+// `first`, when given, is the first ray's primal direction, already drawn uniformly in the pixel.
+void appendPixelRays(SlotRays& out, const Camera& cam, const FrameStore::StoredPixel& pixel, const ClipThresholds& clip,
+                     int samples, Pcg32& rng, std::optional<Vec3> first = std::nullopt) {
+  for (int sample = 0; sample < samples; ++sample) {
+    const auto primalDir = sample == 0 && first ? first : randomDirectionIn(cam, pixel, rng);
+    const auto adjointDir = randomDirectionIn(cam, pixel, rng);
+    if (!primalDir || !adjointDir) {  // outside the distortion model's valid domain
+      ++out.stats.notSeen;
+      return;
+    }
+    BatchRay& ray = out.rays.emplace_back(BatchRay{cam.position, *primalDir, pixel.value, clip});
+    ray.adjointDir = *adjointDir;
+  }
+}
+
 }  // namespace
 
 RayFootprint parseRayFootprint(const std::string& name) {
@@ -113,7 +134,7 @@ Batch TextureSpaceSampler::sample(uint64_t seed, uint64_t iteration, const Textu
           ++out.stats.masked;
           continue;
         }
-        out.rays.push_back({cam.position, dir, *reference, clipOf(frame)});
+        out.rays.insert(out.rays.end(), s.samplesPerConnection, BatchRay{cam.position, dir, *reference, clipOf(frame)});
         continue;
       }
       const auto stored = frames_.store->pixelAt(f, *px);
@@ -121,13 +142,7 @@ Batch TextureSpaceSampler::sample(uint64_t seed, uint64_t iteration, const Textu
         ++out.stats.masked;
         continue;
       }
-      const Vec2 jittered = stored->corner + stored->size * Vec2(rng.next1D(), rng.next1D());
-      const auto jitteredDir = cam.rayDirection(jittered);
-      if (!jitteredDir) {  // outside the distortion model's valid domain
-        ++out.stats.notSeen;
-        continue;
-      }
-      out.rays.push_back({cam.position, *jitteredDir, stored->value, clipOf(frame)});
+      appendPixelRays(out, cam, *stored, clipOf(frame), s.samplesPerConnection, rng);
     }
   });
   return compact(slots, true);
@@ -140,7 +155,8 @@ std::optional<std::pair<Vec2, Vec3>> randomPixelRay(const Camera& cam, Pcg32& rn
   return std::pair{px, *dir};
 }
 
-Batch ImageSpaceSampler::sample(uint64_t seed, uint64_t iteration, int rays, const Scene& scene, RayFootprint footprint) const {
+Batch ImageSpaceSampler::sample(uint64_t seed, uint64_t iteration, int rays, const Scene& scene, RayFootprint footprint,
+                                int samples) const {
   std::vector<SlotRays> slots(frames_.usable.empty() ? 0 : rays);
   tbb::parallel_for(size_t{0}, slots.size(), [&](size_t j) {
     Pcg32 rng(hashTuple({seed, iteration, j, 0x6973}));
@@ -155,18 +171,23 @@ Batch ImageSpaceSampler::sample(uint64_t seed, uint64_t iteration, int rays, con
       return;
     }
     out.object = hit->object;
-    // The ray's pixel position is uniform in the image, so uniform within the pixel it falls in.
-    std::optional<Color> reference;
-    if (footprint == RayFootprint::Pixel) {
-      if (const auto stored = frames_.store->pixelAt(f, ray->first)) reference = stored->value;
-    } else {
-      reference = frames_.store->bilinear(f, ray->first);
+    if (footprint == RayFootprint::Point) {
+      const auto reference = frames_.store->bilinear(f, ray->first);
+      if (!reference) {
+        ++out.stats.masked;
+        return;
+      }
+      out.rays.insert(out.rays.end(), samples, BatchRay{frame.camera.position, ray->second, *reference, clipOf(frame)});
+      return;
     }
-    if (!reference) {
+    // The pixel position is uniform in the image, so uniform within the pixel it falls in: it is
+    // the first sample's primal point.
+    const auto stored = frames_.store->pixelAt(f, ray->first);
+    if (!stored) {
       ++out.stats.masked;
       return;
     }
-    out.rays.push_back({frame.camera.position, ray->second, *reference, clipOf(frame)});
+    appendPixelRays(out, frame.camera, *stored, clipOf(frame), samples, rng, ray->second);
   });
   return compact(slots, false);
 }

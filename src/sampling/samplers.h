@@ -47,9 +47,10 @@ struct Batch {
 
 // What a training ray is compared with. A frame's pixel is the average of the radiance over its
 // footprint. Point (the paper's, the default): the ray goes through the surface point itself and
-// is compared with the bilinear interpolation of the frame there. Pixel: the ray goes through a uniformly random point of the (stored) pixel the
-// surface point projects into and is compared with that pixel, so its expectation is the pixel
-// (the frames' box filter). With Point, wherever the radiance varies within a pixel (a highlight on a curved glossy surface: a pixel of a 0.2 m ball 3 m away spans
+// is compared with the bilinear interpolation of the frame there. Pixel: the ray goes through a
+// uniformly random point of the (stored) pixel the surface point projects into and is compared
+// with that pixel, so its expectation is the pixel (the frames' box filter); the adjoint pass
+// goes through another, independent point of it (BatchRay::adjointDir). With Point, wherever the radiance varies within a pixel (a highlight on a curved glossy surface: a pixel of a 0.2 m ball 3 m away spans
 // ~9 degrees of reflected directions, a roughness-0.1 lobe ~1) the pixel is a blur the point
 // estimate must reproduce with a rougher material.
 enum class RayFootprint { Pixel, Point };
@@ -59,6 +60,9 @@ struct TextureSamplerSettings {
   int texels = 16384;         // B: texels per iteration
   int framesPerTexel = 4;     // K: frame connections tried per texel
   RayFootprint footprint = RayFootprint::Point;
+  // Rays per connection, each an independent estimate (the solver seeds each ray on its own); with
+  // a pixel footprint each also draws its own points of the pixel.
+  int samplesPerConnection = 1;
 };
 
 class TextureSpaceSampler {
@@ -84,7 +88,9 @@ std::optional<std::pair<Vec2, Vec3>> randomPixelRay(const Camera& cam, Pcg32& rn
 class ImageSpaceSampler {
  public:
   explicit ImageSpaceSampler(const TrainingFrames& frames) : frames_(frames) {}
-  Batch sample(uint64_t seed, uint64_t iteration, int rays, const Scene& scene, RayFootprint footprint = RayFootprint::Point) const;
+  // `rays` pixels drawn, `samples` rays each (as TextureSamplerSettings::samplesPerConnection).
+  Batch sample(uint64_t seed, uint64_t iteration, int rays, const Scene& scene, RayFootprint footprint = RayFootprint::Point,
+               int samples = 1) const;
 
  private:
   TrainingFrames frames_;

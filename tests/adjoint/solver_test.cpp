@@ -126,3 +126,25 @@ TEST_F(AdjointPassTest, PrimalSensitivityEstimatesWhatTheAdjointDifferentiates) 
     EXPECT_NEAR(mp, ma, 4 * se + 1e-6) << "channel " << c;
   }
 }
+
+TEST_F(AdjointPassTest, AdjointPassFollowsTheRaysAdjointDirection) {
+  // Direct gradients of specular land on the adjoint path's first surface only: a ray whose
+  // adjoint direction is another ray's gets exactly that ray's gradient (same seed, same delta).
+  s.mask = ParamMask::only({ParamKind::Specular});
+  auto gradientOf = [&](const BatchRay& ray) {
+    Gradients g(e.current);
+    adjointPass(scene, e.current, lights, {ray}, {Color::Ones()}, s, 3, g);
+    return g.objects;
+  };
+  const auto firstObject = [&](const Vec3& o, const Vec3& d) { return scene.intersect(o, d)->object; };
+  const BatchRay& a = e.rays[0];
+  size_t other = 1;  // a ray from the same camera to another object
+  while (other < e.rays.size() && (e.rays[other].origin != a.origin || firstObject(a.origin, e.rays[other].dir) == firstObject(a.origin, a.dir)))
+    ++other;
+  ASSERT_LT(other, e.rays.size());
+  BatchRay split = a, along = a;
+  split.adjointDir = along.dir = e.rays[other].dir;
+  EXPECT_EQ(gradientOf(split), gradientOf(along));
+  EXPECT_NE(gradientOf(split), gradientOf(a));
+  EXPECT_EQ(a.adjointDirection(), a.dir);  // the experiment's rays are point rays: one direction
+}

@@ -98,31 +98,68 @@ TEST(TextureSampler, EveryRayFirstHitsItsSurfacePointWithThatFramesReference) {
   for (size_t j = 1; j < b.slot.size(); ++j) EXPECT_LE(b.slot[j - 1], b.slot[j]);
 }
 
-// Pixel footprint: each ray passes through a random point of the pixel its texel's
-// point projects into and carries that pixel's value, so its expectation is the pixel.
+// Pixel footprint: each ray passes through a random point of the pixel its texel's point
+// projects into and carries that pixel's value, so its expectation is the pixel; the adjoint pass
+// goes through another point of that pixel, drawn independently.
 TEST(TextureSampler, PixelFootprintRaysCrossThePixelWhoseValueTheyCarry) {
   Fixture f;
   const TextureSpaceSampler sampler(f.scene, f.map, f.texels, f.vis, f.frames());
   const Batch b = sampler.sample(3, 0, {2048, 3, RayFootprint::Pixel});
   ASSERT_GT(b.rays.size(), 2000u);
-  double offX = 0, offY = 0;  // where in its pixel each ray passes: uniform, so mean 0.5 and spread 1/sqrt(12)
-  double offX2 = 0;
+  // Where in its pixel each direction passes: uniform, so mean 0.5 and spread 1/sqrt(12).
+  double sum[2][2] = {}, sq[2] = {}, cross = 0;
   for (const BatchRay& r : b.rays) {
     int frame = -1;
     for (int i = 0; i < 6; ++i)
       if ((f.cap.frames[i].camera.position - r.origin).norm() < 1e-6f) frame = i;
     ASSERT_GE(frame, 0);
     EXPECT_NEAR(r.reference[2], 0.1f + 0.1f * frame, 1e-3f);
-    const auto px = f.cap.frames[frame].camera.project(r.origin + r.dir);
-    ASSERT_TRUE(px);
-    EXPECT_NEAR(px->x(), r.reference[0] + 0.5f, 0.501f);  // inside pixel (x, y), to rounding
-    EXPECT_NEAR(px->y(), r.reference[1] + 0.5f, 0.501f);
-    offX += px->x() - r.reference[0], offY += px->y() - r.reference[1], offX2 += std::pow(px->x() - r.reference[0] - 0.5, 2);
+    ASSERT_NE(r.adjointDirection(), r.dir);
+    Vec2 offset[2];
+    for (int pass = 0; pass < 2; ++pass) {
+      const auto px = f.cap.frames[frame].camera.project(r.origin + (pass == 0 ? r.dir : r.adjointDirection()));
+      ASSERT_TRUE(px);
+      offset[pass] = *px - Vec2(r.reference[0], r.reference[1]);
+      EXPECT_NEAR(offset[pass].x(), 0.5f, 0.501f);  // inside pixel (x, y), to rounding
+      EXPECT_NEAR(offset[pass].y(), 0.5f, 0.501f);
+      sum[pass][0] += offset[pass].x(), sum[pass][1] += offset[pass].y(), sq[pass] += std::pow(offset[pass].x() - 0.5, 2);
+    }
+    cross += (offset[0].x() - 0.5) * (offset[1].x() - 0.5);
   }
   const double n = static_cast<double>(b.rays.size());
-  EXPECT_NEAR(offX / n, 0.5, 0.03);
-  EXPECT_NEAR(offY / n, 0.5, 0.03);
-  EXPECT_NEAR(std::sqrt(offX2 / n), 1.0 / std::sqrt(12.0), 0.02);
+  for (int pass = 0; pass < 2; ++pass) {
+    EXPECT_NEAR(sum[pass][0] / n, 0.5, 0.03);
+    EXPECT_NEAR(sum[pass][1] / n, 0.5, 0.03);
+    EXPECT_NEAR(std::sqrt(sq[pass] / n), 1.0 / std::sqrt(12.0), 0.02);
+  }
+  EXPECT_NEAR(cross / n * 12.0, 0.0, 0.1);  // uncorrelated: same point would give 1
+  // A point footprint has one direction for both passes.
+  for (const BatchRay& r : sampler.sample(3, 0, {256, 3, RayFootprint::Point}).rays) EXPECT_EQ(r.adjointDirection(), r.dir);
+}
+
+// Samples per connection: a point ray is repeated as it is (the solver seeds each copy on its
+// own); a pixel-footprint ray draws its own points of the same pixel per sample.
+TEST(TextureSampler, EachSampleOfAConnectionIsItsOwnRay) {
+  Fixture f;
+  const TextureSpaceSampler sampler(f.scene, f.map, f.texels, f.vis, f.frames());
+  const Batch single = sampler.sample(3, 0, {512, 3, RayFootprint::Point});
+  const Batch point = sampler.sample(3, 0, {512, 3, RayFootprint::Point, 3});
+  ASSERT_EQ(point.rays.size(), 3 * single.rays.size());
+  for (size_t j = 0; j < point.rays.size(); ++j) {
+    EXPECT_EQ(point.rays[j].dir, single.rays[j / 3].dir);
+    EXPECT_EQ(point.slot[j], single.slot[j / 3]);
+  }
+  const Batch pixel = sampler.sample(3, 0, {512, 3, RayFootprint::Pixel, 3});
+  ASSERT_EQ(pixel.rays.size() % 3, 0u);
+  ASSERT_GT(pixel.rays.size(), 3 * 400u);
+  for (size_t j = 0; j < pixel.rays.size(); j += 3)
+    for (size_t k = 1; k < 3; ++k) {
+      EXPECT_EQ(pixel.slot[j + k], pixel.slot[j]);
+      EXPECT_EQ(pixel.rays[j + k].origin, pixel.rays[j].origin);
+      EXPECT_EQ(pixel.rays[j + k].reference[0], pixel.rays[j].reference[0]);  // the same pixel
+      EXPECT_NE(pixel.rays[j + k].dir, pixel.rays[j].dir);
+      EXPECT_NE(pixel.rays[j + k].adjointDir, pixel.rays[j].adjointDir);
+    }
 }
 
 TEST(TextureSampler, SameBatchAtAnyThreadCount) {
@@ -152,11 +189,14 @@ TEST(ImageSampler, RaysThroughRandomPixelsOfUsableFrames) {
   for (const BatchRay& r : b.rays) {
     EXPECT_LT((r.origin - f.cap.frames[2].camera.position).norm(), 1e-6f);
     EXPECT_NEAR(r.reference[2], 0.3f, 1e-3f);
-    // The pixel the ray crosses is the one whose value it carries.
-    const auto px = f.cap.frames[2].camera.project(r.origin + r.dir);
-    ASSERT_TRUE(px);
-    EXPECT_NEAR(px->x(), r.reference[0] + 0.5f, 0.501f);
-    EXPECT_NEAR(px->y(), r.reference[1] + 0.5f, 0.501f);
+    // The pixel both passes' directions cross is the one whose value the ray carries.
+    ASSERT_NE(r.adjointDirection(), r.dir);
+    for (const Vec3& dir : {r.dir, r.adjointDirection()}) {
+      const auto px = f.cap.frames[2].camera.project(r.origin + dir);
+      ASSERT_TRUE(px);
+      EXPECT_NEAR(px->x(), r.reference[0] + 0.5f, 0.501f);
+      EXPECT_NEAR(px->y(), r.reference[1] + 0.5f, 0.501f);
+    }
   }
 }
 

@@ -263,3 +263,34 @@ TEST(Fit, HighlightBatchDrawsTheTexelsThatReflectALight) {
   const double highlights = fractionSeeingALight(0, 2048), objects = fractionSeeingALight(2048, 0);
   EXPECT_GT(highlights, 2 * objects) << highlights << " vs " << objects;
 }
+
+// In the settling stage, per-object roughness and specular are averaged over their own (longer)
+// window, material_polyak_fraction, while the albedo keeps polyak_fraction: the result is the
+// mean of the last iterates of that window, not of the last 10%.
+TEST(Fit, MaterialsAreAveragedOverTheirOwnPolyakWindow) {
+  const fs::path dir = cornellWork("material_polyak");
+  FitConfig c = smallConfig();
+  c.emissionIterations = 30, c.albedoPasses = 4, c.materialIterations = 20;
+  c.highlightMinPairs = 1, c.highlightMinContrast = -1e9f;  // every object seen both ways is fitted
+  c.polyakFraction = 0.1f, c.materialPolyakFraction = 0.5f;
+  std::vector<std::vector<float>> roughness;  // per material-stage iteration, per object
+  FitHooks hooks;
+  hooks.writeFiles = false;
+  hooks.afterIteration = [&](const FitIteration& f) {
+    if (f.stage == "materials") roughness.push_back(f.appearance.roughness);
+    return true;
+  };
+  std::vector<float> result;
+  hooks.finished = [&](const Appearance& a, const TriangleMesh&) { result = a.roughness; };
+  runFit(dir / "work", c, false, hooks);
+  ASSERT_EQ(roughness.size(), 20u);
+  int fitted = 0;
+  for (size_t o = 0; o < result.size(); ++o) {
+    double half = 0, tenth = 0;
+    for (size_t i = 10; i < 20; ++i) half += roughness[i][o] / 10.0;
+    for (size_t i = 18; i < 20; ++i) tenth += roughness[i][o] / 2.0;
+    EXPECT_NEAR(result[o], half, 1e-5) << o;
+    if (std::abs(half - tenth) > 1e-4) ++fitted;  // a moving object tells the windows apart
+  }
+  EXPECT_GE(fitted, 1);
+}

@@ -63,8 +63,8 @@ std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, 
                               std::vector<Color>* albedoSensitivity = nullptr);
 
 // Adjoint pass only: scatters sum_j delta_j . dr(I_hat_j)/dtheta (paths traced with seed s2 along
-// the ray's adjointDirection(), r the ray's loss residual) into `grads`, and, when `grads` has albedo curvature storage, the
-// Gauss-Newton curvature of the loss in the albedo texels under each ray's first vertex: the
+// the ray's adjointDirection(), r the ray's loss residual) into `grads`, and, when `grads` has
+// albedo curvature storage, the Gauss-Newton curvature of the loss in the albedo texels under each ray's first vertex: the
 // product of this pass's residual sensitivity and `primalSensitivity` (the primal's, times its
 // residual slope; unbiased), or without it the square of this pass's own (inflated by its variance).
 void adjointPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,

@@ -48,6 +48,7 @@ template <typename Fn> void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("emitter_gradients", ConfigField(&c.emitterGradients));
   fn("pairing", ConfigField(&c.pairing));
   fn("russian_roulette", ConfigField(&c.russianRoulette));
+  fn("roulette_depth", ConfigField(&c.rouletteDepth));
   fn("albedo_step", ConfigField(&c.albedoStep));
   fn("albedo_damping", ConfigField(&c.albedoDamping));
   fn("lr_albedo", ConfigField(&c.lrAlbedo));
@@ -96,6 +97,7 @@ void validate(const FitConfig& c, const std::string& where) {
   need(c.imageRays >= 1 && c.imageRays <= (1 << 24), "image_rays must be in [1, 2^24]");
   need(c.samplesPerRay >= 1 && c.samplesPerRay <= 64, "samples_per_ray must be in [1, 64]");
   need(c.maxDepth >= 0 && c.maxDepth <= 64, "max_depth must be in [0, 64]");
+  need(c.rouletteDepth >= 1 && c.rouletteDepth <= 64, "roulette_depth must be in [1, 64]");
   parseGradientMode(c.gradients);
   parseEmitterGradients(c.emitterGradients);
   parsePairing(c.pairing);
@@ -338,6 +340,7 @@ class Fit {
     settings_.pairing = parsePairing(c_.pairing);
     settings_.path.maxDepth = c_.maxDepth;
     settings_.path.russianRoulette = c_.russianRoulette;
+    settings_.path.rouletteDepth = c_.rouletteDepth;
     settings_.seed = c_.seed;
     for (const auto& [id, name] : w_.names)
       if (id >= 0 && id < appearance_.objectCount()) appearance_.names[id] = name;

@@ -22,7 +22,7 @@ inline constexpr int kDefaultMaxDepth = 9;
 struct PathSettings {
   int maxDepth = kDefaultMaxDepth;
   bool russianRoulette = false;
-  int rouletteDepth = 3;
+  int rouletteDepth = 3;  // vertices always reached; roulette decides each bounce after them
 };
 
 // Which appearance each term is evaluated with. Rendering uses one appearance everywhere; gradient

@@ -123,6 +123,7 @@ TEST(Fit, BadInputIsAOneLineError) {
   EXPECT_THROW(loadText(R"({"pairing": "both"})"), Error);
   EXPECT_THROW(loadText(R"({"ray_footprint": "area"})"), Error);
   EXPECT_THROW(loadText(R"({"material_batch_texels": -1})"), Error);
+  EXPECT_THROW(loadText(R"({"roulette_depth": 0})"), Error);
   EXPECT_NO_THROW(loadText(R"({"ray_footprint": "pixel", "material_batch_texels": 0})"));
   EXPECT_THROW(loadText(R"({"gradients": "full"})"), Error);      // the Gauss-Newton step is first-vertex only
   EXPECT_NO_THROW(loadText(R"({"gradients": "full", "albedo_step": "adam"})"));
@@ -131,6 +132,24 @@ TEST(Fit, BadInputIsAOneLineError) {
   EXPECT_EQ(c.batchTexels, 100);
   EXPECT_FALSE(c.maskedAdam);
   EXPECT_EQ(FitConfig::load(dir / "cfg.json").toJson(), c.toJson());
+}
+
+// The path settings the gradients are computed with are the config's (Russian roulette is on by
+// default and its depth a switch: both must reach the solver).
+TEST(Fit, PathSettingsComeFromTheConfig) {
+  const fs::path dir = cornellWork("path_settings");
+  FitConfig c = smallConfig();
+  c.maxDepth = 6, c.russianRoulette = true, c.rouletteDepth = 2, c.stopAfterIterations = 1;
+  int iterations = 0;
+  FitHooks hooks;
+  hooks.afterIteration = [&](const FitIteration& it) {
+    EXPECT_EQ(it.settings.path.maxDepth, 6);
+    EXPECT_TRUE(it.settings.path.russianRoulette);
+    EXPECT_EQ(it.settings.path.rouletteDepth, 2);
+    return ++iterations > 0;
+  };
+  EXPECT_TRUE(runFit(dir / "work", c, false, hooks).stopped);
+  EXPECT_EQ(iterations, 1);
 }
 
 // samples_per_ray > 1 repeats each connection: every per-ray array of the batch (the object the

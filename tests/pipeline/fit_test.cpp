@@ -146,7 +146,8 @@ TEST(Fit, PathSettingsComeFromTheConfig) {
     EXPECT_EQ(it.settings.path.maxDepth, 6);
     EXPECT_TRUE(it.settings.path.russianRoulette);
     EXPECT_EQ(it.settings.path.rouletteDepth, 2);
-    return ++iterations > 0;
+    ++iterations;
+    return true;
   };
   EXPECT_TRUE(runFit(dir / "work", c, false, hooks).stopped);
   EXPECT_EQ(iterations, 1);

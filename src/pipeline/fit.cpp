@@ -63,6 +63,7 @@ template <typename Fn> void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("gradient_clamp", ConfigField(&c.gradientClamp));
   fn("polyak_fraction", ConfigField(&c.polyakFraction));
   fn("material_polyak_fraction", ConfigField(&c.materialPolyakFraction));
+  fn("material_stage_settles", ConfigField(&c.materialStageSettles));
   fn("emission_iterations", ConfigField(&c.emissionIterations));
   fn("material_iterations", ConfigField(&c.materialIterations));
   fn("emission_texture_iterations", ConfigField(&c.emissionTextureIterations));
@@ -264,7 +265,9 @@ struct Stage {
   int resolution = 0;  // albedo resolution during the stage
   int iterations = 0;
   bool pruneAfter = false, emissionTexturesBefore = false;
-  bool settles = false;  // the stage that settles its unknowns: lr decay and Polyak averaging
+  // The unknowns this stage settles (lr decay over its second half, Polyak averaging, then the
+  // average kept): each kind settles in the last stage that fits it.
+  ParamMask settles{0};
 };
 
 // The resolution the frames resolve: the smallest stage resolution whose texel is no larger than
@@ -306,7 +309,7 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
     all.bits |= emission.bits;
     int n = c.emissionIterations + c.materialIterations;
     for (int r : resolutions) n += albedoIterations(r);
-    s.push_back({"all", all, finalRes, n, false, false, true});
+    s.push_back({"all", all, finalRes, n, false, false, all});
     return s;
   }
   s.push_back({"emission", emission, resolutions.front(), c.emissionIterations, c.emitterParameterisation, false});
@@ -319,15 +322,24 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   // "brighter lights, darker albedo" (room: 3% after stage 1, 10% after the albedo stages).
   const ParamMask albedo = ParamMask::only({K::Albedo});
   s.push_back({fmt::format("albedo@{}", resolutions.front()), albedo, resolutions.front(), albedoIterations(resolutions.front())});
-  ParamMask materials = albedo;
-  materials.set(K::Roughness, true);
-  materials.set(K::Specular, true);
+  // Roughness and specular settle in their own stage by default, and the finer albedo stages fit
+  // the albedo alone: its material-focused texels made the 1K room's albedo@1024 iterations 1.3x
+  // dearer (README "Reconstruction").
+  const ParamMask materials = ParamMask::only({K::Albedo, K::Roughness, K::Specular});
+  const ParamMask afterMaterials = c.materialStageSettles ? albedo : materials;
+  const size_t materialStage = s.size();
   s.push_back({"materials", materials, resolutions.front(), c.materialIterations});
   for (size_t i = 1; i < resolutions.size(); ++i)
-    s.push_back({fmt::format("albedo@{}", resolutions[i]), materials, resolutions[i], albedoIterations(resolutions[i])});
-  s.back().settles = true;
-  if (c.emitterParameterisation && c.emissionTextures && c.emissionTextureIterations > 0)
-    s.push_back({"emission_texture", ParamMask::only({K::EmissionTexture}), finalRes, c.emissionTextureIterations, false, true, true});
+    s.push_back({fmt::format("albedo@{}", resolutions[i]), afterMaterials, resolutions[i], albedoIterations(resolutions[i])});
+  s.back().settles = s.back().active;
+  if (c.materialStageSettles) {
+    s[materialStage].settles.set(K::Roughness, true);
+    s[materialStage].settles.set(K::Specular, true);
+  }
+  if (c.emitterParameterisation && c.emissionTextures && c.emissionTextureIterations > 0) {
+    const ParamMask textures = ParamMask::only({K::EmissionTexture});
+    s.push_back({"emission_texture", textures, finalRes, c.emissionTextureIterations, false, true, textures});
+  }
   return s;
 }
 
@@ -427,8 +439,7 @@ class Fit {
       if (st.emissionTexturesBefore && appearance_.emissionTextures.empty())
         allocateEmissionTextures(appearance_, w_.mesh, emissionTextureResolution(space->resolution), [](float, float) { return 1.0f; });
       if (st.name == "materials" && startIteration == 0) decideHighlights(*space);
-      runStage(st, si, si == static_cast<size_t>(startStage) ? startIteration : 0, *space, st.settles,
-               checkpointPath);
+      runStage(st, si, si == static_cast<size_t>(startStage) ? startIteration : 0, *space, checkpointPath);
       if (stopped_) {
         spdlog::info("fit: stopped after {} iterations as asked{}", globalIteration_,
                      hooks_.writeFiles ? "; continue with --resume" : "");
@@ -622,15 +633,17 @@ class Fit {
     return b;
   }
 
-  void runStage(const Stage& st, size_t stageIndex, int firstIteration, const TexelSpace& space, bool settles,
-                const fs::path& checkpointPath) {
+  void runStage(const Stage& st, size_t stageIndex, int firstIteration, const TexelSpace& space, const fs::path& checkpointPath) {
     AdjointSettings settings = settings_;
     settings.mask = st.active;
-    auto averageStart = [&](float fraction) {
-      return settles && fraction > 0 ? st.iterations - std::max(1, static_cast<int>(std::lround(fraction * st.iterations)))
-                                     : st.iterations;
+    // The iteration a settling group's average starts at (never for the others).
+    auto averageFrom = [&](ParamKind kind) {
+      const bool perObjectMaterial = kind == ParamKind::Roughness || kind == ParamKind::Specular;
+      const float fraction = perObjectMaterial ? c_.materialPolyakFraction : c_.polyakFraction;
+      return st.settles.active(kind) && fraction > 0
+                 ? st.iterations - std::max(1, static_cast<int>(std::lround(fraction * st.iterations)))
+                 : st.iterations;
     };
-    const int averageFrom = averageStart(c_.polyakFraction), materialAverageFrom = averageStart(c_.materialPolyakFraction);
     Progress progress(st.name, static_cast<size_t>(st.iterations));
     progress.advance(static_cast<size_t>(firstIteration));
     FitPhaseTimes times;
@@ -639,9 +652,10 @@ class Fit {
     const MaterialFocus focus = st.active.active(ParamKind::Roughness) ? materialFocus(space) : MaterialFocus{};
     for (int it = firstIteration; it < st.iterations; ++it) {
       const uint64_t iteration = static_cast<uint64_t>(globalIteration_);
-      // Constant, except over the second half of a settling stage: linear down to lr_final_fraction.
+      // For the groups settling here: constant, then over the stage's second half linear down to
+      // lr_final_fraction. Constant for the others.
       const float half = 0.5f * st.iterations;
-      const float lrScale = !settles || it < half ? 1.0f : 1.0f - (1.0f - c_.lrFinalFraction) * (it - half) / std::max(1.0f, half);
+      const float settleScale = it < half ? 1.0f : 1.0f - (1.0f - c_.lrFinalFraction) * (it - half) / std::max(1.0f, half);
       FitPhaseTimes now;
       Timer ts;
       const Batch batch = sampleBatch(space, iteration, focus);
@@ -657,9 +671,11 @@ class Fit {
       const GradientResult gr = computeGradients(*w_.scene, appearance_, lights, batch.rays, settings, iteration, grads);
       now.primal = gr.times.primal, now.loss = gr.times.loss, now.adjoint = gr.times.adjoint;
       Timer to;
+      bool averagesStart = false;
       for (ParamGroup& g : paramGroups(appearance_, &grads)) {
         if (!st.active.active(g.kind)) continue;
         maskGradients(g, space);
+        const float lrScale = st.settles.active(g.kind) ? settleScale : 1.0f;
         if (g.kind == ParamKind::Albedo && newtonAlbedo()) {
           // No gradient clamp: the step is bounded by maxStep, and a bright outlier in the adjoint
           // sample inflates the curvature as much as the gradient.
@@ -673,14 +689,14 @@ class Fit {
           if (state->second.size() != g.values.size()) state->second = AdamState(g.values.size());
           state->second.step(g.values, g.grads, g.lo, g.hi, adamFor(g, lrScale), static_cast<uint32_t>(it + 1));
         }
-        const bool perObjectMaterial = g.kind == ParamKind::Roughness || g.kind == ParamKind::Specular;
-        if (it >= (perObjectMaterial ? materialAverageFrom : averageFrom)) polyak_[g.name()].add(g.values);
+        if (it >= averageFrom(g.kind)) polyak_[g.name()].add(g.values);
+        averagesStart |= it == averageFrom(g.kind);
       }
       now.optimiser = to.seconds();
       times += now;
       lastLoss_ = gr.loss;
       ++globalIteration_;
-      if (it == firstIteration || it == averageFrom) {  // the stage's buffers are allocated now (averages at averageFrom)
+      if (it == firstIteration || averagesStart) {  // the stage's buffers are allocated now
         const Json memory = memoryBreakdown(space, grads, batch, settings);
         spdlog::info("fit: stage {} holds {:.1f} MiB", st.name, memory["total"].get<double>() / (1 << 20));
         spdlog::debug("fit: bytes by part: {}", memory.dump());
@@ -704,7 +720,7 @@ class Fit {
                                 traceSeconds > 0 ? batch.rays.size() / traceSeconds * 1e-6 : 0.0));
       if (hooks_.writeFiles && ((it + 1) % c_.metricsEvery == 0 || it + 1 == st.iterations)) {
         Json line = {{"stage", st.name}, {"iteration", globalIteration_}, {"stage_iteration", it + 1}, {"loss", gr.loss},
-                     {"rays", batch.rays.size()}, {"lr_scale", lrScale}, {"sampler", statsJson(batch.stats)},
+                     {"rays", batch.rays.size()}, {"lr_scale", st.settles.bits != 0 ? settleScale : 1.0f}, {"sampler", statsJson(batch.stats)},
                      {"seconds", times.toJson()}};
         if (st.active.active(ParamKind::Roughness))  // the fitted objects' trajectories: how settled they are
           for (int o = 0; o < appearance_.objectCount(); ++o)
@@ -719,8 +735,8 @@ class Fit {
         return;
       }
     }
-    if (settles)
-      for (ParamGroup& g : paramGroups(appearance_))
+    for (ParamGroup& g : paramGroups(appearance_))
+      if (st.settles.active(g.kind))
         if (auto p = polyak_.find(g.name()); p != polyak_.end() && p->second.mean.size() == g.values.size())
           std::copy(p->second.mean.begin(), p->second.mean.end(), g.values.begin());
     // Before the boundary checkpoint: a run resumed from it starts the next stage pruned.

@@ -2,10 +2,11 @@
 // built. Each iteration draws a batch (texture-space sampler by default), computes the loss
 // gradient with the adjoint solver, and takes a masked Adam step per parameter group. Stages
 // (defaults): (1) per-object emission from 0, then emitters below a fraction of the total power
-// are pruned and frozen; (2) + per-object roughness and specular, on objects whose highlights the
-// frames observed; (3) albedo from the median init, coarse to fine up to the resolution the
-// frames resolve; (4) emission textures on the emitters only. Every choice is a config key, so
-// the paper's ablation can be rerun. Checkpoints allow `--resume` after a kill.
+// are pruned and frozen; (2) albedo from the median init at the first resolution; (3) + per-object
+// roughness and specular, on objects whose highlights the frames observed, settled there; (4)
+// albedo alone, coarse to fine up to the resolution the frames resolve; (5) emission textures on
+// the emitters only. Every choice is a config key, so the paper's ablation can be rerun.
+// Checkpoints allow `--resume` after a kill.
 #pragma once
 #include <filesystem>
 #include <functional>
@@ -83,6 +84,10 @@ struct FitConfig {
   // half (with the lr decay) instead of its last 10%: room, whole default fit, glossy ball
   // roughness 0.206 -> 0.165 (truth 0.1), table 0.203 -> 0.183 (0.2), albedo unchanged (README).
   float materialPolyakFraction = 0.5f;
+  // Roughness and specular settle (lr decay, average) at the end of the material stage and stay
+  // there while finer albedo stages run without the material-focused texels; false: they are
+  // fitted, with those texels, through the last albedo stage (the default until 2026-11-24).
+  bool materialStageSettles = true;
   // Schedule
   int emissionIterations = 200, materialIterations = 300, emissionTextureIterations = 100;
   float albedoPasses = 100.0f;      // albedo stage length: expected draws per sampleable texel

@@ -17,8 +17,9 @@ namespace fs = std::filesystem;
 namespace {
 
 // A small capture of the synthetic room (textured albedo, two ceiling panels the frames see),
-// prepared at 256^2. Each test gets its own folder (CTest runs tests in parallel processes).
-fs::path cornellWork(const std::string& name) {
+// prepared at 256^2 (or at the resolutions given). Each test gets its own folder (CTest runs
+// tests in parallel processes).
+fs::path cornellWork(const std::string& name, const std::vector<int>& resolutions = {256}) {
   const fs::path dir = fs::temp_directory_path() / ("relume_fit_" + name);
   fs::remove_all(dir);
   SynthCaptureOptions so;
@@ -27,8 +28,8 @@ fs::path cornellWork(const std::string& name) {
   so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 8, so.testSpp = 8, so.atlasResolution = 256;
   writeSynthCapture(so);
   PrepareOptions po;
-  po.resolutions = {256};
-  po.atlas.gutterResolution = 256;
+  po.resolutions = resolutions;
+  po.atlas.gutterResolution = resolutions.front();
   prepareCapture(so.out, dir / "work", po);
   return dir;
 }
@@ -313,4 +314,47 @@ TEST(Fit, MaterialsAreAveragedOverTheirOwnPolyakWindow) {
     if (std::abs(half - tenth) > 1e-4) ++fitted;  // a moving object tells the windows apart
   }
   EXPECT_GE(fitted, 1);
+}
+
+// Roughness and specular settle in the material stage (lr decay and the average of its second
+// half) and stay there through the finer albedo stages, which fit the albedo alone; with
+// material_stage_settles false they are fitted on until the last albedo stage.
+TEST(Fit, MaterialsSettleInTheirOwnStage) {
+  const fs::path dir = cornellWork("material_stage", {128, 256});
+  for (const bool own : {true, false}) {
+    FitConfig c = smallConfig();
+    c.maxResolution = 256;
+    c.emissionIterations = 20, c.materialIterations = 20, c.albedoPasses = 2;
+    c.highlightMinPairs = 1, c.highlightMinContrast = -1e9f;  // fit every object seen with a light reflected
+    c.materialStageSettles = own;
+    std::map<std::string, std::vector<std::vector<float>>> roughness;  // per stage, after each step
+    std::map<std::string, bool> fitsRoughness;
+    FitHooks hooks;
+    hooks.afterIteration = [&](const FitIteration& it) {
+      roughness[it.stage].push_back(it.appearance.roughness);
+      fitsRoughness[it.stage] = it.settings.mask.active(ParamKind::Roughness);
+      return true;
+    };
+    runFit(dir / "work", c, false, hooks);
+    const auto& materialStage = roughness.at("materials");
+    const auto& finer = roughness.at("albedo@256");
+    ASSERT_EQ(materialStage.size(), 20u);
+    EXPECT_TRUE(fitsRoughness.at("materials"));
+    EXPECT_EQ(fitsRoughness.at("albedo@256"), !own);
+    const Json result = readJson(dir / "work" / "result" / "materials.json");
+    int moved = 0, movedLater = 0;
+    for (const Json& m : result["objects"]) {
+      const int o = m["id"];
+      const float kept = m["roughness"];
+      moved += materialStage.back()[o] != 0.5f;
+      movedLater += finer.front()[o] != finer.back()[o];
+      if (!own) continue;
+      double mean = 0;  // the average of the material stage's second half is what the later stages keep
+      for (size_t i = 10; i < 20; ++i) mean += materialStage[i][o] / 10.0;
+      EXPECT_NEAR(kept, mean, 1e-5) << m["name"];
+      EXPECT_EQ(finer.front()[o], kept) << m["name"];
+    }
+    EXPECT_EQ(movedLater > 0, !own);
+    EXPECT_GE(moved, 1);  // some object was fitted: otherwise this checks nothing
+  }
 }

@@ -322,9 +322,9 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   // "brighter lights, darker albedo" (room: 3% after stage 1, 10% after the albedo stages).
   const ParamMask albedo = ParamMask::only({K::Albedo});
   s.push_back({fmt::format("albedo@{}", resolutions.front()), albedo, resolutions.front(), albedoIterations(resolutions.front())});
-  // Roughness and specular settle in their own stage by default, and the finer albedo stages fit
-  // the albedo alone: its material-focused texels made the 1K room's albedo@1024 iterations 1.3x
-  // dearer (README "Reconstruction").
+  // With material_stage_settles, roughness and specular settle in their own stage and the finer
+  // albedo stages fit the albedo alone: the material texels make the 1K room's albedo@1024
+  // iterations 1.3x dearer, but without them its albedo came out worse (README).
   const ParamMask materials = ParamMask::only({K::Albedo, K::Roughness, K::Specular});
   const ParamMask afterMaterials = c.materialStageSettles ? albedo : materials;
   const size_t materialStage = s.size();

@@ -316,9 +316,9 @@ TEST(Fit, MaterialsAreAveragedOverTheirOwnPolyakWindow) {
   EXPECT_GE(fitted, 1);
 }
 
-// Roughness and specular settle in the material stage (lr decay and the average of its second
-// half) and stay there through the finer albedo stages, which fit the albedo alone; with
-// material_stage_settles false they are fitted on until the last albedo stage.
+// With material_stage_settles, roughness and specular settle in the material stage (lr decay and
+// the average of its second half) and stay there through the finer albedo stages, which fit the
+// albedo alone; without it (the default) they are fitted on until the last albedo stage.
 TEST(Fit, MaterialsSettleInTheirOwnStage) {
   const fs::path dir = cornellWork("material_stage", {128, 256});
   for (const bool own : {true, false}) {

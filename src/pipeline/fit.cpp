@@ -689,8 +689,9 @@ class Fit {
           if (state->second.size() != g.values.size()) state->second = AdamState(g.values.size());
           state->second.step(g.values, g.grads, g.lo, g.hi, adamFor(g, lrScale), static_cast<uint32_t>(it + 1));
         }
-        if (it >= averageFrom(g.kind)) polyak_[g.name()].add(g.values);
-        averagesStart |= it == averageFrom(g.kind);
+        const int from = averageFrom(g.kind);
+        if (it >= from) polyak_[g.name()].add(g.values);
+        averagesStart |= it == from;
       }
       now.optimiser = to.seconds();
       times += now;

@@ -158,3 +158,66 @@ TEST(Render, LightSamplerRejectsNonFiniteEmissionAndAcceptsNone) {
   a.emissionTextureOf.assign(a.objectCount(), -1);
   EXPECT_TRUE(LightSampler(scene, a).empty());
 }
+
+namespace {
+// Every event of one path, in order: rays traced and vertices reached.
+struct EventLog : NullPathObserver {
+  std::vector<float>* events = nullptr;
+  void traced(const Vec3& o, const Vec3& d, float tmax, bool shadow) {
+    events->insert(events->end(), {o.x(), o.y(), o.z(), d.x(), d.y(), d.z(), tmax, shadow ? 1.0f : 0.0f});
+  }
+  void vertex(int depth, const SurfaceHit& hit, const ShadingFrame&, const Vec3&, const Color& beta) {
+    events->insert(events->end(), {static_cast<float>(depth), static_cast<float>(hit.object), hit.uv.x(), beta[0]});
+  }
+};
+}  // namespace
+
+// Paths traced in interleaved groups must each be exactly the path traced alone: same radiance
+// bits, same rays in the same order. Roulette makes the group's paths end at different vertices,
+// and some rays are skipped, so groups shrink and the last one is partial.
+TEST(Render, InterleavedGroupsTraceEachPathAsAlone) {
+  SynthScene room = makeSynthScene(SynthSceneKind::Room, 64);
+  Scene scene(room.scene.mesh);
+  const Appearance& a = room.scene.appearance;
+  LightSampler lights(scene, a);
+  const AppearanceScope scope = AppearanceScope::uniform(a);
+  const Camera cam = synthCameraPath(SynthSceneKind::Room, 1, 64, 48, 0.0)[0];
+  PathSettings settings;
+  settings.russianRoulette = true;
+  settings.rouletteDepth = 2;
+  const size_t n = 8 * kPathGroup + 5;
+  auto rayOf = [&](size_t j) { return *cam.rayDirection(Vec2(0.5f + j * 0.7f, 24.0f + (j % 7) * 3.0f)); };
+  auto seedOf = [](size_t j) { return hashTuple({j, 0x9a7}); };
+  auto skipped = [](size_t j) { return j % 5 == 3; };
+
+  std::vector<Color> alone(n, Color::Constant(-1.0f)), grouped(n, Color::Constant(-1.0f));
+  std::vector<std::vector<float>> aloneEvents(n), groupedEvents(n);
+  for (size_t j = 0; j < n; ++j) {
+    if (skipped(j)) continue;
+    Pcg32 rng(seedOf(j));
+    EventLog log;
+    log.events = &aloneEvents[j];
+    alone[j] = tracePath(scene, lights, scope, settings, cam.position, rayOf(j), rng, log);
+  }
+  std::array<EventLog, kPathGroup> logs;
+  tracePathsGrouped(
+      scene, lights, scope, settings, 0, n, logs,
+      [&](size_t j, PathState& s, Pcg32& rng, EventLog& log) {
+        if (skipped(j)) return false;
+        s.origin = cam.position, s.dir = rayOf(j), rng = Pcg32(seedOf(j));
+        log.events = &groupedEvents[j];
+        return true;
+      },
+      [&](size_t j, const Color& L, EventLog&) { grouped[j] = L; });
+
+  size_t lengths = 0, longest = 0;
+  for (size_t j = 0; j < n; ++j) {
+    EXPECT_EQ(0, std::memcmp(alone[j].data(), grouped[j].data(), sizeof(Color))) << "ray " << j;
+    EXPECT_EQ(aloneEvents[j], groupedEvents[j]) << "ray " << j;
+    lengths += aloneEvents[j].size();
+    longest = std::max(longest, aloneEvents[j].size());
+  }
+  // The paths differ in length (the check above would be weak if they all ended together).
+  EXPECT_GT(longest * (n - n / 5), lengths);
+  EXPECT_GT(lengths, 0u);
+}

@@ -191,19 +191,11 @@ Color sweep(const VertexRecord* records, int count, const Color& delta, const Ad
   return dIdAlbedo;
 }
 
-// Per-thread record buffers, one per path in flight (a group), bounded by the max depth:
-// constant memory per ray.
+// Per-thread record buffers, bounded by the max depth: constant memory per ray.
 class RecordBuffers {
  public:
-  explicit RecordBuffers(int maxDepth)
-      : buffers_([n = static_cast<size_t>(maxDepth + 1)] { return std::vector<VertexRecord>(kPathGroup * n); }),
-        n_(maxDepth + 1) {}
-  // A recorder for each path of a group, on this thread's buffers.
-  std::array<AdjointRecorder, kPathGroup> recorders(const Appearance& appearance) {
-    std::array<AdjointRecorder, kPathGroup> recs;
-    for (int i = 0; i < kPathGroup; ++i) recs[i].appearance = &appearance, recs[i].records = buffers_.local().data() + i * n_;
-    return recs;
-  }
+  explicit RecordBuffers(int maxDepth) : buffers_([n = static_cast<size_t>(maxDepth + 1)] { return std::vector<VertexRecord>(2 * n); }), n_(maxDepth + 1) {}
+  VertexRecord* get(int which) { return buffers_.local().data() + which * n_; }
 
  private:
   tbb::enumerable_thread_specific<std::vector<VertexRecord>> buffers_;
@@ -221,14 +213,10 @@ std::vector<Color> traceRays(const Scene& scene, const LightSampler& lights, con
                              const std::function<uint64_t(size_t)>& seedOf) {
   std::vector<Color> estimate(rays.size());
   tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
-    std::array<NullPathObserver, kPathGroup> none;
-    tracePathsGrouped(
-        scene, lights, scope, path, range.begin(), range.end(), none,
-        [&](size_t j, PathState& s, Pcg32& rng, NullPathObserver&) {
-          s.origin = rays[j].origin, s.dir = rays[j].dir, rng = Pcg32(seedOf(j));
-          return true;
-        },
-        [&](size_t j, const Color& L, NullPathObserver&) { estimate[j] = safeRadiance(L); });
+    for (size_t j = range.begin(); j < range.end(); ++j) {
+      Pcg32 rng(seedOf(j));
+      estimate[j] = safeRadiance(tracePath(scene, lights, scope, path, rays[j].origin, rays[j].dir, rng));
+    }
   });
   return estimate;
 }
@@ -245,20 +233,17 @@ std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, 
   std::vector<Color> estimate(rays.size());
   albedoSensitivity->assign(rays.size(), Color::Zero());
   tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
-    auto recs = buffers.recorders(appearance);
+    AdjointRecorder rec;
+    rec.appearance = &appearance;
+    rec.records = buffers.get(0);
     NoScatter none;
-    tracePathsGrouped(
-        scene, lights, scope, settings.path, range.begin(), range.end(), recs,
-        [&](size_t j, PathState& s, Pcg32& rng, AdjointRecorder& rec) {
-          s.origin = rays[j].origin, s.dir = rays[j].dir, rng = Pcg32(primalSeed(settings, iteration, j));
-          rec.count = 0;
-          return true;
-        },
-        [&](size_t j, const Color& L, AdjointRecorder& rec) {
-          estimate[j] = safeRadiance(L);
-          if ((estimate[j] != 0.0f).any())  // safeRadiance: finite; zero radiance has zero sensitivity
-            (*albedoSensitivity)[j] = sweep(rec.records, rec.count, Color::Zero(), settings, none);
-        });
+    for (size_t j = range.begin(); j < range.end(); ++j) {
+      Pcg32 rng(primalSeed(settings, iteration, j));
+      rec.count = 0;
+      estimate[j] = safeRadiance(tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rng, rec));
+      if ((estimate[j] != 0.0f).any())  // safeRadiance: finite; zero radiance has zero sensitivity
+        (*albedoSensitivity)[j] = sweep(rec.records, rec.count, Color::Zero(), settings, none);
+    }
   });
   return estimate;
 }
@@ -271,23 +256,21 @@ void adjointPass(const Scene& scene, const Appearance& appearance, const LightSa
   const float invN = 1.0f / static_cast<float>(rays.size());
   tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
     Scatterer out(appearance, settings, grads);
-    auto recs = buffers.recorders(appearance);
-    tracePathsGrouped(
-        scene, lights, scope, settings.path, range.begin(), range.end(), recs,
-        [&](size_t j, PathState& s, Pcg32& rng, AdjointRecorder& rec) {
-          if ((delta[j] == 0.0f).all()) return false;  // exact: deltas are tiny (1/N), isZero() would drop them
-          s.origin = rays[j].origin, s.dir = rays[j].adjointDirection(), rng = Pcg32(adjointSeed(settings, iteration, j));
-          rec.count = 0;
-          return true;
-        },
-        [&](size_t j, const Color& L, AdjointRecorder& rec) {
-          if (!isFinite(L)) return;
-          const BatchRay& ray = rays[j];
-          const Color slope = lossResidualSlope(L, ray.reference, ray.clip);
-          const Color x = slope * sweep(rec.records, rec.count, delta[j] * slope, settings, out);
-          const Color partner = primalSensitivity ? (*primalSensitivity)[j] : x;
-          out.albedoCurvature(rec.records[0], rayCurvatureWeight(x, partner, ray.weight * invN));
-        });
+    AdjointRecorder rec;
+    rec.appearance = &appearance;
+    rec.records = buffers.get(0);
+    for (size_t j = range.begin(); j < range.end(); ++j) {
+      if ((delta[j] == 0.0f).all()) continue;  // exact: deltas are tiny (1/N), isZero() would drop them
+      Pcg32 rng(adjointSeed(settings, iteration, j));
+      rec.count = 0;
+      const BatchRay& ray = rays[j];
+      const Color L = tracePath(scene, lights, scope, settings.path, ray.origin, ray.adjointDirection(), rng, rec);
+      if (!isFinite(L)) continue;
+      const Color slope = lossResidualSlope(L, ray.reference, ray.clip);
+      const Color x = slope * sweep(rec.records, rec.count, delta[j] * slope, settings, out);
+      const Color partner = primalSensitivity ? (*primalSensitivity)[j] : x;
+      out.albedoCurvature(rec.records[0], rayCurvatureWeight(x, partner, ray.weight * invN));
+    }
   });
   grads.combine();
 }
@@ -335,9 +318,10 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
   Timer t;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
     Scatterer out(appearance, settings, grads);
-    auto recs = buffers.recorders(appearance);
-    static_assert(kPathGroup >= 2);
-    AdjointRecorder &recA = recs[0], &recB = recs[1];
+    AdjointRecorder recA, recB;
+    recA.appearance = recB.appearance = &appearance;
+    recA.records = buffers.get(0);
+    recB.records = buffers.get(1);
     for (size_t j = range.begin(); j < range.end(); ++j) {
       Pcg32 rngA(primalSeed(settings, iteration, j));
       recA.count = 0;

@@ -37,14 +37,9 @@ const char* aovName(Aov aov) {
 }
 
 namespace {
-// Counts the path's rays and keeps its first vertex (the AOVs are read there).
-struct PixelObserver : NullPathObserver {
+struct RayCounter : NullPathObserver {
   uint64_t rays = 0;
-  std::optional<SurfaceHit> first;
   void traced(const Vec3&, const Vec3&, float, bool) { ++rays; }
-  void vertex(int depth, const SurfaceHit& hit, const ShadingFrame&, const Vec3&, const Color&) {
-    if (depth == 0) first = hit;
-  }
 };
 }  // namespace
 
@@ -66,44 +61,37 @@ RenderResult renderImage(const Scene& scene, const Appearance& appearance, const
   Timer timer;
   Progress progress("render", static_cast<size_t>(H));
   tbb::parallel_for(tbb::blocked_range2d<int>(0, H, 16, 0, W, 16), [&](const tbb::blocked_range2d<int>& r) {
-    const int x0 = r.cols().begin(), y0 = r.rows().begin(), tileW = r.cols().end() - x0;
-    const size_t pixels = static_cast<size_t>(tileW) * (r.rows().end() - y0), spp = options.spp;
-    std::vector<Color> sum(pixels, Color::Zero());
-    std::vector<std::optional<SurfaceHit>> first(pixels);  // sample 0's first vertex
-    std::array<PixelObserver, kPathGroup> obs;
-    // Path j of the tile: pixel j / spp (row-major in the tile), sample j % spp.
-    tracePathsGrouped(
-        scene, lights, scope, options.path, 0, pixels * spp, obs,
-        [&](size_t j, PathState& s, Pcg32& rng, PixelObserver& o) {
-          const int x = x0 + static_cast<int>(j / spp % tileW), y = y0 + static_cast<int>(j / spp / tileW);
-          CameraSample cs = cameraSample(camera, x, y, static_cast<int>(j % spp), options.seed);
-          if (!cs.dir) return false;
-          s.origin = camera.position, s.dir = *cs.dir, rng = cs.rng;
-          o.first.reset();
-          return true;
-        },
-        [&](size_t j, const Color& L, PixelObserver& o) {
-          if (isFinite(L)) sum[j / spp] += L;
-          if (j % spp == 0) first[j / spp] = o.first;
-        });
-    for (size_t i = 0; i < pixels; ++i) {
-      const int x = x0 + static_cast<int>(i % tileW), y = y0 + static_cast<int>(i / tileW);
-      result.color.set(x, y, sum[i] / static_cast<float>(options.spp));
-      if (!first[i]) continue;
-      const SurfaceHit& hit = *first[i];
-      for (size_t a = 0; a < options.aovs.size(); ++a) {
-        Color v = Color::Zero();
-        switch (options.aovs[a]) {
-          case Aov::Albedo: v = appearance.albedoAt(hit.object, hit.uv); break;
-          case Aov::Normal: v = hit.ns.array(); break;
-          case Aov::Depth: v = Color::Constant((hit.p - camera.position).dot(camera.rotation.col(2))); break;
-          case Aov::Object: v = Color::Constant(static_cast<float>(hit.object)); break;
+    RayCounter counter;
+    for (int y = r.rows().begin(); y < r.rows().end(); ++y) {
+      for (int x = r.cols().begin(); x < r.cols().end(); ++x) {
+        Color sum = Color::Zero();
+        SurfaceHit first{};
+        bool anyHit = false;
+        for (int s = 0; s < options.spp; ++s) {
+          CameraSample cs = cameraSample(camera, x, y, s, options.seed);
+          if (!cs.dir) continue;
+          SurfaceHit hit;
+          hit.t = -1.0f;
+          const Color L = tracePath(scene, lights, scope, options.path, camera.position, *cs.dir, cs.rng, counter, s == 0 ? &hit : nullptr);
+          if (isFinite(L)) sum += L;
+          if (s == 0 && hit.t >= 0.0f) first = hit, anyHit = true;
         }
-        result.aovs[a].set(x, y, v);
+        result.color.set(x, y, sum / static_cast<float>(options.spp));
+        if (!anyHit) continue;
+        for (size_t a = 0; a < options.aovs.size(); ++a) {
+          Color v = Color::Zero();
+          switch (options.aovs[a]) {
+            case Aov::Albedo: v = appearance.albedoAt(first.object, first.uv); break;
+            case Aov::Normal: v = first.ns.array(); break;
+            case Aov::Depth: v = Color::Constant((first.p - camera.position).dot(camera.rotation.col(2))); break;
+            case Aov::Object: v = Color::Constant(static_cast<float>(first.object)); break;
+          }
+          result.aovs[a].set(x, y, v);
+        }
       }
+      if (r.cols().begin() == 0) progress.advance(1);
     }
-    if (x0 == 0) progress.advance(r.rows().size());
-    for (const PixelObserver& o : obs) rayCount.local() += o.rays;
+    rayCount.local() += counter.rays;
   });
   result.stats.seconds = timer.seconds();
   result.stats.paths = static_cast<uint64_t>(W) * H * options.spp;

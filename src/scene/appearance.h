@@ -37,9 +37,6 @@ struct Appearance {
   Color albedoAt(int object, const Vec2& uv) const {
     return usesTexture(object) ? albedo.lookup(uv) : albedoConstant[object];
   }
-  void prefetchAlbedo(int object, const Vec2& uv) const {
-    if (usesTexture(object)) albedo.prefetch(uv);
-  }
   const Texture* emissionTexture(int object) const {
     return emissionTextureOf[object] >= 0 ? &emissionTextures[emissionTextureOf[object]] : nullptr;
   }

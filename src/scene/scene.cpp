@@ -99,27 +99,15 @@ float Scene::hitDistance(const Vec3& o, const Vec3& d, float tmax) const {
   return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? INFINITY : rh.ray.tfar;
 }
 
-Scene::PendingHit Scene::beginIntersect(const Vec3& o, const Vec3& d, float tmax) const {
-  if (!traceable(o, d, tmax)) return {};
+std::optional<SurfaceHit> Scene::intersect(const Vec3& o, const Vec3& d, float tmax) const {
+  if (!traceable(o, d, tmax)) return std::nullopt;
   const RTCRayHit rh = traceClosest(scene_, o, d, tmax);
-  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return {};
-  const char* face = reinterpret_cast<const char*>(&faces_[rh.hit.primID]);
-  __builtin_prefetch(face);  // a record may straddle two cache lines
-  __builtin_prefetch(face + sizeof(FaceRecord) - 1);
-  return {rh.hit.primID, rh.hit.u, rh.hit.v, rh.ray.tfar};
-}
-
-std::optional<SurfaceHit> Scene::endIntersect(const PendingHit& pending, const Vec3& o, const Vec3& d) const {
-  if (pending.prim == PendingHit::kNoHit) return std::nullopt;
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
   // The hit point from the ray (no vertex fetch); Embree's t is accurate to a few ulps.
-  SurfaceHit h = hitFromFace(pending.prim, pending.b1, pending.b2);
-  h.t = pending.t;
+  SurfaceHit h = hitFromFace(rh.hit.primID, rh.hit.u, rh.hit.v);
+  h.t = rh.ray.tfar;
   h.p = o + h.t * d;
   return h;
-}
-
-std::optional<SurfaceHit> Scene::intersect(const Vec3& o, const Vec3& d, float tmax) const {
-  return endIntersect(beginIntersect(o, d, tmax), o, d);
 }
 
 bool Scene::occluded(const Vec3& o, const Vec3& d, float tmax) const {

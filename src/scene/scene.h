@@ -36,16 +36,6 @@ class Scene {
   // NaN or negative (an inverted segment), never reaches Embree. Debug builds assert; release builds
   // skip the ray (intersect: no hit, occluded: true, hitDistance: infinity) and count it.
   std::optional<SurfaceHit> intersect(const Vec3& origin, const Vec3& dir, float tmax = INFINITY) const;
-  // intersect() in two halves for callers that keep several rays in flight: the first traverses
-  // the BVH and starts fetching the hit's face record; the second, called once other work has
-  // hidden that fetch, builds the hit. intersect(o, d) == endIntersect(beginIntersect(o, d), o, d).
-  struct PendingHit {
-    uint32_t prim = kNoHit;
-    float b1 = 0, b2 = 0, t = 0;
-    static constexpr uint32_t kNoHit = ~0u;
-  };
-  PendingHit beginIntersect(const Vec3& origin, const Vec3& dir, float tmax = INFINITY) const;
-  std::optional<SurfaceHit> endIntersect(const PendingHit& pending, const Vec3& origin, const Vec3& dir) const;
   bool occluded(const Vec3& origin, const Vec3& dir, float tmax) const;
   // Closest-hit distance only (no surface attributes): Embree's cost alone, for profiling.
   float hitDistance(const Vec3& origin, const Vec3& dir, float tmax = INFINITY) const;

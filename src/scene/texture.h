@@ -51,14 +51,6 @@ struct Texture {
     return c;
   }
   Color lookup(const Vec2& uv) const { return lookup(footprint(uv)); }
-  // Starts fetching the texels lookup(uv) reads: two pairs, each up to two cache lines.
-  void prefetch(const Vec2& uv) const {
-    const TexelFootprint f = footprint(uv);
-    for (int k : {0, 2}) {
-      __builtin_prefetch(&rgb[3 * f.index[k]]);
-      __builtin_prefetch(&rgb[3 * f.index[k + 1] + 2]);
-    }
-  }
 };
 
 }  // namespace relume

@@ -144,17 +144,16 @@ float specularLobeProbability(const BsdfParams& p, const Vec3& wo) {
   return std::clamp(sum > 0 ? fs / sum : 0.5f, 0.1f, 0.9f);
 }
 
-BsdfEval evalBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi, unsigned query) {
+namespace {
+// f, pdf and derivatives given what depends on (p, wo) alone; ps is read for pdf queries only.
+BsdfEval evaluate(const BsdfParams& p, const Vec3& wo, const Vec3& wi, unsigned query, const Ggx& g, float lo, float ps) {
   BsdfEval e;
   const float muO = wo.z(), muI = wi.z();
   if (muO <= kMinCos || muI <= kMinCos) return e;
   const Vec3 h = (wo + wi).normalized();
-  const Ggx g{{ggxAlpha(p.roughness)}};
   const float D = h.z() > 0.0f ? g.D(h) : 0.0f;
-  const float lo = g.lambda(muO);
   if (query & kBsdfPdf) {
     // Mixture of the cosine lobe and GGX visible normals: pdf(wi) = G1(wo) D(h) / (4 mu_o).
-    const float ps = specularLobeProbability(p, wo);
     e.pdf = (1.0f - ps) * muI * kInvPi + ps * D / ((1.0f + lo) * 4.0f * muO);
   }
   if (!(query & (kBsdfValue | kBsdfDerivatives))) return e;
@@ -166,6 +165,24 @@ BsdfEval evalBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi, unsigned 
   if (!isFinite(e.f) || !std::isfinite(e.pdf)) e = BsdfEval{};
   return e;
 }
+}  // namespace
+
+BsdfEval evalBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi, unsigned query) {
+  if (wo.z() <= kMinCos) return {};
+  const Ggx g{{ggxAlpha(p.roughness)}};
+  return evaluate(p, wo, wi, query, g, g.lambda(wo.z()), query & kBsdfPdf ? specularLobeProbability(p, wo) : 0.0f);
+}
+
+VertexBsdf::VertexBsdf(const BsdfParams& p, const Vec3& wo)
+    : p_(p), wo_(wo), alpha_(ggxAlpha(p.roughness)), lambdaO_(0), specularProbability_(0) {
+  if (wo.z() <= kMinCos) return;  // eval and sample return nothing
+  lambdaO_ = Ggx{{alpha_}}.lambda(wo.z());
+  specularProbability_ = specularLobeProbability(p, wo);
+}
+
+BsdfEval VertexBsdf::eval(const Vec3& wi, unsigned query) const {
+  return evaluate(p_, wo_, wi, query, Ggx{{alpha_}}, lambdaO_, specularProbability_);
+}
 
 BsdfEvalDouble evalBsdfDouble(const Eigen::Array3d& albedo, double roughness, double specular, BsdfModel model,
                               const Eigen::Vector3d& wo, const Eigen::Vector3d& wi) {
@@ -175,18 +192,17 @@ BsdfEvalDouble evalBsdfDouble(const Eigen::Array3d& albedo, double roughness, do
   return evalValue<double>(albedo, roughness, specular, model, wo, wi, h, g, g.D(h), g.lambda(wo.z()), true);
 }
 
-std::optional<BsdfSample> sampleBsdf(const BsdfParams& p, const Vec3& wo, float uLobe, const Vec2& u2) {
-  if (wo.z() <= kMinCos) return std::nullopt;
-  const float ps = specularLobeProbability(p, wo);
+std::optional<BsdfSample> VertexBsdf::sample(float uLobe, const Vec2& u2) const {
+  if (wo_.z() <= kMinCos) return std::nullopt;
   Vec3 wi;
-  if (uLobe < ps) {
-    const Vec3 m = Ggx{{ggxAlpha(p.roughness)}}.sampleVisibleNormal(wo, u2);
-    wi = 2.0f * wo.dot(m) * m - wo;
+  if (uLobe < specularProbability_) {
+    const Vec3 m = Ggx{{alpha_}}.sampleVisibleNormal(wo_, u2);
+    wi = 2.0f * wo_.dot(m) * m - wo_;
   } else {
     wi = squareToCosineHemisphere(u2);
   }
   if (wi.z() <= kMinCos) return std::nullopt;
-  const BsdfEval e = evalBsdf(p, wo, wi, kBsdfValue | kBsdfPdf);
+  const BsdfEval e = eval(wi, kBsdfValue | kBsdfPdf);
   if (!(e.pdf > 0.0f)) return std::nullopt;
   BsdfSample s;
   s.wi = wi;

@@ -67,12 +67,30 @@ struct BsdfSample {
   Color weight;        // f * cos / pdf
 };
 
-BsdfEval evalBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi, unsigned query = kBsdfValue);
-inline float pdfBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi) { return evalBsdf(p, wo, wi, kBsdfPdf).pdf; }
-// uLobe picks the lobe (detached), u2 drives the warp.
-std::optional<BsdfSample> sampleBsdf(const BsdfParams& p, const Vec3& wo, float uLobe, const Vec2& u2);
 // Probability of picking the GGX lobe: a detached function of the parameters (the model's Fresnel
 // at wo against the diffuse albedo), in [0.1, 0.9].
 float specularLobeProbability(const BsdfParams& p, const Vec3& wo);
+
+// The BSDF at one path vertex: parameters and wo fixed. What depends on them alone (GGX alpha,
+// Smith Lambda of wo, the lobe probability) is computed once, not in each of the vertex's
+// evaluations (next-event estimation, the BSDF sample and its pdf).
+class VertexBsdf {
+ public:
+  VertexBsdf(const BsdfParams& p, const Vec3& wo);
+  BsdfEval eval(const Vec3& wi, unsigned query = kBsdfValue) const;
+  // uLobe picks the lobe (detached), u2 drives the warp.
+  std::optional<BsdfSample> sample(float uLobe, const Vec2& u2) const;
+
+ private:
+  BsdfParams p_;
+  Vec3 wo_;
+  float alpha_, lambdaO_, specularProbability_;
+};
+
+BsdfEval evalBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi, unsigned query = kBsdfValue);
+inline float pdfBsdf(const BsdfParams& p, const Vec3& wo, const Vec3& wi) { return evalBsdf(p, wo, wi, kBsdfPdf).pdf; }
+inline std::optional<BsdfSample> sampleBsdf(const BsdfParams& p, const Vec3& wo, float uLobe, const Vec2& u2) {
+  return VertexBsdf(p, wo).sample(uLobe, u2);
+}
 
 }  // namespace relume

@@ -99,6 +99,7 @@ Color tracePath(const Scene& scene, const LightSampler& lights, const Appearance
     const bool frozen = &scope.bsdf(depth) != scope.sampling;  // evaluate with other parameters
     const BsdfParams sampleParams = bsdfParamsAt(*scope.sampling, *hit);
     const BsdfParams evalParams = frozen ? bsdfParamsAt(scope.bsdf(depth), *hit) : sampleParams;
+    const VertexBsdf bsdf(sampleParams, wo);
     // Next-event estimation.
     const float uObject = rng.next1D(), uTri = rng.next1D();
     const Vec2 uPoint(rng.next1D(), rng.next1D());
@@ -111,7 +112,7 @@ Color tracePath(const Scene& scene, const LightSampler& lights, const Appearance
       const Vec3 wi = frame.toLocal(toLight);
       if (cosLight > 0.0f && wi.z() > 0.0f && dist > 0.0f) {
         const Color leLight = scope.emission(depth).emissionAt(ls->hit.object, ls->hit.uv);
-        const BsdfEval sampled = evalBsdf(sampleParams, wo, wi, kBsdfValue | kBsdfPdf);
+        const BsdfEval sampled = bsdf.eval(wi, kBsdfValue | kBsdfPdf);
         const Color f = frozen ? evalBsdf(evalParams, wo, wi).f : sampled.f;
         if ((leLight != 0.0f).any() && (f.maxCoeff() > 0.0f || std::decay_t<Observer>::kDifferentiating)) {
           // Both ends are offset off their surfaces and the shadow ray joins them: a ray from the
@@ -140,7 +141,7 @@ Color tracePath(const Scene& scene, const LightSampler& lights, const Appearance
     // BSDF sampling.
     const float uLobe = rng.next1D();
     const Vec2 uDir(rng.next1D(), rng.next1D());
-    const auto bs = sampleBsdf(sampleParams, wo, uLobe, uDir);
+    const auto bs = bsdf.sample(uLobe, uDir);
     if (!bs) break;
     const Color f = frozen ? evalBsdf(evalParams, wo, bs->wi).f : bs->f;
     float survival = 1.0f;

@@ -1,6 +1,5 @@
 #include "adjoint/solver.h"
 
-#include <tbb/combinable.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
@@ -107,7 +106,8 @@ struct AdjointRecorder : NullPathObserver {
 class Scatterer {
  public:
   static constexpr bool kScatters = true;
-  Scatterer(const Appearance& a, const AdjointSettings& s, Gradients& g) : a_(a), s_(s), g_(g), local_(g.objectLocal()) {}
+  Scatterer(const Appearance& a, const AdjointSettings& s, Gradients::Chunk& g, bool curvature)
+      : a_(a), s_(s), g_(g), curvature_(curvature) {}
 
   void bsdf(const VertexRecord& r, const BsdfEval& d, const Color& w) {
     // w: per-channel weight of df (delta * beta * the term's radiance factor).
@@ -117,14 +117,14 @@ class Scatterer {
       for (int k = 0; k < 4; ++k)
         if (fp.weight[k] != 0.0f) g_.addAlbedo(fp.index[k], fp.weight[k] * g);
     }
-    if (s_.mask.active(ParamKind::Roughness)) local_[g_.roughnessSlot(r.object)] += (d.dRoughness * w).sum();
-    if (s_.mask.active(ParamKind::Specular)) local_[g_.specularSlot(r.object)] += (d.dSpecular * w).sum();
+    if (s_.mask.active(ParamKind::Roughness)) g_.addRoughness(r.object, (d.dRoughness * w).sum());
+    if (s_.mask.active(ParamKind::Specular)) g_.addSpecular(r.object, (d.dSpecular * w).sum());
   }
   // Row-sum Gauss-Newton curvature of the texels under the first vertex: weight x w_t X X', the
   // product of two independent estimates of the ray's albedo sensitivity X (an unbiased X^2).
   void albedoCurvature(const VertexRecord& r, const Color& h) {
     // h is zero for a path with no vertex (r is then stale) or no diffuse sensitivity: nothing to add.
-    if (g_.albedoCurvature.empty() || (h == 0.0f).all() || !s_.mask.active(ParamKind::Albedo) || !a_.usesTexture(r.object))
+    if (!curvature_ || (h == 0.0f).all() || !s_.mask.active(ParamKind::Albedo) || !a_.usesTexture(r.object))
       return;
     const TexelFootprint fp = a_.albedo.footprint(r.uv);
     for (int k = 0; k < 4; ++k)
@@ -137,15 +137,15 @@ class Scatterer {
       for (int k = 0; k < 4; ++k)
         if (fp.weight[k] != 0.0f) g_.addEmissionTexel(a_.emissionTextureOf[object], fp.index[k], fp.weight[k] * g);
     } else if (s_.mask.active(ParamKind::Emission)) {
-      for (int c = 0; c < 3; ++c) local_[g_.emissionSlot(object, c)] += g[c];
+      g_.addEmission(object, g);
     }
   }
 
  private:
   const Appearance& a_;
   const AdjointSettings& s_;
-  Gradients& g_;
-  std::vector<double>& local_;
+  Gradients::Chunk& g_;
+  bool curvature_;
 };
 
 // What the primal pass keeps of a sweep: nothing but the first vertex's albedo sensitivity.
@@ -254,12 +254,13 @@ void adjointPass(const Scene& scene, const Appearance& appearance, const LightSa
   const AppearanceScope scope = AppearanceScope::uniform(appearance);
   RecordBuffers buffers(settings.path.maxDepth);
   const float invN = 1.0f / static_cast<float>(rays.size());
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
-    Scatterer out(appearance, settings, grads);
+  const bool curvature = !grads.albedoCurvature.empty();
+  grads.accumulate(rays.size(), [&](Gradients::Chunk& chunk, size_t begin, size_t end) {
+    Scatterer out(appearance, settings, chunk, curvature);
     AdjointRecorder rec;
     rec.appearance = &appearance;
     rec.records = buffers.get(0);
-    for (size_t j = range.begin(); j < range.end(); ++j) {
+    for (size_t j = begin; j < end; ++j) {
       if ((delta[j] == 0.0f).all()) continue;  // exact: deltas are tiny (1/N), isZero() would drop them
       Pcg32 rng(adjointSeed(settings, iteration, j));
       rec.count = 0;
@@ -272,7 +273,6 @@ void adjointPass(const Scene& scene, const Appearance& appearance, const LightSa
       out.albedoCurvature(rec.records[0], rayCurvatureWeight(x, partner, ray.weight * invN));
     }
   });
-  grads.combine();
 }
 
 GradientResult computeGradients(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
@@ -314,21 +314,22 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
   const AppearanceScope scope = AppearanceScope::uniform(appearance);
   const bool crossfit = settings.pairing == Pairing::Crossfit;
   RecordBuffers buffers(settings.path.maxDepth);
-  tbb::combinable<double> loss([] { return 0.0; });
+  std::vector<double> loss(rays.size(), 0.0);  // summed in ray order: the same at any thread count
   Timer t;
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
-    Scatterer out(appearance, settings, grads);
+  const bool curvature = !grads.albedoCurvature.empty();
+  grads.accumulate(rays.size(), [&](Gradients::Chunk& chunk, size_t begin, size_t end) {
+    Scatterer out(appearance, settings, chunk, curvature);
     AdjointRecorder recA, recB;
     recA.appearance = recB.appearance = &appearance;
     recA.records = buffers.get(0);
     recB.records = buffers.get(1);
-    for (size_t j = range.begin(); j < range.end(); ++j) {
+    for (size_t j = begin; j < end; ++j) {
       Pcg32 rngA(primalSeed(settings, iteration, j));
       recA.count = 0;
       const Color a = tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rngA, recA);
       if (!crossfit) {
         if (!isFinite(a)) continue;  // as in the decorrelated pass: no gradient from a broken path
-        loss.local() += lossOf(j, a);
+        loss[j] = lossOf(j, a);
         const Color x = slopeOf(j, a) * sweep(recA.records, recA.count, deltaOf(j, a) * slopeOf(j, a), settings, out);
         out.albedoCurvature(recA.records[0], rayCurvatureWeight(x, x, rays[j].weight * invN));  // biased, as reuse is
         continue;
@@ -337,7 +338,7 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
       recB.count = 0;
       const Color b = tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].adjointDirection(), rngB, recB);
       const Color sa = safeRadiance(a), sb = safeRadiance(b);
-      loss.local() += 0.5 * (lossOf(j, sa) + lossOf(j, sb));
+      loss[j] = 0.5 * (lossOf(j, sa) + lossOf(j, sb));
       // Each sample's delta drives the other's path: the derivative of r(a) r(b), a product of
       // independent estimates. A non-finite sample drives nothing and receives nothing.
       if (!isFinite(a) || !isFinite(b)) continue;
@@ -346,9 +347,10 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
       out.albedoCurvature(recA.records[0], rayCurvatureWeight(xa, xb, rays[j].weight * invN));
     }
   });
-  grads.combine();
   result.times.adjoint = t.seconds();
-  result.loss = loss.combine(std::plus<>()) * invN;
+  double lossSum = 0;
+  for (double l : loss) lossSum += l;
+  result.loss = lossSum * invN;
   return result;
 }
 

@@ -263,7 +263,7 @@ int runProfile(const ProfileArgs& a) {
                threadCount());
     for (size_t splats : {size_t{1} << 17, size_t{1} << 20, size_t{1} << 24})
       for (const ScatterStat& st : studyScatter(a.scatterRes, splats))
-        fmt::print("  {:>9} splats  {:<22} {:8.4f} s  {:7.2f} Msplats/s\n", st.splats, st.strategy, st.seconds,
+        fmt::print("  {:>9} splats  {:<28} {:8.4f} s  {:7.2f} Msplats/s\n", st.splats, st.strategy, st.seconds,
                    st.splats / st.seconds * 1e-6);
   }
   return 0;

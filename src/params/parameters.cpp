@@ -74,32 +74,6 @@ void projectToDomain(Appearance& a, const ParamDomain& domain) {
     for (float& v : g.values) v = std::clamp(v, g.lo, g.hi);
 }
 
-Gradients::Gradients(const Appearance& shape, bool withAlbedoCurvature)
-    : albedo(shape.albedo.rgb.size(), 0.0f),
-      albedoCurvature(withAlbedoCurvature ? shape.albedo.rgb.size() : 0, 0.0f),
-      objects(5 * static_cast<size_t>(shape.objectCount()), 0.0f),
-      objectCount_(shape.objectCount()),
-      objectLocal_([n = 5 * static_cast<size_t>(shape.objectCount())] { return std::vector<double>(n, 0.0); }) {
-  for (const Texture& t : shape.emissionTextures) emissionTexture.emplace_back(t.rgb.size(), 0.0f);
-}
-
-void Gradients::clear() {
-  std::fill(albedo.begin(), albedo.end(), 0.0f);
-  std::fill(albedoCurvature.begin(), albedoCurvature.end(), 0.0f);
-  for (auto& t : emissionTexture) std::fill(t.begin(), t.end(), 0.0f);
-  std::fill(objects.begin(), objects.end(), 0.0f);
-  for (auto& local : objectLocal_) std::fill(local.begin(), local.end(), 0.0);
-}
-
-void Gradients::combine() {
-  std::vector<double> sum(objects.size(), 0.0);
-  for (auto& local : objectLocal_) {
-    for (size_t i = 0; i < sum.size(); ++i) sum[i] += local[i];
-    std::fill(local.begin(), local.end(), 0.0);
-  }
-  for (size_t i = 0; i < sum.size(); ++i) objects[i] += static_cast<float>(sum[i]);
-}
-
 void allocateEmissionTextures(Appearance& a, const TriangleMesh& mesh, int resolution,
                               const std::function<float(float, float)>& pattern) {
   if (!mesh.hasUv()) fail("emission textures need a uv atlas");

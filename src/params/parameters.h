@@ -1,18 +1,16 @@
 // The unknowns: albedo texels, per-object roughness / specular / emission, and emission texels of
 // textured emitters. They live in an Appearance (what the renderer reads); this module adds
-// addressing, domains, freezing, and race-free gradient buffers that mirror them.
+// addressing, domains, freezing, and gradient buffers that mirror them (gradients.h).
 // `paramGroups` is the only place that enumerates the kinds of unknowns: projection, checkpoints,
 // the optimiser, averaging and upsampling all go through the groups it returns.
 #pragma once
-#include <tbb/enumerable_thread_specific.h>
-
 #include <array>
-#include <atomic>
 #include <functional>
 #include <span>
 #include <string>
 #include <vector>
 
+#include "params/gradients.h"
 #include "scene/appearance.h"
 
 namespace relume {
@@ -51,8 +49,6 @@ struct ParamDomain {
   float roughnessMin = kRoughnessMin;
 };
 
-class Gradients;
-
 // A group of unknowns of one kind as flat floats, with its gradient buffer when one is given.
 struct ParamGroup {
   ParamKind kind;
@@ -74,45 +70,6 @@ float paramValue(const Appearance& a, const ParamRef& p);
 
 // Clamps every parameter into its domain: albedo [0,1], roughness [r_min,1], specular [0,1], emission >= 0.
 void projectToDomain(Appearance& a, const ParamDomain& domain = {});
-
-// Gradient buffers. Texture scatters use relaxed atomic adds (contention is negligible over
-// millions of texels); per-object scalars accumulate per thread in double and are combined
-// after the pass, so millions of float additions lose nothing.
-class Gradients {
- public:
-  // withAlbedoCurvature: also allocate albedoCurvature (the Gauss-Newton albedo step needs it).
-  explicit Gradients(const Appearance& shape, bool withAlbedoCurvature = false);
-  void clear();
-  void addAlbedo(uint32_t texel, const Color& g) {
-    for (int c = 0; c < 3; ++c) std::atomic_ref<float>(albedo[3 * texel + c]).fetch_add(g[c], std::memory_order_relaxed);
-  }
-  // Gauss-Newton curvature of the albedo texels (sum of w_t dI/da * dI/da over rays whose first
-  // vertex reads texel t with bilinear weight w_t); filled only when the solver is asked to.
-  void addAlbedoCurvature(uint32_t texel, const Color& h) {
-    for (int c = 0; c < 3; ++c)
-      std::atomic_ref<float>(albedoCurvature[3 * texel + c]).fetch_add(h[c], std::memory_order_relaxed);
-  }
-  void addEmissionTexel(int textureIndex, uint32_t texel, const Color& g) {
-    float* d = emissionTexture[textureIndex].data() + 3 * texel;
-    for (int c = 0; c < 3; ++c) std::atomic_ref<float>(d[c]).fetch_add(g[c], std::memory_order_relaxed);
-  }
-  // Thread-local accumulators for per-object scalars: [roughness | specular | emission rgb].
-  std::vector<double>& objectLocal() { return objectLocal_.local(); }
-  size_t roughnessSlot(int o) const { return static_cast<size_t>(o); }
-  size_t specularSlot(int o) const { return static_cast<size_t>(objectCount_ + o); }
-  size_t emissionSlot(int o, int c) const { return static_cast<size_t>(2 * objectCount_ + 3 * o + c); }
-  // Folds the thread-local accumulators into `objects` (call once after each pass).
-  void combine();
-
-  std::vector<float> albedo;                      // texels * 3
-  std::vector<float> albedoCurvature;             // texels * 3 like albedo, or empty
-  std::vector<std::vector<float>> emissionTexture;
-  std::vector<float> objects;                     // combined [roughness | specular | emission rgb]
-
- private:
-  int objectCount_;
-  tbb::enumerable_thread_specific<std::vector<double>> objectLocal_;
-};
 
 // The gradient of one unknown (a's layout addresses it).
 float gradientValue(const Appearance& a, Gradients& g, const ParamRef& p);

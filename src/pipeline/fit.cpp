@@ -865,7 +865,7 @@ class Fit {
     Json j = {{"parameters", parameters}, {"gradients", gradients}, {"optimiser_state", optimiser}, {"averages", averages},
               {"texel_map", texels}, {"mesh", mesh}, {"visibility_index", static_cast<double>(w_.vis.bytes())},
               {"frame_cache_mapped", static_cast<double>(w_.store->mappedBytes())}, {"batch", batchBytes},
-              {"path_records", records}};
+              {"path_records", records}, {"gradient_logs", static_cast<double>(grads.logBytes())}};
     double total = 0;
     for (const auto& [k, v] : j.items())
       if (k != "frame_cache_mapped") total += v.get<double>();

@@ -231,6 +231,19 @@ std::vector<ScatterStat> studyScatter(int resolution, size_t splats) {
     });
     out.push_back({"per-thread + reduce", splats, t.seconds()});
   }
+  {
+    Appearance shape(1);
+    shape.albedo = tex;
+    Gradients grads(shape);
+    Timer t;
+    grads.accumulate(splats, [&](Gradients::Chunk& chunk, size_t begin, size_t end) {
+      for (size_t i = begin; i < end; ++i) {
+        const TexelFootprint fp = footprintOf(i);
+        for (int k = 0; k < 4; ++k) chunk.addAlbedo(fp.index[k], Color::Constant(fp.weight[k]));
+      }
+    });
+    out.push_back({"chunk logs, ray order (used)", splats, t.seconds()});
+  }
   return out;
 }
 

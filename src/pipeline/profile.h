@@ -48,8 +48,9 @@ struct ScatterStat {
   size_t splats;
   double seconds;  // including zeroing/reduction, i.e. per iteration
 };
-// Random bilinear RGB splats into a resolution^2 texture from all threads: atomics vs
-// per-thread buffers + reduction (the reduction is part of every iteration's cost).
+// Random bilinear RGB splats into a resolution^2 texture from all threads: atomics, per-thread
+// buffers + reduction (the reduction is part of every iteration's cost), and the chunk logs the
+// gradient buffers use (thread-count independent sums).
 std::vector<ScatterStat> studyScatter(int resolution, size_t splats);
 
 }  // namespace relume

@@ -1,0 +1,94 @@
+#include "params/gradients.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <bit>
+
+#include "core/error.h"
+
+namespace relume {
+
+Gradients::Gradients(const Appearance& shape, bool withAlbedoCurvature)
+    : albedo(shape.albedo.rgb.size(), 0.0f),
+      albedoCurvature(withAlbedoCurvature ? shape.albedo.rgb.size() : 0, 0.0f),
+      objects(5 * static_cast<size_t>(shape.objectCount()), 0.0f),
+      objectCount_(shape.objectCount()) {
+  for (const Texture& t : shape.emissionTextures) emissionTexture.emplace_back(t.rgb.size(), 0.0f);
+  uint64_t texels = albedo.size() / 3;
+  curvatureBase_ = static_cast<uint32_t>(texels);
+  texels += albedoCurvature.size() / 3;
+  for (const auto& t : emissionTexture) {
+    emissionBase_.push_back(static_cast<uint32_t>(texels));
+    texels += t.size() / 3;
+  }
+  if (texels > UINT32_MAX) fail("gradient buffers: {} texels exceed 2^32", texels);
+  entries_ = static_cast<uint32_t>(texels);
+  // Buckets of whole powers of two, at most kBuckets of them.
+  const uint32_t perBucket = std::max<uint32_t>(1, (entries_ + kBuckets - 1) / kBuckets);
+  bucketShift_ = std::bit_width(perBucket - 1);
+}
+
+void Gradients::clear() {
+  std::fill(albedo.begin(), albedo.end(), 0.0f);
+  std::fill(albedoCurvature.begin(), albedoCurvature.end(), 0.0f);
+  for (auto& t : emissionTexture) std::fill(t.begin(), t.end(), 0.0f);
+  std::fill(objects.begin(), objects.end(), 0.0f);
+}
+
+float* Gradients::texelData(uint32_t entry) {
+  if (entry < curvatureBase_) return albedo.data() + 3 * static_cast<size_t>(entry);
+  const auto texture = std::upper_bound(emissionBase_.begin(), emissionBase_.end(), entry);
+  if (texture == emissionBase_.begin()) return albedoCurvature.data() + 3 * static_cast<size_t>(entry - curvatureBase_);
+  const size_t t = static_cast<size_t>(texture - emissionBase_.begin()) - 1;
+  return emissionTexture[t].data() + 3 * static_cast<size_t>(entry - emissionBase_[t]);
+}
+
+void Gradients::accumulate(size_t count, const std::function<void(Chunk&, size_t, size_t)>& trace) {
+  const size_t bucketCount = entries_ == 0 ? 1 : ((entries_ - 1) >> bucketShift_) + 1;
+  if (chunks_.empty()) {
+    chunks_.resize(kSubBatchRays / kChunkRays);
+    for (Chunk& c : chunks_) {
+      c.buckets_.resize(bucketCount);
+      c.objects_.assign(objects.size(), 0.0);
+    }
+  }
+  for (Chunk& c : chunks_) c.owner_ = this;  // this object may have moved since
+  std::vector<double> objectSum(objects.size(), 0.0);
+  for (size_t first = 0; first < count; first += kSubBatchRays) {
+    const size_t last = std::min(count, first + kSubBatchRays);
+    const size_t chunks = (last - first + kChunkRays - 1) / kChunkRays;
+    tbb::parallel_for(size_t{0}, chunks, [&](size_t c) {
+      const size_t begin = first + c * kChunkRays;
+      trace(chunks_[c], begin, std::min(last, begin + kChunkRays));
+    });
+    apply(chunks);
+    for (size_t c = 0; c < chunks; ++c) {
+      for (size_t i = 0; i < objectSum.size(); ++i) objectSum[i] += chunks_[c].objects_[i];
+      std::fill(chunks_[c].objects_.begin(), chunks_[c].objects_.end(), 0.0);
+    }
+  }
+  for (size_t i = 0; i < objects.size(); ++i) objects[i] += static_cast<float>(objectSum[i]);
+}
+
+void Gradients::apply(size_t chunks) {
+  tbb::parallel_for(size_t{0}, chunks_.front().buckets_.size(), [&](size_t b) {
+    for (size_t c = 0; c < chunks; ++c) {
+      auto& splats = chunks_[c].buckets_[b];
+      for (const Chunk::Splat& s : splats) {
+        float* d = texelData(s.entry);
+        for (int k = 0; k < 3; ++k) d[k] += s.value[k];
+      }
+      splats.clear();
+    }
+  });
+}
+
+size_t Gradients::logBytes() const {
+  size_t bytes = 0;
+  for (const Chunk& c : chunks_)
+    for (const auto& b : c.buckets_) bytes += b.capacity() * sizeof(Chunk::Splat);
+  return bytes;
+}
+
+}  // namespace relume

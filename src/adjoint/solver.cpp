@@ -122,10 +122,11 @@ class Scatterer {
   }
   // Row-sum Gauss-Newton curvature of the texels under the first vertex: weight x w_t X X', the
   // product of two independent estimates of the ray's albedo sensitivity X (an unbiased X^2).
-  void albedoCurvature(const VertexRecord& r, const Color& h) {
-    // h is zero for a path with no vertex (r is then stale) or no diffuse sensitivity: nothing to add.
-    if (!curvature_ || (h == 0.0f).all() || !s_.mask.active(ParamKind::Albedo) || !a_.usesTexture(r.object))
-      return;
+  // A path that hit nothing has no first vertex (its record would be another ray's).
+  void albedoCurvature(const AdjointRecorder& path, const Color& h) {
+    if (!curvature_ || path.count == 0 || (h == 0.0f).all() || !s_.mask.active(ParamKind::Albedo)) return;
+    const VertexRecord& r = path.records[0];
+    if (!a_.usesTexture(r.object)) return;
     const TexelFootprint fp = a_.albedo.footprint(r.uv);
     for (int k = 0; k < 4; ++k)
       if (fp.weight[k] != 0.0f) g_.addAlbedoCurvature(fp.index[k], fp.weight[k] * h);
@@ -270,7 +271,7 @@ void adjointPass(const Scene& scene, const Appearance& appearance, const LightSa
       const Color slope = lossResidualSlope(L, ray.reference, ray.clip);
       const Color x = slope * sweep(rec.records, rec.count, delta[j] * slope, settings, out);
       const Color partner = primalSensitivity ? (*primalSensitivity)[j] : x;
-      out.albedoCurvature(rec.records[0], rayCurvatureWeight(x, partner, ray.weight * invN));
+      out.albedoCurvature(rec, rayCurvatureWeight(x, partner, ray.weight * invN));
     }
   });
 }
@@ -331,7 +332,7 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
         if (!isFinite(a)) continue;  // as in the decorrelated pass: no gradient from a broken path
         loss[j] = lossOf(j, a);
         const Color x = slopeOf(j, a) * sweep(recA.records, recA.count, deltaOf(j, a) * slopeOf(j, a), settings, out);
-        out.albedoCurvature(recA.records[0], rayCurvatureWeight(x, x, rays[j].weight * invN));  // biased, as reuse is
+        out.albedoCurvature(recA, rayCurvatureWeight(x, x, rays[j].weight * invN));  // biased, as reuse is
         continue;
       }
       Pcg32 rngB(adjointSeed(settings, iteration, j));
@@ -344,7 +345,7 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
       if (!isFinite(a) || !isFinite(b)) continue;
       const Color xb = slopeOf(j, b) * sweep(recB.records, recB.count, 0.5f * deltaOf(j, a) * slopeOf(j, b), settings, out);
       const Color xa = slopeOf(j, a) * sweep(recA.records, recA.count, 0.5f * deltaOf(j, b) * slopeOf(j, a), settings, out);
-      out.albedoCurvature(recA.records[0], rayCurvatureWeight(xa, xb, rays[j].weight * invN));
+      out.albedoCurvature(recA, rayCurvatureWeight(xa, xb, rays[j].weight * invN));
     }
   });
   result.times.adjoint = t.seconds();

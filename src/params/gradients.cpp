@@ -25,8 +25,9 @@ Gradients::Gradients(const Appearance& shape, bool withAlbedoCurvature)
   if (texels > UINT32_MAX) fail("gradient buffers: {} texels exceed 2^32", texels);
   entries_ = static_cast<uint32_t>(texels);
   // Buckets of whole powers of two, at most kBuckets of them.
-  const uint32_t perBucket = std::max<uint32_t>(1, (entries_ + kBuckets - 1) / kBuckets);
+  const uint64_t perBucket = std::max<uint64_t>(1, (texels + kBuckets - 1) / kBuckets);
   bucketShift_ = std::bit_width(perBucket - 1);
+  bucketCount_ = entries_ == 0 ? 1 : ((entries_ - 1) >> bucketShift_) + 1;
 }
 
 void Gradients::clear() {
@@ -45,11 +46,10 @@ float* Gradients::texelData(uint32_t entry) {
 }
 
 void Gradients::accumulate(size_t count, const std::function<void(Chunk&, size_t, size_t)>& trace) {
-  const size_t bucketCount = entries_ == 0 ? 1 : ((entries_ - 1) >> bucketShift_) + 1;
   if (chunks_.empty()) {
     chunks_.resize(kSubBatchRays / kChunkRays);
     for (Chunk& c : chunks_) {
-      c.buckets_.resize(bucketCount);
+      c.buckets_.resize(bucketCount_);
       c.objects_.assign(objects.size(), 0.0);
     }
   }
@@ -72,7 +72,7 @@ void Gradients::accumulate(size_t count, const std::function<void(Chunk&, size_t
 }
 
 void Gradients::apply(size_t chunks) {
-  tbb::parallel_for(size_t{0}, chunks_.front().buckets_.size(), [&](size_t b) {
+  tbb::parallel_for(size_t{0}, bucketCount_, [&](size_t b) {
     for (size_t c = 0; c < chunks; ++c) {
       auto& splats = chunks_[c].buckets_[b];
       for (const Chunk::Splat& s : splats) {

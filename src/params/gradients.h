@@ -25,8 +25,10 @@ class Gradients {
    public:
     void addAlbedo(uint32_t texel, const Color& g) { log(texel, g); }
     // Gauss-Newton curvature of the albedo texels (sum of w_t dI/da * dI/da over rays whose first
-    // vertex reads texel t with bilinear weight w_t); only when the buffer was allocated.
-    void addAlbedoCurvature(uint32_t texel, const Color& h) { log(owner_->curvatureBase_ + texel, h); }
+    // vertex reads texel t with bilinear weight w_t); dropped when the buffer was not allocated.
+    void addAlbedoCurvature(uint32_t texel, const Color& h) {
+      if (!owner_->albedoCurvature.empty()) log(owner_->curvatureBase_ + texel, h);
+    }
     void addEmissionTexel(int textureIndex, uint32_t texel, const Color& g) {
       log(owner_->emissionBase_[static_cast<size_t>(textureIndex)] + texel, g);
     }
@@ -51,7 +53,8 @@ class Gradients {
   // Runs trace(chunk, begin, end) over the rays [0, count) in chunks of kChunkRays, in parallel,
   // and adds every chunk's terms to the buffers below in chunk order.
   void accumulate(size_t count, const std::function<void(Chunk&, size_t, size_t)>& trace);
-  // Bytes the splat logs hold (their capacity after the largest sub-batch so far).
+  // Bytes the splat logs hold (each bucket's capacity: the most it has held in one sub-batch,
+  // with the vectors' growth slack).
   size_t logBytes() const;
 
   std::vector<float> albedo;                      // texels * 3
@@ -76,6 +79,7 @@ class Gradients {
   std::vector<uint32_t> emissionBase_;
   uint32_t entries_ = 0;
   int bucketShift_ = 0;
+  size_t bucketCount_ = 1;
   std::vector<Chunk> chunks_;  // one sub-batch's, reused
 };
 

@@ -175,9 +175,18 @@ TEST(GradientSums, AreBitIdenticalAtAnyThreadCount) {
         return std::pair{std::move(g), loss};
       };
       const auto [one, lossOne] = gradientsAt(1);
-      double magnitude = 0;
-      for (float v : one.albedo) magnitude += std::abs(v);
-      ASSERT_GT(magnitude, 0.0);
+      auto magnitude = [](const std::vector<float>& v) {
+        double m = 0;
+        for (float x : v) m += std::abs(x);
+        return m;
+      };
+      // Every buffer compared below holds gradients (an all-zero one would compare equal vacuously).
+      ASSERT_GT(magnitude(one.albedo), 0.0);
+      ASSERT_GT(magnitude(one.albedoCurvature), 0.0);
+      ASSERT_GT(magnitude(one.objects), 0.0);
+      if (textured) {
+        ASSERT_GT(magnitude(one.emissionTexture.at(0)), 0.0);
+      }
       for (const int threads : {2, 3}) {
         const auto [many, lossMany] = gradientsAt(threads);
         EXPECT_EQ(lossOne, lossMany) << threads << " threads";

@@ -259,3 +259,33 @@ TEST(Bsdf, NoNanAtExtremes) {
             EXPECT_TRUE(isFinite(e.f) && isFinite(e.dRoughness) && isFinite(e.dSpecular));
           }
 }
+
+TEST(Bsdf, VertexSetUpEvaluatesAsTheOneShotFunctions) {
+  // The path tracer builds a VertexBsdf once per vertex (alpha, Lambda(wo) and the lobe
+  // probability cached); the adjoint sweep and the frozen-parameter terms call evalBsdf. Both must
+  // give the same bits for every query, and sampleBsdf the same sample.
+  Pcg32 rng(11);
+  int compared = 0;
+  for (BsdfModel m : kModels)
+    for (int i = 0; i < 2000; ++i) {
+      const BsdfParams p{Color(rng.next1D(), rng.next1D(), rng.next1D()), std::max(kRoughnessMin, rng.next1D()),
+                         rng.next1D(), m};
+      const Vec3 wo = dirFromAngle(90 * rng.next1D(), 360 * rng.next1D());
+      const Vec3 wi = dirFromAngle(100 * rng.next1D(), 360 * rng.next1D());  // a tenth below the surface
+      const VertexBsdf vertex(p, wo);
+      for (unsigned q : {unsigned{kBsdfValue}, unsigned{kBsdfPdf}, kBsdfValue | kBsdfPdf | kBsdfDerivatives}) {
+        const BsdfEval a = vertex.eval(wi, q), b = evalBsdf(p, wo, wi, q);
+        EXPECT_TRUE((a.f == b.f).all() && a.pdf == b.pdf && a.dAlbedo == b.dAlbedo && (a.dRoughness == b.dRoughness).all() &&
+                    (a.dSpecular == b.dSpecular).all());
+        compared += a.pdf > 0 || (a.f > 0).any();
+      }
+      const float uLobe = rng.next1D();
+      const Vec2 u(rng.next1D(), rng.next1D());
+      const auto s = vertex.sample(uLobe, u);
+      if (!s) continue;
+      // The sample's value and pdf are the one-shot evaluation's at the sampled direction.
+      const BsdfEval e = evalBsdf(p, wo, s->wi, kBsdfValue | kBsdfPdf);
+      EXPECT_TRUE((s->f == e.f).all() && s->pdf == e.pdf);
+    }
+  EXPECT_GT(compared, 2 * 2000);
+}

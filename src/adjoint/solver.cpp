@@ -106,8 +106,7 @@ struct AdjointRecorder : NullPathObserver {
 class Scatterer {
  public:
   static constexpr bool kScatters = true;
-  Scatterer(const Appearance& a, const AdjointSettings& s, Gradients::Chunk& g, bool curvature)
-      : a_(a), s_(s), g_(g), curvature_(curvature) {}
+  Scatterer(const Appearance& a, const AdjointSettings& s, Gradients::Chunk& g) : a_(a), s_(s), g_(g) {}
 
   void bsdf(const VertexRecord& r, const BsdfEval& d, const Color& w) {
     // w: per-channel weight of df (delta * beta * the term's radiance factor).
@@ -124,7 +123,7 @@ class Scatterer {
   // product of two independent estimates of the ray's albedo sensitivity X (an unbiased X^2).
   // A path that hit nothing has no first vertex (its record would be another ray's).
   void albedoCurvature(const AdjointRecorder& path, const Color& h) {
-    if (!curvature_ || path.count == 0 || (h == 0.0f).all() || !s_.mask.active(ParamKind::Albedo)) return;
+    if (!g_.hasCurvature() || path.count == 0 || (h == 0.0f).all() || !s_.mask.active(ParamKind::Albedo)) return;
     const VertexRecord& r = path.records[0];
     if (!a_.usesTexture(r.object)) return;
     const TexelFootprint fp = a_.albedo.footprint(r.uv);
@@ -146,7 +145,6 @@ class Scatterer {
   const Appearance& a_;
   const AdjointSettings& s_;
   Gradients::Chunk& g_;
-  bool curvature_;
 };
 
 // What the primal pass keeps of a sweep: nothing but the first vertex's albedo sensitivity.
@@ -195,7 +193,9 @@ Color sweep(const VertexRecord* records, int count, const Color& delta, const Ad
 // Per-thread record buffers, bounded by the max depth: constant memory per ray.
 class RecordBuffers {
  public:
-  explicit RecordBuffers(int maxDepth) : buffers_([n = static_cast<size_t>(maxDepth + 1)] { return std::vector<VertexRecord>(2 * n); }), n_(maxDepth + 1) {}
+  explicit RecordBuffers(int maxDepth)
+      : buffers_([n = static_cast<size_t>(maxDepth + 1)] { return std::vector<VertexRecord>(kRecordedPathsPerThread * n); }),
+        n_(maxDepth + 1) {}
   VertexRecord* get(int which) { return buffers_.local().data() + which * n_; }
 
  private:
@@ -255,9 +255,8 @@ void adjointPass(const Scene& scene, const Appearance& appearance, const LightSa
   const AppearanceScope scope = AppearanceScope::uniform(appearance);
   RecordBuffers buffers(settings.path.maxDepth);
   const float invN = 1.0f / static_cast<float>(rays.size());
-  const bool curvature = !grads.albedoCurvature.empty();
   grads.accumulate(rays.size(), [&](Gradients::Chunk& chunk, size_t begin, size_t end) {
-    Scatterer out(appearance, settings, chunk, curvature);
+    Scatterer out(appearance, settings, chunk);
     AdjointRecorder rec;
     rec.appearance = &appearance;
     rec.records = buffers.get(0);
@@ -317,9 +316,8 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
   RecordBuffers buffers(settings.path.maxDepth);
   std::vector<double> loss(rays.size(), 0.0);  // summed in ray order: the same at any thread count
   Timer t;
-  const bool curvature = !grads.albedoCurvature.empty();
   grads.accumulate(rays.size(), [&](Gradients::Chunk& chunk, size_t begin, size_t end) {
-    Scatterer out(appearance, settings, chunk, curvature);
+    Scatterer out(appearance, settings, chunk);
     AdjointRecorder recA, recB;
     recA.appearance = recB.appearance = &appearance;
     recA.records = buffers.get(0);

@@ -77,7 +77,9 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
                                 const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration,
                                 Gradients& grads);
 
-// Bytes of one cached vertex record (reported by the profiler).
+// Bytes of one cached vertex record (reported by the profiler). Each thread holds the records of
+// kRecordedPathsPerThread paths (crossfit sweeps two) of up to depth + 1 vertices.
 size_t adjointRecordBytes();
+inline constexpr int kRecordedPathsPerThread = 2;
 
 }  // namespace relume

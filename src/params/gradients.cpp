@@ -23,11 +23,10 @@ Gradients::Gradients(const Appearance& shape, bool withAlbedoCurvature)
     texels += t.size() / 3;
   }
   if (texels > UINT32_MAX) fail("gradient buffers: {} texels exceed 2^32", texels);
-  entries_ = static_cast<uint32_t>(texels);
   // Buckets of whole powers of two, at most kBuckets of them.
   const uint64_t perBucket = std::max<uint64_t>(1, (texels + kBuckets - 1) / kBuckets);
   bucketShift_ = std::bit_width(perBucket - 1);
-  bucketCount_ = entries_ == 0 ? 1 : ((entries_ - 1) >> bucketShift_) + 1;
+  bucketCount_ = texels == 0 ? 1 : ((texels - 1) >> bucketShift_) + 1;
 }
 
 void Gradients::clear() {

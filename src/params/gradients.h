@@ -26,8 +26,9 @@ class Gradients {
     void addAlbedo(uint32_t texel, const Color& g) { log(texel, g); }
     // Gauss-Newton curvature of the albedo texels (sum of w_t dI/da * dI/da over rays whose first
     // vertex reads texel t with bilinear weight w_t); dropped when the buffer was not allocated.
+    bool hasCurvature() const { return !owner_->albedoCurvature.empty(); }
     void addAlbedoCurvature(uint32_t texel, const Color& h) {
-      if (!owner_->albedoCurvature.empty()) log(owner_->curvatureBase_ + texel, h);
+      if (hasCurvature()) log(owner_->curvatureBase_ + texel, h);
     }
     void addEmissionTexel(int textureIndex, uint32_t texel, const Color& g) {
       log(owner_->emissionBase_[static_cast<size_t>(textureIndex)] + texel, g);
@@ -77,7 +78,6 @@ class Gradients {
   int objectCount_;
   uint32_t curvatureBase_ = 0;
   std::vector<uint32_t> emissionBase_;
-  uint32_t entries_ = 0;
   int bucketShift_ = 0;
   size_t bucketCount_ = 1;
   std::vector<Chunk> chunks_;  // one sub-batch's, reused

@@ -1,10 +1,13 @@
 #!/usr/bin/env bash
-# A capture rendered by an independent path tracer: the synthetic room's ground truth exported
-# as glTF (relume export), rendered by Blender 3.4 Cycles (Principled v1, 8 bounces, emission on
-# the front side only, as relume) at the synthetic capture's cameras, then reconstructed by relume
-# and scored against the truth and Cycles' held-out views. A benchmark, not a test (needs
-# Blender: `apt-get install blender`; about 15 min on 2 cores).
+# A capture rendered by an independent path tracer: a ground-truth scene exported as glTF (relume
+# export), rendered by Blender 3.4 Cycles (Principled v1, 8 bounces, emission on the front side
+# only, as relume) at the capture's cameras, then reconstructed by relume and scored against the
+# truth and Cycles' held-out views. The scene is the synthetic room, or with SOURCE any folder
+# holding scene.json, mesh.ply, objects.json, transforms.json and transforms_test.json (e.g. an
+# artist-made interior converted by scripts/mitsuba_to_capture.py --test-frames N). A benchmark,
+# not a test (needs Blender: `apt-get install blender`; about 15 min on 2 cores for the room).
 # Usage: scripts/cycles_capture.sh [OUT_DIR]   (default out/cycles_capture)
+#   SOURCE=folder (default: the synthetic room, made with the FRAMES/WIDTH/HEIGHT below)
 #   SPP=64 (training frames; the test frames get 2x)   FIT_CONFIG=path to a fit config (default: the demo's schedule)
 #   RELUME=binary (default build/relume)   EVAL_SPP=128 (re-rendering the held-out views)
 #   FRAMES=24 WIDTH=256 HEIGHT=192 (the capture's cameras; e.g. 100 frames at 320x240)   THREADS=2 (Cycles)
@@ -17,25 +20,30 @@ OUT="${1:-$ROOT/out/cycles_capture}"
 SPP="${SPP:-64}"
 FRAMES="${FRAMES:-24}" WIDTH="${WIDTH:-256}" HEIGHT="${HEIGHT:-192}" THREADS="${THREADS:-2}"
 mkdir -p "$OUT"
-# relume's own capture supplies the mesh, segmentation, cameras and ground truth.
-# Its images are replaced by Cycles' (hence 1 spp here).
-[ -f "$OUT/synth/transforms.json" ] || "$R" --log warn synth --scene room --out "$OUT/synth" \
-  --frames "$FRAMES" --width "$WIDTH" --height "$HEIGHT" --spp 1 --test-spp 1
-"$R" --log warn export "$OUT/synth/gt/scene.json" --gltf "$OUT/room.glb"
+# The source supplies the mesh, segmentation, cameras and ground truth; for the room, relume's own
+# capture, whose images are replaced by Cycles' (hence 1 spp here).
+if [ -n "${SOURCE:-}" ]; then
+  SRC="$SOURCE" TRUTH="$SOURCE/scene.json"
+else
+  SRC="$OUT/synth" TRUTH="$OUT/synth/gt/scene.json"
+  [ -f "$SRC/transforms.json" ] || "$R" --log warn synth --scene room --out "$SRC" \
+    --frames "$FRAMES" --width "$WIDTH" --height "$HEIGHT" --spp 1 --test-spp 1
+fi
+"$R" --log warn export "$TRUTH" --gltf "$OUT/scene.glb"
 render() {  # cameras, output folder, spp
   [ -f "$2/done" ] && return
-  blender -b --factory-startup --python "$ROOT/scripts/cycles_compare.py" -- render "$OUT/synth/gt" "$2" \
-    --gltf "$OUT/room.glb" --front-emission --transforms "$1" --spp "$3" --threads "$THREADS" > "$2.log" 2>&1 || { tail -20 "$2.log" >&2; exit 1; }
+  blender -b --factory-startup --python-exit-code 1 --python "$ROOT/scripts/cycles_compare.py" -- render "$SRC" "$2" \
+    --gltf "$OUT/scene.glb" --front-emission --transforms "$1" --spp "$3" --threads "$THREADS" > "$2.log" 2>&1 || { tail -20 "$2.log" >&2; exit 1; }
   touch "$2/done"
 }
-render "$OUT/synth/transforms.json" "$OUT/cycles_train" "$SPP"
-render "$OUT/synth/transforms_test.json" "$OUT/cycles_test" $((2 * SPP))
+render "$SRC/transforms.json" "$OUT/cycles_train" "$SPP"
+render "$SRC/transforms_test.json" "$OUT/cycles_test" $((2 * SPP))
 # The capture: relume's mesh, objects and cameras; Cycles' images in place of relume's.
 CAP="$OUT/capture"
 rm -rf "$CAP" && mkdir -p "$CAP/images" "$CAP/test"
-cp "$OUT/synth/mesh.ply" "$OUT/synth/objects.json" "$OUT/synth/transforms.json" "$OUT/synth/transforms_test.json" "$CAP/"
-for f in "$OUT"/synth/images/*.exr; do cp "$OUT/cycles_train/$(basename "$f")" "$CAP/images/"; done
-for f in "$OUT"/synth/test/*.exr; do cp "$OUT/cycles_test/$(basename "$f")" "$CAP/test/"; done
+cp "$SRC/mesh.ply" "$SRC/objects.json" "$SRC/transforms.json" "$SRC/transforms_test.json" "$CAP/"
+for f in "$OUT"/cycles_train/*.exr; do [[ $f == *_index.exr ]] || cp "$f" "$CAP/images/"; done
+for f in "$OUT"/cycles_test/*.exr; do [[ $f == *_index.exr ]] || cp "$f" "$CAP/test/"; done
 "$R" --log warn prepare "$CAP" --out "$OUT/work" --res 512,1024 --gutter-res 512 --force
 if [ -n "${FIT_CONFIG:-}" ]; then cfg="$FIT_CONFIG"; else
   cfg="$OUT/fit.json"
@@ -43,4 +51,4 @@ if [ -n "${FIT_CONFIG:-}" ]; then cfg="$FIT_CONFIG"; else
 fi
 "$R" --log warn fit "$OUT/work" --config "$cfg"
 "$R" eval --scene "$OUT/work/result/scene.json" --cameras "$CAP/transforms_test.json" --out "$OUT/eval" \
-  --truth "$OUT/synth/gt/scene.json" --coverage "$OUT/work/coverage.exr" --spp "${EVAL_SPP:-128}" | head -2
+  --truth "$TRUTH" --coverage "$OUT/work/coverage.exr" --spp "${EVAL_SPP:-128}" | head -2

@@ -34,11 +34,11 @@ for seed in 1 2; do
   if [[ "$(cat "$OUT/cycles_$seed/stamp" 2> /dev/null)" != "$stamp" ]]; then
     rm -rf "$OUT/cycles_$seed"
     # shellcheck disable=SC2086
-    blender -b --factory-startup --python "$PY" -- render "$OUT/scene" "$OUT/cycles_$seed" --spp "$SPP" --seed "$seed" \
+    blender -b --factory-startup --python-exit-code 1 --python "$PY" -- render "$OUT/scene" "$OUT/cycles_$seed" --spp "$SPP" --seed "$seed" \
       $CYCLES_ARGS > "$OUT/cycles_$seed.log" 2>&1 || { tail -20 "$OUT/cycles_$seed.log" >&2; exit 1; }
     echo "$stamp" > "$OUT/cycles_$seed/stamp"
   fi
 done
 echo "relume ($MODEL, $SPP+$SPP spp${RELUME_ARGS:+, $RELUME_ARGS}) / Cycles 3.4 ($SPP+$SPP spp${CYCLES_ARGS:+, $CYCLES_ARGS})"
-blender -b --factory-startup --python "$PY" -- compare "$OUT/scene" "$OUT/relume_1" "$OUT/relume_2" "$OUT/cycles_1" \
+blender -b --factory-startup --python-exit-code 1 --python "$PY" -- compare "$OUT/scene" "$OUT/relume_1" "$OUT/relume_2" "$OUT/cycles_1" \
   "$OUT/cycles_2" 2>&1 | grep -v -e "^Blender" -e "^$" -e "Blender quit"

@@ -25,9 +25,9 @@ PY="$ROOT/scripts/cycles_compare.py"
 for seed in 1 2; do
   "$R" --log warn render --scene "$SCENE" --cameras "$CAMERAS" --out "$OUT/relume_$seed" --spp "$SPP" --seed "$seed" --aov object
   # shellcheck disable=SC2086
-  blender -b --factory-startup --python "$PY" -- render "$(dirname "$SCENE")" "$OUT/blender_$seed" --gltf "$OUT/scene.glb" \
+  blender -b --factory-startup --python-exit-code 1 --python "$PY" -- render "$(dirname "$SCENE")" "$OUT/blender_$seed" --gltf "$OUT/scene.glb" \
     --transforms "$CAMERAS" --spp "$SPP" --seed "$seed" $BLENDER_ARGS > "$OUT/blender_$seed.log" 2>&1 || { tail -20 "$OUT/blender_$seed.log" >&2; exit 1; }
 done
 echo "relume ($SPP+$SPP spp) / Blender 3.4 Cycles on the imported .glb ($SPP+$SPP spp${BLENDER_ARGS:+, $BLENDER_ARGS})"
-blender -b --factory-startup --python "$PY" -- compare "$(dirname "$SCENE")" "$OUT/relume_1" "$OUT/relume_2" "$OUT/blender_1" \
+blender -b --factory-startup --python-exit-code 1 --python "$PY" -- compare "$(dirname "$SCENE")" "$OUT/relume_1" "$OUT/relume_2" "$OUT/blender_1" \
   "$OUT/blender_2" --transforms "$CAMERAS" 2>&1 | grep -v -e "^Blender" -e "^$" -e "Blender quit"

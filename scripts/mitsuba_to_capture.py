@@ -263,24 +263,51 @@ def reflectance(bsdf, bsdfs):
 
 def write_cameras(args, sensor):
     """transforms.json (nerfstudio: camera-to-world with x right, y up, z back) for a yaw sweep
-    around the Mitsuba sensor (x left, y up, z forward), images/NN.exr to be rendered by relume."""
+    around the Mitsuba sensor (x left, y up, z forward), images/NN.exr to be rendered; with
+    --test-frames, transforms_test.json too (test/NN.exr), its cameras spread over the same sweep
+    between the training ones, so every held-out view is a novel one."""
     m = np.array(sensor["to_world"])
     rot = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)
     up = rot[:, 1]
-    frames = []
-    for i in range(args.frames):
-        t = i / max(args.frames - 1, 1) - 0.5
+    k = np.array([[0, -up[2], up[1]], [up[2], 0, -up[0]], [-up[1], up[0], 0]])
+
+    def frame(t, path):  # t in [-0.5, 0.5]: position along the sweep
         ang = math.radians(args.sweep * t)
-        k = np.array([[0, -up[2], up[1]], [up[2], 0, -up[0]], [-up[1], up[0], 0]])
         yaw = np.eye(3) + math.sin(ang) * k + (1 - math.cos(ang)) * k @ k
         c2w = np.eye(4)
         c2w[:3, :3] = yaw @ rot @ np.diag([-1.0, 1.0, -1.0])
         c2w[:3, 3] = m[:3, 3] + 0.2 * t * rot[:, 0]
-        frames.append({"file_path": f"images/{i:02d}.exr", "transform_matrix": c2w.tolist()})
+        return {"file_path": path, "transform_matrix": c2w.tolist()}
+
     fl = 0.5 * args.width / math.tan(math.radians(sensor["fov"]) / 2)
-    with open(os.path.join(args.out, "transforms.json"), "w") as f:
-        json.dump({"camera_model": "PINHOLE", "fl_x": fl, "fl_y": fl, "cx": args.width / 2, "cy": args.height / 2,
-                   "w": args.width, "h": args.height, "frames": frames}, f, indent=1)
+    intrinsics = {"camera_model": "PINHOLE", "fl_x": fl, "fl_y": fl, "cx": args.width / 2, "cy": args.height / 2,
+                  "w": args.width, "h": args.height}
+    step = 1.0 / max(args.frames - 1, 1)
+    sets = [("transforms.json", "images", [i * step - 0.5 for i in range(args.frames)])]
+    if args.test_frames:
+        # Evenly spaced over the sweep, offset by half a training step (clamped inside the sweep).
+        span = [min((i + 0.5) / args.test_frames, 1.0 - 0.5 * step) - 0.5 for i in range(args.test_frames)]
+        sets.append(("transforms_test.json", "test", span))
+    for name, folder, ts in sets:
+        frames = [frame(t, f"{folder}/{i:02d}.exr") for i, t in enumerate(ts)]
+        with open(os.path.join(args.out, name), "w") as f:
+            json.dump({**intrinsics, "frames": frames}, f, indent=1)
+
+
+def object_materials(objects, args):
+    """Per-object roughness and specular, and albedo where the source gives none (a texture):
+    the source's look (uniform 0.6 / 0.3, grey), or with --materials varied, values drawn per object
+    from --seed, so a reconstruction has distinct materials to find."""
+    rng = np.random.default_rng(args.seed)
+    out = []
+    for o in objects:
+        draw = rng.uniform(size=5)  # drawn for every object, so one object's values never depend on another's source
+        if args.materials == "varied":
+            albedo = o["albedo"] or [round(0.05 + 0.8 * x, 3) for x in draw[:3]]
+            out.append((albedo, round(0.15 + 0.8 * draw[3], 3), round(0.1 + 0.8 * draw[4], 3)))
+        else:
+            out.append((o["albedo"] or [0.5, 0.5, 0.5], 0.6, 0.3))
+    return out
 
 
 def main():
@@ -294,6 +321,10 @@ def main():
     ap.add_argument("--width", type=int, default=160)
     ap.add_argument("--height", type=int, default=120)
     ap.add_argument("--sweep", type=float, default=40.0, help="total yaw of the sweep, degrees")
+    ap.add_argument("--test-frames", type=int, default=0, help="held-out cameras (transforms_test.json) between the training ones")
+    ap.add_argument("--materials", choices=["source", "varied"], default="source",
+                    help="per-object roughness/specular (and albedo where the source has a texture): uniform, or drawn per object")
+    ap.add_argument("--seed", type=int, default=1, help="with --materials varied")
     args = ap.parse_args()
     src = Source(args.git, args.root)
     xml = src.read(args.xml)
@@ -354,7 +385,7 @@ def main():
             radiance = floats(r.attrib["value"]) if r is not None else [1.0, 1.0, 1.0]
             radiance = radiance * 3 if len(radiance) == 1 else radiance
         name = shape.attrib.get("id") or os.path.splitext(os.path.basename(path))[0]
-        objects.append({"id": oid, "name": name, "albedo": reflectance(bsdf, bsdfs) or [0.5, 0.5, 0.5], "emission": radiance})
+        objects.append({"id": oid, "name": name, "albedo": reflectance(bsdf, bsdfs), "emission": radiance})
         all_pos.append(pos)
         all_nrm.append(nrm)
         all_tri.append(tri + nv)
@@ -382,9 +413,9 @@ def main():
         f.write(rec.tobytes())
     with open(os.path.join(args.out, "objects.json"), "w") as f:
         json.dump({"objects": [{"id": o["id"], "name": o["name"]} for o in objects]}, f, indent=1)
-    scene = {"mesh": "mesh.ply", "diffuse": "disney", "objects": []}
-    for o in objects:
-        e = {"id": o["id"], "name": o["name"], "albedo": o["albedo"], "roughness": 0.6, "specular": 0.3}
+    scene = {"mesh": "mesh.ply", "model": "principled-v1", "objects": []}
+    for o, (albedo, roughness, specular) in zip(objects, object_materials(objects, args)):
+        e = {"id": o["id"], "name": o["name"], "albedo": albedo, "roughness": roughness, "specular": specular}
         if o["emission"]:
             e["emission"] = o["emission"]
         scene["objects"].append(e)

@@ -18,11 +18,16 @@ Vec3 TriangleMesh::faceNormal(size_t f) const {
 std::optional<Vec3> TriangleMesh::shadingNormal(size_t f, const Vec3& b) const {
   if (normals.empty()) return std::nullopt;
   const auto& t = triangles[f];
-  const Vec3 n = b[0] * normals[t[0]] + b[1] * normals[t[1]] + b[2] * normals[t[2]];
-  const float len = n.norm();
+  const Vec3 n[3] = {normals[t[0]], normals[t[1]], normals[t[2]]};
+  return shadingNormal(n, b, faceNormal(f));
+}
+
+std::optional<Vec3> TriangleMesh::shadingNormal(const Vec3 n[3], const Vec3& b, const Vec3& ng) {
+  const Vec3 sum = b[0] * n[0] + b[1] * n[1] + b[2] * n[2];
+  const float len = sum.norm();
   if (!(len >= kMinShadingNormalLength) || !std::isfinite(len)) return std::nullopt;
-  const Vec3 unit = n / len;
-  if (!(std::abs(unit.dot(faceNormal(f))) >= kMinShadingCosine)) return std::nullopt;
+  const Vec3 unit = sum / len;
+  if (!(std::abs(unit.dot(ng)) >= kMinShadingCosine)) return std::nullopt;
   return unit;
 }
 

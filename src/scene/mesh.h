@@ -28,6 +28,9 @@ struct TriangleMesh {
   // than acos(kMinShadingCosine) = 60 degrees from the geometric normal's line. Callers then use the
   // geometric normal.
   std::optional<Vec3> shadingNormal(size_t f, const Vec3& b) const;
+  // The same test on given vertex normals n[3] and unit geometric normal ng (what a renderer keeps
+  // per face, so a hit need not gather them from the mesh arrays).
+  static std::optional<Vec3> shadingNormal(const Vec3 n[3], const Vec3& b, const Vec3& ng);
   static constexpr float kMinShadingNormalLength = 0.5f, kMinShadingCosine = 0.5f;
   MeshData toData() const;
 };

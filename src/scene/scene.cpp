@@ -29,7 +29,11 @@ Scene::Scene(TriangleMesh mesh, SceneOptions options) : mesh_(std::move(mesh)) {
     FaceRecord& r = faces_[f];
     r.ng = mesh_.faceNormal(f);
     r.object = mesh_.faceObject[f];
-    for (int k = 0; k < 3; ++k) r.uv[k] = mesh_.hasUv() ? mesh_.uvs[mesh_.triangles[f][k]] : Vec2::Zero();
+    for (int k = 0; k < 3; ++k) {
+      const int v = mesh_.triangles[f][k];
+      r.uv[k] = mesh_.hasUv() ? mesh_.uvs[v] : Vec2::Zero();
+      r.n[k] = mesh_.normals.empty() ? Vec3::Zero() : mesh_.normals[v];
+    }
   }
   rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, vertexBuffer_.data(), 0,
                              3 * sizeof(float), mesh_.positions.size());
@@ -56,7 +60,8 @@ SurfaceHit Scene::hitFromFace(uint32_t prim, float b1, float b2) const {
   h.ns = face.ng;
   h.uv = b0 * face.uv[0] + b1 * face.uv[1] + b2 * face.uv[2];
   // A degenerate interpolation (vertex normals that cancel out) falls back to the geometric normal.
-  if (const auto n = mesh_.shadingNormal(prim, Vec3(b0, b1, b2))) h.ns = n->dot(h.ng) >= 0 ? *n : Vec3(-*n);
+  if (!mesh_.normals.empty())
+    if (const auto n = TriangleMesh::shadingNormal(face.n, Vec3(b0, b1, b2), face.ng)) h.ns = n->dot(h.ng) >= 0 ? *n : Vec3(-*n);
   return h;
 }
 

@@ -46,12 +46,14 @@ class Scene {
 
  private:
   TriangleMesh mesh_;
-  // Everything shading needs of a face in one 40-byte record: after Embree's traversal the mesh
-  // arrays are cold, and gathering them from five places dominated hit processing.
+  // Everything shading needs of a face in one 76-byte record: after Embree's traversal the mesh
+  // arrays are cold, and gathering them from several places (the triangle's indices, then its
+  // uvs, vertex normals and positions) dominated hit processing.
   struct FaceRecord {
     Vec3 ng;
     int32_t object;
     Vec2 uv[3];
+    Vec3 n[3];  // vertex normals (zero when the mesh has none)
   };
   SurfaceHit hitFromFace(uint32_t prim, float b1, float b2) const;
   bool traceable(const Vec3& origin, const Vec3& dir, float tmax) const;

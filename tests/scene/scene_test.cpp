@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include "core/rng.h"
 #include "scene/atlas.h"
 #include "scene/scene.h"
 #include "scene/texel_map.h"
@@ -37,6 +38,41 @@ TEST(Scene, ShadingNormalThatVanishesFallsBackToTheGeometricNormal) {
   ASSERT_TRUE(away);
   EXPECT_LT(away->z(), -0.99f);
   EXPECT_GT(scene.surfacePoint(1, 0.3f, 0.3f).ns.z(), 0.99f);
+}
+
+// The renderer keeps each face's vertex normals in its face record: a hit's shading normal must be
+// exactly the mesh's interpolation of the face's own vertex normals (an index mix-up would pick a
+// neighbour's), flipped to the winding side.
+TEST(Scene, HitShadingNormalIsTheMeshInterpolation) {
+  MeshData d;
+  Pcg32 rng(7);
+  const int n = 12;  // a height field of (n + 1)^2 vertices, each with its own tilted normal
+  for (int y = 0; y <= n; ++y)
+    for (int x = 0; x <= n; ++x) {
+      d.positions.push_back({float(x), float(y), 0.1f * rng.next1D()});
+      d.normals.push_back(Vec3(rng.next1D() - 0.5f, rng.next1D() - 0.5f, rng.next1D() < 0.2f ? -1.0f : 1.0f).normalized());
+    }
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) {
+      const int v = y * (n + 1) + x;
+      d.triangles.push_back({v, v + 1, v + n + 2});
+      d.triangles.push_back({v, v + n + 2, v + n + 1});
+    }
+  const TriangleMesh mesh = buildMesh(d, "tilted normals");
+  const Scene scene(mesh);
+  size_t smooth = 0;
+  for (uint32_t f = 0; f < mesh.triangles.size(); ++f) {
+    const float b1 = 0.8f * rng.next1D(), b2 = (0.95f - b1) * rng.next1D();
+    const SurfaceHit h = scene.surfacePoint(f, b1, b2);
+    const auto expected = mesh.shadingNormal(f, Vec3(1.0f - b1 - b2, b1, b2));
+    if (!expected) {
+      EXPECT_EQ(h.ns, h.ng);
+      continue;
+    }
+    ++smooth;
+    EXPECT_EQ(h.ns, expected->dot(h.ng) >= 0 ? *expected : Vec3(-*expected)) << "face " << f;
+  }
+  EXPECT_GT(smooth, mesh.triangles.size() / 2);
 }
 
 TEST(Scene, TexelNormalsAreFiniteAndCountFallbacks) {

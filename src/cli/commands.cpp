@@ -4,6 +4,7 @@
 
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <sstream>
 
 #include "capture/transforms.h"
@@ -369,20 +370,23 @@ void registerEval(CLI::App& app, CommandTable& table) {
     std::filesystem::create_directories(out);
     const ViewComparison v = compareViews(scene, cameras, ro, out);
     Json report = {{"views", v.toJson()}};
-    fmt::print("views: PSNR {:.2f} dB, MSRE {:.4f} over {} frames\n", v.psnr, v.msre, v.framePsnr.size());
+    std::optional<TruthComparison> t;
     if (!truthPath.empty()) {
       if (coveragePath.empty()) fail("eval: --truth needs --coverage (prepare's coverage.exr)");
-      const TruthComparison t = compareWithTruth(scene, loadSceneFile(truthPath), readImage(coveragePath), truthOptionsFor(scenePath));
-      report["truth"] = t.toJson();
+      t = compareWithTruth(scene, loadSceneFile(truthPath), readImage(coveragePath), truthOptionsFor(scenePath));
+      report["truth"] = t->toJson();
+    }
+    writeJson(std::filesystem::path(out) / "eval.json", report);  // before printing: the results outlive a closed stdout
+    fmt::print("views: PSNR {:.2f} dB, MSRE {:.4f} over {} frames\n", v.psnr, v.msre, v.framePsnr.size());
+    if (t) {
       fmt::print("albedo: MAE {:.4f}, PSNR {:.2f} dB over {} texels; roughness MAE {:.3f}, specular MAE {:.3f}; emitters "
                  "{}/{} found ({} found in all), emission error {:.2f}% (roughness/specular over {} objects with observed highlights)\n",
-                 t.albedoMae, t.albedoPsnr, t.albedoTexels, t.roughnessMae, t.specularMae, t.emittersCorrect, t.emittersTrue,
-                 t.emittersFound, 100 * t.emissionRelError, t.materialObjects);
+                 t->albedoMae, t->albedoPsnr, t->albedoTexels, t->roughnessMae, t->specularMae, t->emittersCorrect, t->emittersTrue,
+                 t->emittersFound, 100 * t->emissionRelError, t->materialObjects);
       fmt::print("peers' measures: albedo PSNR {:.2f} dB (8-bit sRGB maps), roughness PSNR {:.2f} dB (8-bit maps), emission IoU {:.3f}\n",
-                 t.albedoPsnr8, t.roughnessPsnr8, t.emissionIou);
-      for (const Json& o : t.perObject) fmt::print("  {}\n", o.dump());
+                 t->albedoPsnr8, t->roughnessPsnr8, t->emissionIou);
+      for (const Json& o : t->perObject) fmt::print("  {}\n", o.dump());
     }
-    writeJson(std::filesystem::path(out) / "eval.json", report);
     return 0;
   };
 }

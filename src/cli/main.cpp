@@ -2,11 +2,16 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include <csignal>
+
 #include "cli/commands.h"
 #include "core/error.h"
 #include "core/system.h"
 
 int main(int argc, char** argv) {
+  // Output piped into a reader that stops early (`relume eval ... | head -2`) must not kill a
+  // command before it has written its results: a closed pipe only fails the write.
+  std::signal(SIGPIPE, SIG_IGN);
   CLI::App app{"relume: relightable materials and lights from scanned indoor scenes"};
   app.require_subcommand(1);
   int threads = 0;

@@ -2,15 +2,24 @@
 // relume binary next to tests/ in the build tree.
 #include <gtest/gtest.h>
 
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <vector>
 
 namespace fs = std::filesystem;
 
+namespace {
+fs::path relumeBinary() { return fs::read_symlink("/proc/self/exe").parent_path().parent_path() / "relume"; }
+}  // namespace
+
 TEST(Cli, NumericOptionsAreRangeChecked) {
-  const fs::path relume = fs::read_symlink("/proc/self/exe").parent_path().parent_path() / "relume";
+  const fs::path relume = relumeBinary();
   ASSERT_TRUE(fs::exists(relume)) << relume;
   const fs::path log = fs::temp_directory_path() / "relume_cli_ranges.log";
   const std::vector<std::pair<std::string, std::string>> cases = {
@@ -35,4 +44,32 @@ TEST(Cli, NumericOptionsAreRangeChecked) {
     EXPECT_NE(rc, 0) << args;
     EXPECT_NE(out.str().find(expected), std::string::npos) << args << ": " << out.str();
   }
+}
+
+// A command whose stdout is a pipe nobody reads any more (`relume eval ... | head -1` once head has
+// exited) still finishes and writes its results: the first log line must not kill it with SIGPIPE.
+TEST(Cli, ResultsOutliveAClosedStdout) {
+  const fs::path relume = relumeBinary(), out = fs::temp_directory_path() / "relume_cli_closed_stdout";
+  fs::remove_all(out);
+  int fds[2];
+  ASSERT_EQ(pipe(fds), 0);
+  close(fds[0]);  // the reader is gone before the command starts: its first write meets a closed pipe
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
+  std::vector<std::string> args = {relume.string(), "--log", "info", "synth", "--scene", "cornell", "--out", out.string(),
+                                   "--frames", "2", "--test-frames", "1", "--width", "16", "--height", "16", "--spp", "1"};
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  pid_t pid = 0;
+  ASSERT_EQ(posix_spawn(&pid, relume.c_str(), &actions, nullptr, argv.data(), environ), 0);
+  posix_spawn_file_actions_destroy(&actions);
+  close(fds[1]);
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  EXPECT_FALSE(WIFSIGNALED(status)) << "killed by signal " << WTERMSIG(status);
+  EXPECT_TRUE(fs::exists(out / "transforms.json"));
+  EXPECT_TRUE(fs::exists(out / "gt" / "scene.json"));
+  fs::remove_all(out);
 }

@@ -49,7 +49,7 @@ for v in "${variants[@]}"; do
   "$R" --log warn fit "$OUT/$name" --config "$OUT/$name/config.json"
   echo $(( $(date +%s) - start )) > "$OUT/$name/seconds"
   "$R" --log warn eval --scene "$OUT/$name/result/scene.json" --cameras "$OUT/capture/transforms_test.json" \
-    --out "$OUT/$name/eval" --truth "$OUT/capture/gt/scene.json" --coverage "$OUT/$name/coverage.exr" --spp 32 | head -2
+    --out "$OUT/$name/eval" --truth "$OUT/capture/gt/scene.json" --coverage "$OUT/$name/coverage.exr" --spp 32 | grep -v '^  {'  # per-object lines are in eval.json
 done
 python3 - "$OUT" <<'PY'
 import json, sys, os

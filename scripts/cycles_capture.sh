@@ -51,4 +51,4 @@ if [ -n "${FIT_CONFIG:-}" ]; then cfg="$FIT_CONFIG"; else
 fi
 "$R" --log warn fit "$OUT/work" --config "$cfg"
 "$R" eval --scene "$OUT/work/result/scene.json" --cameras "$CAP/transforms_test.json" --out "$OUT/eval" \
-  --truth "$TRUTH" --coverage "$OUT/work/coverage.exr" --spp "${EVAL_SPP:-128}" | head -2
+  --truth "$TRUTH" --coverage "$OUT/work/coverage.exr" --spp "${EVAL_SPP:-128}" | grep -v '^  {'  # per-object lines are in eval.json

@@ -30,11 +30,20 @@ else
     --frames "$FRAMES" --width "$WIDTH" --height "$HEIGHT" --spp 1 --test-spp 1
 fi
 "$R" --log warn export "$TRUTH" --gltf "$OUT/scene.glb"
-render() {  # cameras, output folder, spp
-  [ -f "$2/done" ] && return
+for f in transforms.json transforms_test.json; do
+  [ -f "$SRC/$f" ] || { echo "cycles_capture: $SRC/$f missing (mitsuba_to_capture.py writes the held-out one with --test-frames)" >&2; exit 1; }
+done
+render() {  # cameras, output folder, spp; renders kept in OUT are reused only for the same scene, cameras and spp
+  local stamp
+  stamp="$(cat "$TRUTH" "$1" | sha256sum | cut -c1-16) spp $3"
+  [ -f "$2/done" ] && [ "$(cat "$2/done")" = "$stamp" ] && return
+  rm -rf "$2"
   blender -b --factory-startup --python-exit-code 1 --python "$ROOT/scripts/cycles_compare.py" -- render "$SRC" "$2" \
     --gltf "$OUT/scene.glb" --front-emission --transforms "$1" --spp "$3" --threads "$THREADS" > "$2.log" 2>&1 || { tail -20 "$2.log" >&2; exit 1; }
-  touch "$2/done"
+  echo "$stamp" > "$2/done"
+}
+frames() {  # the image paths a transforms.json lists
+  python3 -c 'import json, sys; print("\n".join(f["file_path"] for f in json.load(open(sys.argv[1]))["frames"]))' "$1"
 }
 render "$SRC/transforms.json" "$OUT/cycles_train" "$SPP"
 render "$SRC/transforms_test.json" "$OUT/cycles_test" $((2 * SPP))
@@ -42,8 +51,8 @@ render "$SRC/transforms_test.json" "$OUT/cycles_test" $((2 * SPP))
 CAP="$OUT/capture"
 rm -rf "$CAP" && mkdir -p "$CAP/images" "$CAP/test"
 cp "$SRC/mesh.ply" "$SRC/objects.json" "$SRC/transforms.json" "$SRC/transforms_test.json" "$CAP/"
-for f in "$OUT"/cycles_train/*.exr; do [[ $f == *_index.exr ]] || cp "$f" "$CAP/images/"; done
-for f in "$OUT"/cycles_test/*.exr; do [[ $f == *_index.exr ]] || cp "$f" "$CAP/test/"; done
+frames "$SRC/transforms.json" | while read -r p; do cp "$OUT/cycles_train/$(basename "$p")" "$CAP/$p" || exit 1; done
+frames "$SRC/transforms_test.json" | while read -r p; do cp "$OUT/cycles_test/$(basename "$p")" "$CAP/$p" || exit 1; done
 "$R" --log warn prepare "$CAP" --out "$OUT/work" --res 512,1024 --gutter-res 512 --force
 if [ -n "${FIT_CONFIG:-}" ]; then cfg="$FIT_CONFIG"; else
   cfg="$OUT/fit.json"

@@ -285,9 +285,9 @@ def write_cameras(args, sensor):
     step = 1.0 / max(args.frames - 1, 1)
     sets = [("transforms.json", "images", [i * step - 0.5 for i in range(args.frames)])]
     if args.test_frames:
-        # Evenly spaced over the sweep, offset by half a training step (clamped inside the sweep).
-        span = [min((i + 0.5) / args.test_frames, 1.0 - 0.5 * step) - 0.5 for i in range(args.test_frames)]
-        sets.append(("transforms_test.json", "test", span))
+        # Halfway between two neighbouring training cameras, in gaps spread evenly over the sweep.
+        gaps = [(i * 2 + 1) * (args.frames - 1) // (2 * args.test_frames) for i in range(args.test_frames)]
+        sets.append(("transforms_test.json", "test", [(g + 0.5) * step - 0.5 for g in gaps]))
     for name, folder, ts in sets:
         frames = [frame(t, f"{folder}/{i:02d}.exr") for i, t in enumerate(ts)]
         with open(os.path.join(args.out, name), "w") as f:
@@ -326,6 +326,10 @@ def main():
                     help="per-object roughness/specular (and albedo where the source has a texture): uniform, or drawn per object")
     ap.add_argument("--seed", type=int, default=1, help="with --materials varied")
     args = ap.parse_args()
+    if args.frames < 1 or args.test_frames < 0:
+        sys.exit("--frames must be >= 1 and --test-frames >= 0")
+    if args.test_frames > max(args.frames - 1, 0):
+        sys.exit(f"--test-frames {args.test_frames}: held-out cameras go between training ones, so at most --frames - 1 = {args.frames - 1}")
     src = Source(args.git, args.root)
     xml = src.read(args.xml)
     if xml is None:

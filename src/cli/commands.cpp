@@ -367,12 +367,12 @@ void registerEval(CLI::App& app, CommandTable& table) {
     const SceneDescription scene = loadSceneFile(scenePath);
     RenderOptions ro;
     ro.spp = *spp;
+    if (!truthPath.empty() && coveragePath.empty()) fail("eval: --truth needs --coverage (prepare's coverage.exr)");
     std::filesystem::create_directories(out);
     const ViewComparison v = compareViews(scene, cameras, ro, out);
     Json report = {{"views", v.toJson()}};
     std::optional<TruthComparison> t;
     if (!truthPath.empty()) {
-      if (coveragePath.empty()) fail("eval: --truth needs --coverage (prepare's coverage.exr)");
       t = compareWithTruth(scene, loadSceneFile(truthPath), readImage(coveragePath), truthOptionsFor(scenePath));
       report["truth"] = t->toJson();
     }

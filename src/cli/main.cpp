@@ -10,7 +10,9 @@
 
 int main(int argc, char** argv) {
   // Output piped into a reader that stops early (`relume eval ... | head -2`) must not kill a
-  // command before it has written its results: a closed pipe only fails the write.
+  // command before it has written its results. Ignored, SIGPIPE becomes a failed write: log lines
+  // are dropped, and a print throws (the command then ends with exit 1), so commands write their
+  // results before printing them.
   std::signal(SIGPIPE, SIG_IGN);
   CLI::App app{"relume: relightable materials and lights from scanned indoor scenes"};
   app.require_subcommand(1);

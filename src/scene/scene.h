@@ -57,8 +57,8 @@ class Scene {
   };
   SurfaceHit hitFromFace(uint32_t prim, float b1, float b2) const;
   bool traceable(const Vec3& origin, const Vec3& dir, float tmax) const;
-  std::vector<float> vertexBuffer_;
-  std::vector<FaceRecord> faces_;  // xyz + padding so Embree can read 16 bytes at the end
+  std::vector<float> vertexBuffer_;  // xyz + padding so Embree can read 16 bytes at the end
+  std::vector<FaceRecord> faces_;
   RTCDevice device_ = nullptr;
   RTCScene scene_ = nullptr;
   mutable std::atomic<size_t> skippedRays_{0};

@@ -2,10 +2,12 @@
 // relume binary next to tests/ in the build tree.
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <csignal>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -13,6 +15,8 @@
 #include <vector>
 
 namespace fs = std::filesystem;
+
+extern char** environ;
 
 namespace {
 fs::path relumeBinary() { return fs::read_symlink("/proc/self/exe").parent_path().parent_path() / "relume"; }
@@ -49,26 +53,39 @@ TEST(Cli, NumericOptionsAreRangeChecked) {
 // A command whose stdout is a pipe nobody reads any more (`relume eval ... | head -1` once head has
 // exited) still finishes and writes its results: the first log line must not kill it with SIGPIPE.
 TEST(Cli, ResultsOutliveAClosedStdout) {
-  const fs::path relume = relumeBinary(), out = fs::temp_directory_path() / "relume_cli_closed_stdout";
+  const fs::path relume = relumeBinary();
+  const fs::path out = fs::temp_directory_path() / ("relume_cli_closed_stdout_" + std::to_string(getpid()));
   fs::remove_all(out);
   int fds[2];
-  ASSERT_EQ(pipe(fds), 0);
+  ASSERT_EQ(pipe2(fds, O_CLOEXEC), 0);
   close(fds[0]);  // the reader is gone before the command starts: its first write meets a closed pipe
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
+  // The child starts with SIGPIPE's default action whatever this test inherited, so only relume's
+  // own handling can keep it alive.
+  posix_spawnattr_t attr;
+  posix_spawnattr_init(&attr);
+  sigset_t pipeSignal;
+  sigemptyset(&pipeSignal);
+  sigaddset(&pipeSignal, SIGPIPE);
+  posix_spawnattr_setsigdefault(&attr, &pipeSignal);
+  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGDEF);
   std::vector<std::string> args = {relume.string(), "--log", "info", "synth", "--scene", "cornell", "--out", out.string(),
                                    "--frames", "2", "--test-frames", "1", "--width", "16", "--height", "16", "--spp", "1"};
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
   pid_t pid = 0;
-  ASSERT_EQ(posix_spawn(&pid, relume.c_str(), &actions, nullptr, argv.data(), environ), 0);
+  const int spawned = posix_spawn(&pid, relume.c_str(), &actions, &attr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
+  posix_spawnattr_destroy(&attr);
   close(fds[1]);
+  ASSERT_EQ(spawned, 0);
   int status = 0;
   ASSERT_EQ(waitpid(pid, &status, 0), pid);
   EXPECT_FALSE(WIFSIGNALED(status)) << "killed by signal " << WTERMSIG(status);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
   EXPECT_TRUE(fs::exists(out / "transforms.json"));
   EXPECT_TRUE(fs::exists(out / "gt" / "scene.json"));
   fs::remove_all(out);

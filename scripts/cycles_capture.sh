@@ -50,7 +50,12 @@ render "$SRC/transforms_test.json" "$OUT/cycles_test" $((2 * SPP))
 # The capture: relume's mesh, objects and cameras; Cycles' images in place of relume's.
 CAP="$OUT/capture"
 rm -rf "$CAP" && mkdir -p "$CAP/images" "$CAP/test"
-cp "$SRC/mesh.ply" "$SRC/objects.json" "$SRC/transforms.json" "$SRC/transforms_test.json" "$CAP/"
+cp "$SRC/mesh.ply" "$SRC/objects.json" "$CAP/"
+# Cycles formed the pixels with its default filter (Blackman-Harris, Filter Width 1.5 px): the capture says so.
+for f in transforms.json transforms_test.json; do
+  python3 -c 'import json, sys; t = json.load(open(sys.argv[1])); t["pixel_filter"] = {"type": "blackman-harris", "width": 1.5}
+json.dump(t, open(sys.argv[2], "w"), indent=1)' "$SRC/$f" "$CAP/$f"
+done
 frames "$SRC/transforms.json" | while read -r p; do cp "$OUT/cycles_train/$(basename "$p")" "$CAP/$p" || exit 1; done
 frames "$SRC/transforms_test.json" | while read -r p; do cp "$OUT/cycles_test/$(basename "$p")" "$CAP/$p" || exit 1; done
 "$R" --log warn prepare "$CAP" --out "$OUT/work" --res 512,1024 --gutter-res 512 --force

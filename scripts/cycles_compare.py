@@ -169,6 +169,7 @@ def render(a):
     c.blur_glossy = a.blur_glossy
     c.light_sampling_threshold = 0.0
     c.caustics_reflective = c.caustics_refractive = True
+    c.pixel_filter_type = "BLACKMAN_HARRIS"  # Cycles' default; cycles_capture.sh declares it in the capture
     c.filter_width = a.filter_width
     sc.render.threads_mode = "FIXED"
     sc.render.threads = a.threads

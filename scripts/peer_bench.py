@@ -297,7 +297,7 @@ def cmd_table(a):
     # (b)
     P("## (b) Forward agreement (scripts/mitsuba_compare.sh, Mitsuba scalar_rgb on the exported ground truth)")
     P("")
-    fwd = open(os.path.join(out, "forward.txt")).read().strip().splitlines()
+    fwd = read_or(os.path.join(out, "forward.txt"), "(not run)").splitlines()
     P("```")
     for l in fwd:
         P(l)

@@ -9,7 +9,8 @@
 #
 # Usage: scripts/peer_bench.sh [OUT]      (default out/peer_bench; ~25 minutes on 2 cores)
 # Environment: ROUNDS=3 (interleaved relume/Mitsuba rounds of (a)), BUDGETS=60,120,240 (seconds, (c)),
-#   FWD_SPP=16 (spp per half of (b)), SETTINGS="65536:2 65536:4 65536:8 65536:16 16384:8 262144:8" (rays:depth)
+#   FWD_SPP=16 (spp per half of (b)), SETTINGS="65536:2 65536:4 65536:8 65536:16 16384:8 262144:8" (rays:depth),
+#   PARTS="a b c" (which parts to run; the table shows the parts whose results OUT holds)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 OUT="$(mkdir -p "${1:-$ROOT/out/peer_bench}" && cd "${1:-$ROOT/out/peer_bench}" && pwd)"
@@ -17,6 +18,7 @@ ROUNDS="${ROUNDS:-3}"
 BUDGETS="${BUDGETS:-60,120,240}"
 FWD_SPP="${FWD_SPP:-16}"
 SETTINGS="${SETTINGS:-65536:2 65536:4 65536:8 65536:16 16384:8 262144:8}"
+PARTS="${PARTS:-a b c}"
 RES=512
 PY="$ROOT/scripts/peer_bench.py"
 R="$ROOT/build/relume"
@@ -36,6 +38,7 @@ mi.render(s, spp=1, sensor=mi.load_dict({"type": "perspective", "film": {"type":
 PYEOF
 
 stamp() { echo "[$(date +%H:%M:%S), $(( $(date +%s) - T0 )) s, load $(cut -d' ' -f1-3 /proc/loadavg)] $*"; }
+part() { [[ " $PARTS " == *" $1 "* ]]; }
 mkdir -p "$OUT/iter" "$OUT/fit"
 python3 - "$OUT" "$BUDGETS" "$ROUNDS" "$SETTINGS" "$RES" << 'PYEOF'
 import json, os, subprocess, sys
@@ -64,7 +67,7 @@ for s in $SETTINGS; do
   python3 "$PY" camera "$OUT/cap/transforms_test.json" "$OUT/iter/cam_$side.json" --rays "$n"
   "$R" --log warn render --scene "$OUT/cap/gt/scene.json" --cameras "$OUT/iter/cam_$side.json" --out "$OUT/iter/ref_$side" --spp 4 > /dev/null
 done
-for round in $(seq 1 "$ROUNDS"); do
+part a && for round in $(seq 1 "$ROUNDS"); do
   for s in $SETTINGS; do
     n=${s%%:*}; d=${s##*:}; side=$(python3 -c "import math; print(int(round(math.sqrt($n))))")
     stamp "(a) round $round: $n rays, depth $d"
@@ -75,33 +78,37 @@ for round in $(seq 1 "$ROUNDS"); do
 done
 
 # (b) forward agreement: the existing comparison (Mitsuba scalar_rgb, exported ground truth, 4 held-out views 160x120).
-stamp "(b) forward agreement, SPP=$FWD_SPP"
-SPP="$FWD_SPP" "$ROOT/scripts/mitsuba_compare.sh" "$OUT/forward" > "$OUT/forward.txt"
+if part b; then
+  stamp "(b) forward agreement, SPP=$FWD_SPP"
+  SPP="$FWD_SPP" "$ROOT/scripts/mitsuba_compare.sh" "$OUT/forward" > "$OUT/forward.txt"
+fi
 
-# (c) time to accuracy. relume: prepare at 512^2 (the resolution the frames resolve), then one fit per budget.
-stamp "(c) prepare"
-tp0=$(date +%s.%N)
-"$R" --log warn prepare "$OUT/cap" --out "$OUT/work" --res "$RES" --gutter-res "$RES" --force
-tp=$(python3 -c "print($(date +%s.%N) - $tp0)")
-CONFIG=$(python3 -c "import json; print(json.dumps(json.load(open('$OUT/meta.json'))['fit_config']))")
-stamp "(c) relume fits, budgets $BUDGETS"
-SNAPS=$(python3 "$PY" relumefits "$R" "$OUT/work" "$OUT/fit" --budgets "$BUDGETS" --config "$CONFIG" --prepare-seconds "$tp" | tail -1)
-# Mitsuba: from mid-grey albedo, roughness/specular 0.5 (as relume's fit keeps them), emitters (1,1,1)
-# on the true emitters; snapshots at relume's wall-clock times.
-python3 "$PY" initscene "$OUT/cap/gt/scene.json" "$OUT/work" "$OUT/fit/mitsuba_init" --res "$RES"
-"$R" --log warn export "$OUT/fit/mitsuba_init/scene.json" --mitsuba "$OUT/fit/mitsuba_init/mitsuba" --max-depth 9
-stamp "(c) Mitsuba fit, snapshots at $SNAPS s"
-cut -d' ' -f1 /proc/loadavg > "$OUT/fit/mitsuba_load.txt"
-rm -rf "$OUT/fit/mitsuba"
-python3 "$PY" fit "$OUT/fit/mitsuba_init/mitsuba/scene.xml" "$OUT/cap/transforms.json" "$OUT/fit/mitsuba_init/scene.json" \
-  "$OUT/fit/mitsuba" --snapshots "$SNAPS" --depth 9
-stamp "(c) eval"
-for k in $(seq 0 $(( $(tr ',' '\n' <<< "$BUDGETS" | wc -l) - 1 ))); do
-  for sc in "$OUT/fit/relume_$k" "$OUT/fit/mitsuba/t$k"; do
-    "$R" --log warn eval --scene "$sc/scene.json" --cameras "$OUT/cap/transforms_test.json" --out "$sc/eval" \
-      --truth "$OUT/cap/gt/scene.json" --coverage "$OUT/work/coverage.exr" --spp 4 > /dev/null
+if part c; then
+  # (c) time to accuracy. relume: prepare at 512^2 (the resolution the frames resolve), then one fit per budget.
+  stamp "(c) prepare"
+  tp0=$(date +%s.%N)
+  "$R" --log warn prepare "$OUT/cap" --out "$OUT/work" --res "$RES" --gutter-res "$RES" --force
+  tp=$(python3 -c "print($(date +%s.%N) - $tp0)")
+  CONFIG=$(python3 -c "import json; print(json.dumps(json.load(open('$OUT/meta.json'))['fit_config']))")
+  stamp "(c) relume fits, budgets $BUDGETS"
+  SNAPS=$(python3 "$PY" relumefits "$R" "$OUT/work" "$OUT/fit" --budgets "$BUDGETS" --config "$CONFIG" --prepare-seconds "$tp" | tail -1)
+  # Mitsuba: from mid-grey albedo, roughness/specular 0.5 (as relume's fit keeps them), emitters (1,1,1)
+  # on the true emitters; snapshots at relume's wall-clock times.
+  python3 "$PY" initscene "$OUT/cap/gt/scene.json" "$OUT/work" "$OUT/fit/mitsuba_init" --res "$RES"
+  "$R" --log warn export "$OUT/fit/mitsuba_init/scene.json" --mitsuba "$OUT/fit/mitsuba_init/mitsuba" --max-depth 9
+  stamp "(c) Mitsuba fit, snapshots at $SNAPS s"
+  cut -d' ' -f1 /proc/loadavg > "$OUT/fit/mitsuba_load.txt"
+  rm -rf "$OUT/fit/mitsuba"
+  python3 "$PY" fit "$OUT/fit/mitsuba_init/mitsuba/scene.xml" "$OUT/cap/transforms.json" "$OUT/fit/mitsuba_init/scene.json" \
+    "$OUT/fit/mitsuba" --snapshots "$SNAPS" --depth 9
+  stamp "(c) eval"
+  for k in $(seq 0 $(( $(tr ',' '\n' <<< "$BUDGETS" | wc -l) - 1 ))); do
+    for sc in "$OUT/fit/relume_$k" "$OUT/fit/mitsuba/t$k"; do
+      "$R" --log warn eval --scene "$sc/scene.json" --cameras "$OUT/cap/transforms_test.json" --out "$sc/eval" \
+        --truth "$OUT/cap/gt/scene.json" --coverage "$OUT/work/coverage.exr" --spp 4 > /dev/null
+    done
   done
-done
+fi
 uptime > "$OUT/uptime_end.txt"
 stamp "table"
 python3 "$PY" table "$OUT"

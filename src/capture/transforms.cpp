@@ -19,7 +19,26 @@ constexpr double kOrthonormalTolerance = 1e-3; // on every entry of R^T R - I, a
 struct Intrinsics {
   std::optional<double> fx, fy, cx, cy, w, h, k1, k2, p1, p2, k3, exposure, clipLow, clipHigh;
   std::optional<std::string> model;
+  std::optional<PixelFilter> filter;
 };
+
+// "pixel_filter": {"type": "box" | "gaussian" | "blackman-harris", "width": pixels (optional)}.
+PixelFilter readPixelFilter(const Json& j, const std::string& where) {
+  if (!j.is_object() || !j.contains("type") || !j["type"].is_string())
+    fail("{}: 'pixel_filter' must be an object with a string 'type'", where);
+  for (const auto& [key, value] : j.items())
+    if (key != "type" && key != "width") fail("{}: unknown key 'pixel_filter.{}' (type, width)", where, key);
+  std::optional<double> width;
+  if (j.contains("width")) {
+    if (!j["width"].is_number()) fail("{}: 'pixel_filter.width' must be a number", where);
+    width = j["width"].get<double>();
+  }
+  try {
+    return PixelFilter::parse(j["type"].get<std::string>(), width);
+  } catch (const Error& e) {
+    fail("{}: {}", where, e.what());
+  }
+}
 
 void readIntrinsics(const Json& j, Intrinsics& in, const std::string& where) {
   auto num = [&](const char* key, std::optional<double>& dst) {
@@ -33,6 +52,7 @@ void readIntrinsics(const Json& j, Intrinsics& in, const std::string& where) {
   num("w", in.w); num("h", in.h); num("k1", in.k1); num("k2", in.k2);
   num("p1", in.p1); num("p2", in.p2); num("k3", in.k3); num("exposure", in.exposure);
   num("clip_low", in.clipLow); num("clip_high", in.clipHigh);
+  if (j.contains("pixel_filter")) in.filter = readPixelFilter(j["pixel_filter"], where);
   if (j.contains("camera_model")) {
     if (!j["camera_model"].is_string()) fail("{}: 'camera_model' must be a string", where);
     in.model = j["camera_model"].get<std::string>();
@@ -110,6 +130,7 @@ static Capture parseTransforms(const std::filesystem::path& path) {
     for (int k = 0; k < 3; ++k)
       if (!(std::abs(m(k, 3)) < kMaxPosition))
         fail("{}: transform_matrix[{}][3] (position) is {}, must be within +-{:g} m", where, k, m(k, 3), kMaxPosition);
+    c.filter = in.filter.value_or(PixelFilter{});
     c.rotation = Camera::rotationFromOpenGL(r.cast<float>());
     c.position = m.block<3, 1>(0, 3).cast<float>();
     if (!f.contains("file_path") || !f["file_path"].is_string()) fail("{}: missing 'file_path'", where);
@@ -127,10 +148,14 @@ static Capture parseTransforms(const std::filesystem::path& path) {
 void writeTransforms(const std::filesystem::path& path, const std::vector<Frame>& frames) {
   Json root;
   root["camera_model"] = "OPENCV";
+  const auto filterJson = [](const PixelFilter& pf) { return Json{{"type", pf.name()}, {"width", pf.width()}}; };
+  const PixelFilter common = frames.empty() ? PixelFilter{} : frames.front().camera.filter;
+  root["pixel_filter"] = filterJson(common);
   Json arr = Json::array();
   for (const Frame& fr : frames) {
     const Camera& c = fr.camera;
     Json f;
+    if (!(c.filter == common)) f["pixel_filter"] = filterJson(c.filter);
     f["file_path"] = std::filesystem::relative(fr.image, path.parent_path()).generic_string();
     f["fl_x"] = c.fx; f["fl_y"] = c.fy; f["cx"] = c.cx; f["cy"] = c.cy; f["w"] = c.width; f["h"] = c.height;
     f["k1"] = c.distortion.k1; f["k2"] = c.distortion.k2; f["p1"] = c.distortion.p1; f["p2"] = c.distortion.p2;

@@ -471,8 +471,13 @@ CommandTable registerCommands(CLI::App& app) {
   synth->add_option("--atlas-res", synthArgs->atlasResolution, "ground-truth albedo atlas resolution")->capture_default_str()->check(inRange(1, 1 << 15));
   synth->add_flag("--with-uv", synthArgs->withUv, "keep uv coordinates in the capture's mesh.ply");
   synth->add_option("--triangles", synthArgs->scanTriangles, "size of the `scan` mesh")->capture_default_str()->check(inRange(1000, 1e8));
+  auto synthFilter = std::make_shared<std::string>("box");
+  synth->add_option("--pixel-filter", *synthFilter,
+                    "the frames' pixel filter, TYPE[:WIDTH]: box (width 1), gaussian or blackman-harris (Cycles' definitions, width 1.5)")
+      ->capture_default_str();
   table[synth] = [=] {
     synthArgs->kind = parseSynthScene(*synthScene);
+    synthArgs->pixelFilter = PixelFilter::parseSpec(*synthFilter);
     synthArgs->out = *outDir;
     const int n = writeSynthCapture(*synthArgs);
     spdlog::info("wrote {} frames of '{}' to {}", n, *synthScene, *outDir);

@@ -6,6 +6,7 @@
 #include <optional>
 
 #include "core/math.h"
+#include "core/pixel_filter.h"
 
 namespace relume {
 
@@ -20,6 +21,7 @@ struct Camera {
   Distortion distortion;
   Mat3 rotation = Mat3::Identity();  // camera-to-world, OpenCV axes
   Vec3 position = Vec3::Zero();
+  PixelFilter filter;  // what the camera's pixels average over (rays for a pixel are drawn from it)
 
   // Normalised undistorted image-plane point -> distorted normalised point.
   Vec2 distort(const Vec2& p) const;

@@ -364,7 +364,8 @@ int writeSynthCapture(const SynthCaptureOptions& o) {
        {std::tuple{"images", "transforms.json", o.frames, 0.0, o.spp}, std::tuple{"test", "transforms_test.json", o.testFrames, 0.5, o.testSpp}}) {
     ro.spp = spp;
     std::vector<Frame> frames;
-    const auto cams = synthCameraPath(o.kind, count, o.width, o.height, phase);
+    auto cams = synthCameraPath(o.kind, count, o.width, o.height, phase);
+    for (Camera& cam : cams) cam.filter = o.pixelFilter;
     for (size_t i = 0; i < cams.size(); ++i) {
       ro.seed = hashTuple({o.seed, static_cast<uint64_t>(phase * 2), i});
       const RenderResult r = renderImage(scene, gt.appearance, lights, cams[i], ro);

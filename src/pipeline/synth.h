@@ -47,6 +47,7 @@ struct SynthCaptureOptions {
   bool withUv = false;
   int atlasResolution = 1024;
   size_t scanTriangles = 1000000;
+  PixelFilter pixelFilter;  // the frames' pixel filter (box: relume's own; Cycles' default: Blackman-Harris 1.5)
 };
 
 // Writes mesh.ply, transforms.json, transforms_test.json, images/, test/, gt/ (scene.json,

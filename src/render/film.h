@@ -21,7 +21,7 @@ struct RenderOptions {
   std::vector<Aov> aovs;
 };
 
-// The primary ray of sample s of pixel (x, y): a box-filtered position inside the pixel, and the
+// The primary ray of sample s of pixel (x, y): a position drawn from the camera's pixel filter, and the
 // generator the rest of that path continues with. Shared by rendering and profiling, so the
 // profiler replays exactly the rendered paths.
 struct CameraSample {

@@ -48,8 +48,13 @@ Batch compact(std::vector<SlotRays>& slots, bool texels) {
 
 ClipThresholds clipOf(const Frame& f) { return {f.clipLow, f.clipHigh}; }
 
+// A ray whose expectation is the stored pixel: that pixel averages size x size frame pixels, each
+// formed with the camera's filter, so a uniformly chosen one of them, then the filter around it.
 std::optional<Vec3> randomDirectionIn(const Camera& cam, const FrameStore::StoredPixel& pixel, Pcg32& rng) {
-  return cam.rayDirection(pixel.corner + pixel.size * Vec2(rng.next1D(), rng.next1D()));
+  if (cam.filter.isUnitBox()) return cam.rayDirection(pixel.corner + pixel.size * Vec2(rng.next1D(), rng.next1D()));
+  const auto offset = [&] { return std::floor(rng.next1D() * pixel.size) + cam.filter.sample(rng.next1D()); };
+  const float dx = offset(), dy = offset();
+  return cam.rayDirection(pixel.corner + Vec2(dx, dy));
 }
 
 // A pixel footprint's rays: `samples` rays compared with `pixel`, each through its own random
@@ -180,14 +185,15 @@ Batch ImageSpaceSampler::sample(uint64_t seed, uint64_t iteration, int rays, con
       out.rays.insert(out.rays.end(), samples, BatchRay{frame.camera.position, ray->second, *reference, clipOf(frame)});
       return;
     }
-    // The pixel position is uniform in the image, so uniform within the pixel it falls in: it is
-    // the first sample's primal point.
+    // The pixel position is uniform in the image, so uniform within the pixel it falls in: with a
+    // box filter it is the first sample's primal point.
     const auto stored = frames_.store->pixelAt(f, ray->first);
     if (!stored) {
       ++out.stats.masked;
       return;
     }
-    appendPixelRays(out, frame.camera, *stored, clipOf(frame), samples, rng, ray->second);
+    appendPixelRays(out, frame.camera, *stored, clipOf(frame), samples, rng,
+                    frame.camera.filter.isUnitBox() ? std::optional<Vec3>(ray->second) : std::nullopt);
   });
   return compact(slots, false);
 }

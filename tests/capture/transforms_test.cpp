@@ -61,6 +61,23 @@ TEST(Transforms, RoundTripThroughWriter) {
   EXPECT_FLOAT_EQ(cap.frames[0].camera.distortion.k1, -0.1f);
   EXPECT_FLOAT_EQ(cap.frames[0].exposure, 2.0f);
   EXPECT_EQ(cap.frames[0].image, f.image);
+  EXPECT_TRUE(cap.frames[0].camera.filter.isUnitBox());  // relume's own renders
+  // A capture's pixel filter, common and per frame, survives the writer.
+  Frame g = f;
+  f.camera.filter = PixelFilter(PixelFilterType::BlackmanHarris, 1.5f);
+  g.camera.filter = PixelFilter(PixelFilterType::Gaussian, 2.0f);
+  writeTransforms(dir / "rt_filter.json", {f, f, g});
+  const Capture filtered = readTransforms(dir / "rt_filter.json");
+  EXPECT_EQ(filtered.frames[1].camera.filter, f.camera.filter);
+  EXPECT_EQ(filtered.frames[2].camera.filter, g.camera.filter);
+}
+
+TEST(Transforms, PixelFilterDefaultsToCyclesWidth) {
+  const std::string frame = R"("file_path": "a.exr", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]])";
+  const Capture cap = readTransforms(writeFile("filter.json", R"({"fl_x": 10, "w": 10, "h": 10, "pixel_filter": {"type": "blackman-harris"},
+    "frames": [{)" + frame + R"(}, {"pixel_filter": {"type": "box"}, )" + frame + "}]}"));
+  EXPECT_EQ(cap.frames[0].camera.filter, PixelFilter(PixelFilterType::BlackmanHarris, 1.5f));
+  EXPECT_TRUE(cap.frames[1].camera.filter.isUnitBox());
 }
 
 TEST(Transforms, MalformedInputsGiveOneLineErrors) {
@@ -95,6 +112,13 @@ TEST(Transforms, MalformedInputsGiveOneLineErrors) {
        "frame 0: transform_matrix[2][3] (position) is -1000000, must be within +-1e+06 m"},
       {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"file_path": "a", "transform_matrix": [[1,0.5,0,0],[0,1,0,0],[0,0,1,0]]}]})",
        "frame 0: transform_matrix rotation is not orthonormal (det 1, |R^T R - I| 0.5"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "pixel_filter": "box", "frames": [{)" + frame + "}]}", "'pixel_filter' must be an object with a string 'type'"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "pixel_filter": {"type": "mitchell"}, "frames": [{)" + frame + "}]}",
+       "pixel filter 'mitchell': must be box, gaussian or blackman-harris"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"pixel_filter": {"type": "box", "width": 0}, )" + frame + "}]}",
+       "frame 0: pixel filter width 0: must be in (0, 16] pixels"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "pixel_filter": {"type": "box", "size": 2}, "frames": [{)" + frame + "}]}",
+       "unknown key 'pixel_filter.size'"},
   };
   for (size_t i = 0; i < cases.size(); ++i) {
     const fs::path p = writeFile("bad" + std::to_string(i) + ".json", cases[i].first);

@@ -115,6 +115,44 @@ TEST(Render, SlantedEmitterIsNotItsOwnOccluder) {
   expectDirectLightingMatches(Vec3(3, 0, 3), 2.0f, 1.5f);
 }
 
+// A pixel straddling an emitter's edge averages the emitter over the camera's pixel filter: with
+// the edge 0.6 px right of pixel 4's centre, the unit box sees none of it in pixel 4 and all of it
+// in pixel 5; Cycles' Blackman-Harris 1.5 and a Gaussian spread the edge over both.
+TEST(Render, PixelsAverageOverTheCamerasFilter) {
+  const float edge = 0.6f;
+  Camera cam;
+  cam.width = 9, cam.height = 3, cam.fx = cam.fy = 9, cam.cx = 4.5f, cam.cy = 1.5f;  // 1 px = 1/9 at z = 1
+  MeshData m;  // the emitting half-plane x >= edge of z = 1, facing the camera
+  const float x0 = edge / cam.fx;
+  m.positions = {Vec3(x0, -5, 1), Vec3(5, -5, 1), Vec3(5, 5, 1), Vec3(x0, 5, 1)};
+  m.triangles = {{0, 2, 1}, {0, 3, 2}};
+  m.faceObject = {0, 0};
+  Scene scene(buildMesh(m, "half plane"));
+  ASSERT_LT(scene.mesh().faceNormal(0).z(), 0.0f);
+  Appearance a(1);
+  a.emission[0] = Color::Constant(1.0f);
+  LightSampler lights(scene, a);
+  RenderOptions ro;
+  ro.spp = 20000;
+  ro.path.maxDepth = 0;
+  for (const PixelFilter& f : {PixelFilter(), PixelFilter(PixelFilterType::BlackmanHarris, 1.5f), PixelFilter(PixelFilterType::Gaussian, 1.5f)}) {
+    cam.filter = f;
+    const Image img = renderImage(scene, a, lights, cam, ro).color;
+    for (int x = 3; x <= 6; ++x) {
+      // The filter's share beyond the edge, seen from pixel x's centre (Simpson's rule on its weight).
+      const double from = edge - (x - 4), r = f.radius(), h = 2 * r / 4000;
+      double inside = 0, total = 0;
+      for (int i = 0; i < 4000; ++i) {
+        const double t = -r + i * h;
+        const double mass = h / 6 * (f.weight(float(t)) + 4 * f.weight(float(t + h / 2)) + f.weight(float(t + h)));
+        total += mass;
+        if (t + h / 2 > from) inside += mass;
+      }
+      for (int y = 0; y < 3; ++y) EXPECT_NEAR(img.at(x, y)[0], inside / total, 0.012) << f.name() << " pixel " << x;
+    }
+  }
+}
+
 TEST(Render, DeterministicAcrossThreadCounts) {
   SynthScene room = makeSynthScene(SynthSceneKind::Cornell, 128);
   Scene scene(room.scene.mesh);

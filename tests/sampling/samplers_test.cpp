@@ -137,6 +137,42 @@ TEST(TextureSampler, PixelFootprintRaysCrossThePixelWhoseValueTheyCarry) {
   for (const BatchRay& r : sampler.sample(3, 0, {256, 3, RayFootprint::Point}).rays) EXPECT_EQ(r.adjointDirection(), r.dir);
 }
 
+// With the capture's pixel filter (Cycles' Blackman-Harris 1.5 here), a pixel-footprint ray is
+// drawn from that filter around the pixel's centre: spread beyond the pixel, with the filter's
+// standard deviation, in both passes and from both samplers.
+TEST(TextureSampler, PixelFootprintRaysFollowTheCapturesPixelFilter) {
+  Fixture f;
+  const PixelFilter bh(PixelFilterType::BlackmanHarris, 1.5f);
+  for (Frame& frame : f.cap.frames) frame.camera.filter = bh;
+  double fx2 = 0, fsum = 0;  // the filter's variance, by Simpson's rule on its weight
+  for (int i = 0; i < 3000; ++i) {
+    const double h = 2.0 * bh.radius() / 3000, x = -bh.radius() + (i + 0.5) * h;
+    fx2 += bh.weight(float(x)) * x * x * h, fsum += bh.weight(float(x)) * h;
+  }
+  const TextureSpaceSampler texture(f.scene, f.map, f.texels, f.vis, f.frames());
+  const ImageSpaceSampler image(f.frames());
+  for (const Batch& b : {texture.sample(3, 0, {2048, 3, RayFootprint::Pixel}), image.sample(3, 0, 12000, f.scene, RayFootprint::Pixel)}) {
+    ASSERT_GT(b.rays.size(), 2000u);
+    double sum = 0, sq = 0, n = 0, outside = 0;
+    for (const BatchRay& r : b.rays) {
+      int frame = -1;
+      for (int i = 0; i < 6; ++i)
+        if ((f.cap.frames[i].camera.position - r.origin).norm() < 1e-6f) frame = i;
+      ASSERT_GE(frame, 0);
+      for (const Vec3& dir : {r.dir, r.adjointDirection()}) {
+        const auto px = f.cap.frames[frame].camera.project(r.origin + dir);
+        ASSERT_TRUE(px);
+        const double dx = px->x() - r.reference[0] - 0.5;  // from the centre of the pixel the ray carries
+        EXPECT_LE(std::abs(dx), bh.radius() + 1e-3);
+        sum += dx, sq += dx * dx, n += 1, outside += std::abs(dx) > 0.5;
+      }
+    }
+    EXPECT_NEAR(sum / n, 0.0, 0.02);
+    EXPECT_NEAR(std::sqrt(sq / n), std::sqrt(fx2 / fsum), 0.02);
+    EXPECT_GT(outside / n, 0.05);  // a box would keep every ray inside the pixel
+  }
+}
+
 // Samples per connection: a point ray is repeated as it is (the solver seeds each copy on its
 // own); a pixel-footprint ray draws its own points of the same pixel per sample.
 TEST(TextureSampler, EachSampleOfAConnectionIsItsOwnRay) {

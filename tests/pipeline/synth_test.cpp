@@ -55,4 +55,10 @@ TEST(Synth, CaptureRoundTripsThroughTheReaders) {
   EXPECT_TRUE(gt.mesh.hasUv());
   EXPECT_FALSE(loadMesh(dir / "mesh.ply").hasUv());  // captures carry no uv unless --with-uv
   EXPECT_GT(gt.appearance.emission[3].maxCoeff(), 0.0f);
+  EXPECT_TRUE(cap.frames[0].camera.filter.isUnitBox());
+  // Frames formed with another pixel filter say so, in both camera lists.
+  o.pixelFilter = PixelFilter::parseSpec("blackman-harris");
+  writeSynthCapture(o);
+  for (const char* json : {"transforms.json", "transforms_test.json"})
+    EXPECT_EQ(readTransforms(dir / json).frames[0].camera.filter, PixelFilter(PixelFilterType::BlackmanHarris, 1.5f)) << json;
 }

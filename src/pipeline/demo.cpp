@@ -81,7 +81,8 @@ DemoCapture prepareDemoCapture(const fs::path& out) {
 Json runDemo(const DemoOptions& o) {
   Timer total;
   const DemoCapture d = prepareDemoCapture(o.out);
-  const SynthCaptureOptions so{.out = d.capture};
+  SynthCaptureOptions so;
+  so.out = d.capture;
   const FitSummary fs = runFit(d.work, o.fit, false);
 
   const SceneDescription fitted = loadSceneFile(fs.resultDir / "scene.json");

@@ -1,7 +1,7 @@
 // Training batches. The texture-space sampler (the paper's, 3.3) draws texels uniformly from the
 // valid texels of the current resolution, maps them to surface points through the texel map and
 // connects each to up to K frames that see it (candidates from the visibility index; inside the
-// frustum, facing, and the camera ray's first hit must be that surface point). The image-space
+// frustum, not edge-on (either side), and the camera ray's first hit must be that surface point). The image-space
 // sampler (random frames, random pixels) is the ablation's baseline. Both are deterministic: slot
 // j of iteration i is seeded from (seed, i, j), whatever the thread count.
 #pragma once
@@ -27,7 +27,7 @@ struct TrainingFrames {
 struct SamplerStats {
   size_t slots = 0;            // texels (or pixels) drawn
   size_t candidates = 0;       // frame connections tried
-  size_t notSeen = 0;          // outside the image, back-facing, occluded
+  size_t notSeen = 0;          // outside the image, edge-on, occluded
   size_t firstHitElsewhere = 0;  // the camera ray first hits another surface (grazing, self-occlusion)
   size_t masked = 0;           // reference pixel masked (NaN/Inf in the input)
   size_t rays = 0;             // training rays produced

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <tbb/parallel_for.h>
 
+#include <cmath>
 #include <cstring>
 #include <fstream>
 
@@ -16,7 +17,9 @@ namespace fs = std::filesystem;
 
 std::optional<Vec2> observe(const Scene& scene, const Camera& cam, const Vec3& p, const Vec3& n) {
   const Vec3 toCam = cam.position - p;
-  if (!(n.dot(toCam) > 0.0f)) return std::nullopt;  // also rejects NaN
+  // Either side: BSDFs are two-sided, so a wall wound away from the room is still seen from it.
+  const float facing = n.dot(toCam);
+  if (!(std::abs(facing) > 0.0f)) return std::nullopt;  // edge-on; also rejects NaN
   const auto px = cam.project(p);
   if (!px || !(px->x() >= 0.5f && px->y() >= 0.5f && px->x() <= cam.width - 0.5f && px->y() <= cam.height - 0.5f))
     return std::nullopt;
@@ -24,7 +27,7 @@ std::optional<Vec2> observe(const Scene& scene, const Camera& cam, const Vec3& p
   const float tmax = dist - 2 * rayEpsilon(cam.position);
   if (!(tmax > 0.0f)) return std::nullopt;  // a point at the camera's own position
   const Vec3 dir = toCam / dist;
-  const Vec3 o = p + rayEpsilon(p) * n;
+  const Vec3 o = p + rayEpsilon(p) * (facing > 0.0f ? n : Vec3(-n));
   if (scene.occluded(o, dir, tmax)) return std::nullopt;
   return px;
 }

@@ -1,6 +1,6 @@
 // Which frames see which surface points. `observe` is the one connection test every stage uses
-// (prepare's visibility index and median, the texture-space sampler): inside the image, facing
-// the camera, unoccluded. The visibility index lists, per tile of texture space, the frames that
+// (prepare's visibility index and median, the texture-space sampler): inside the image, not
+// edge-on, unoccluded. The visibility index lists, per tile of texture space, the frames that
 // can see some point of it (CSR), so samplers only try plausible frames.
 #pragma once
 #include <cstdint>
@@ -14,9 +14,9 @@
 
 namespace relume {
 
-// Where camera `cam` sees surface point p with geometric normal n (winding side): the pixel, if
-// p is inside the image, faces the camera and nothing lies between them. NaN-safe: a non-finite
-// point or normal is never observed.
+// Where camera `cam` sees surface point p with normal n: the pixel, if p is inside the image, is
+// not seen edge-on (either side of n: the BSDF is two-sided) and nothing lies between them.
+// NaN-safe: a non-finite point or normal is never observed.
 std::optional<Vec2> observe(const Scene& scene, const Camera& cam, const Vec3& p, const Vec3& n);
 
 struct VisibilityIndex {
@@ -32,7 +32,7 @@ struct VisibilityIndex {
   size_t bytes() const { return (offsets.size() + frames.size()) * sizeof(uint32_t); }
 };
 
-// Frames (of `use`) that see each tile of `map`: frustum, facing, one occlusion ray per test point.
+// Frames (of `use`) that see each tile of `map`: frustum, not edge-on, one occlusion ray per test point.
 VisibilityIndex buildVisibilityIndex(const Scene& scene, const TexelMap& map, const std::vector<Frame>& frames,
                                      const std::vector<size_t>& use, int tileTexels, int samplesPerTile);
 

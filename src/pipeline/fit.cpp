@@ -39,9 +39,11 @@ template <typename Fn> void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("frames_per_texel", ConfigField(&c.framesPerTexel));
   fn("material_batch_texels", ConfigField(&c.materialBatchTexels));
   fn("highlight_batch_texels", ConfigField(&c.highlightBatchTexels));
+  fn("emission_batch_texels", ConfigField(&c.emissionBatchTexels));
   fn("material_footprint", ConfigField(&c.materialFootprint));
   fn("image_rays", ConfigField(&c.imageRays));
   fn("ray_footprint", ConfigField(&c.rayFootprint));
+  fn("emission_footprint", ConfigField(&c.emissionFootprint));
   fn("samples_per_ray", ConfigField(&c.samplesPerRay));
   fn("max_depth", ConfigField(&c.maxDepth));
   fn("gradients", ConfigField(&c.gradients));
@@ -95,6 +97,7 @@ void validate(const FitConfig& c, const std::string& where) {
   need(c.framesPerTexel >= 1 && c.framesPerTexel <= 64, "frames_per_texel must be in [1, 64]");
   need(c.materialBatchTexels >= 0 && c.materialBatchTexels <= (1 << 24), "material_batch_texels must be in [0, 2^24]");
   need(c.highlightBatchTexels >= 0 && c.highlightBatchTexels <= (1 << 24), "highlight_batch_texels must be in [0, 2^24]");
+  need(c.emissionBatchTexels >= 0 && c.emissionBatchTexels <= (1 << 24), "emission_batch_texels must be in [0, 2^24]");
   need(c.imageRays >= 1 && c.imageRays <= (1 << 24), "image_rays must be in [1, 2^24]");
   need(c.samplesPerRay >= 1 && c.samplesPerRay <= 64, "samples_per_ray must be in [1, 64]");
   need(c.maxDepth >= 0 && c.maxDepth <= 64, "max_depth must be in [0, 64]");
@@ -104,6 +107,7 @@ void validate(const FitConfig& c, const std::string& where) {
   parsePairing(c.pairing);
   parseRayFootprint(c.rayFootprint);
   parseRayFootprint(c.materialFootprint);
+  parseRayFootprint(c.emissionFootprint);
   need(c.albedoStep == "gauss-newton" || c.albedoStep == "adam", "albedo_step must be gauss-newton or adam");
   // The Gauss-Newton step models a texel's pixels as linear in the albedo at their first vertex;
   // `full` gradients add the albedo's terms at deeper vertices, which that curvature does not
@@ -268,6 +272,7 @@ struct Stage {
   // The unknowns this stage settles (lr decay over its second half, Polyak averaging, then the
   // average kept): each kind settles in the last stage that fits it.
   ParamMask settles{0};
+  RayFootprint footprint = RayFootprint::Point;  // what the uniform batch's rays are compared with
 };
 
 // The resolution the frames resolve: the smallest stage resolution whose texel is no larger than
@@ -303,16 +308,23 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
     return static_cast<int>(std::clamp(n, 1.0, static_cast<double>(c.maxStageIterations)));
   };
   std::vector<Stage> s;
+  const RayFootprint rays = parseRayFootprint(c.rayFootprint);
   const ParamMask emission = c.emitterParameterisation ? ParamMask::only({K::Emission}) : ParamMask::only({K::EmissionTexture});
   if (!c.coarseToFine) {
     ParamMask all = ParamMask::only({K::Albedo, K::Roughness, K::Specular});
     all.bits |= emission.bits;
     int n = c.emissionIterations + c.materialIterations;
     for (int r : resolutions) n += albedoIterations(r);
-    s.push_back({"all", all, finalRes, n, false, false, all});
+    s.push_back({"all", all, finalRes, n, false, false, all, rays});
     return s;
   }
-  s.push_back({"emission", emission, resolutions.front(), c.emissionIterations, c.emitterParameterisation, false});
+  // Its unknowns are per object (with emitter_parameterisation), so a ray may stand for a whole
+  // pixel: an emitter seen as a few pixels is mixed with its surroundings in every one of them,
+  // and a ray through the emitter's own point compared with that mixture dims it (README
+  // "Pixel filters"). Per-texel unknowns are better served by points: a pixel ray's residual and
+  // sensitivity belong to different texels, noise a per-texel step cannot average away.
+  s.push_back({"emission", emission, resolutions.front(), c.emissionIterations, c.emitterParameterisation, false, {0},
+               parseRayFootprint(c.emissionFootprint)});
   // Then the albedo at the first resolution, and only then roughness and specular with it: while
   // the albedo is still near its (too dark) init, the specular lobe of a rough object makes up
   // for it (measured on the room: the walls' specular went to 1.0 whether it was fitted before or
@@ -321,16 +333,16 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   // (I = E), while fitted together with the albedo it drifts along the near-null direction
   // "brighter lights, darker albedo" (room: 3% after stage 1, 10% after the albedo stages).
   const ParamMask albedo = ParamMask::only({K::Albedo});
-  s.push_back({fmt::format("albedo@{}", resolutions.front()), albedo, resolutions.front(), albedoIterations(resolutions.front())});
+  s.push_back({fmt::format("albedo@{}", resolutions.front()), albedo, resolutions.front(), albedoIterations(resolutions.front()), false, false, {0}, rays});
   // With material_stage_settles, roughness and specular settle in their own stage and the finer
   // albedo stages fit the albedo alone: the material texels make the 1K room's albedo@1024
   // iterations 1.3x dearer, but without them its albedo came out worse (README).
   const ParamMask materials = ParamMask::only({K::Albedo, K::Roughness, K::Specular});
   const ParamMask afterMaterials = c.materialStageSettles ? albedo : materials;
   const size_t materialStage = s.size();
-  s.push_back({"materials", materials, resolutions.front(), c.materialIterations});
+  s.push_back({"materials", materials, resolutions.front(), c.materialIterations, false, false, {0}, rays});
   for (size_t i = 1; i < resolutions.size(); ++i)
-    s.push_back({fmt::format("albedo@{}", resolutions[i]), afterMaterials, resolutions[i], albedoIterations(resolutions[i])});
+    s.push_back({fmt::format("albedo@{}", resolutions[i]), afterMaterials, resolutions[i], albedoIterations(resolutions[i]), false, false, {0}, rays});
   s.back().settles = s.back().active;
   if (c.materialStageSettles) {
     s[materialStage].settles.set(K::Roughness, true);
@@ -338,7 +350,7 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   }
   if (c.emitterParameterisation && c.emissionTextures && c.emissionTextureIterations > 0) {
     const ParamMask textures = ParamMask::only({K::EmissionTexture});
-    s.push_back({"emission_texture", textures, finalRes, c.emissionTextureIterations, false, true, textures});
+    s.push_back({"emission_texture", textures, finalRes, c.emissionTextureIterations, false, true, textures, rays});
   }
   return s;
 }
@@ -590,18 +602,20 @@ class Fit {
     return texels;
   }
 
-  // The texels the material stage draws more of: the fitted objects' (material_batch_texels) and
-  // their highlights (highlight_batch_texels).
-  struct MaterialFocus {
+  // The texels a stage draws more of: in the material stage the fitted objects'
+  // (material_batch_texels) and their highlights (highlight_batch_texels); in the emission stage
+  // each light-source candidate's own (emission_batch_texels, shared evenly between them).
+  struct BatchFocus {
     std::vector<uint32_t> objects, highlights;
+    std::vector<std::vector<uint32_t>> candidates;
   };
 
   // Highlight texels: each fitted texel is connected to every frame that sees it (8 draws per
   // texel, so one is missed with p ~ 3e-4) and kept if one of those connections sees a light
   // reflected. Depends on the geometry, the frames and the emitter set only, so a resumed fit
   // finds the same texels.
-  MaterialFocus materialFocus(const TexelSpace& space) const {
-    MaterialFocus f{fittedObjectTexels(space), {}};
+  BatchFocus materialFocus(const TexelSpace& space) const {
+    BatchFocus f{fittedObjectTexels(space), {}, {}};
     if (f.objects.empty() || c_.highlightBatchTexels == 0) return f;
     const TextureSpaceSampler all(*w_.scene, space.map, f.objects, w_.vis, w_.trainingFrames());
     const int draws = static_cast<int>(std::min<size_t>(8 * f.objects.size(), 1 << 24));
@@ -616,20 +630,36 @@ class Fit {
     return f;
   }
 
+  // An object's emission is decided by its own pixels, but a uniform batch holds them in
+  // proportion to its area: a lamp of 6 texels among 75,000 is in one batch out of two, and its
+  // emission follows the walls it lights instead, through an albedo still at its init (the flower
+  // bedroom's lamp: 293 for a truth of 1000, then pruned as lit).
+  BatchFocus emissionFocus(const TexelSpace& space) const {
+    BatchFocus f;
+    if (c_.emissionBatchTexels == 0) return f;
+    std::vector<std::vector<uint32_t>> texels(appearance_.objectCount());
+    for (uint32_t t : space.sampleable) texels[w_.mesh.faceObject[space.map.triangle(t)]].push_back(t);
+    for (int o = 0; o < appearance_.objectCount(); ++o)
+      if (emitter_[o] && !texels[o].empty()) f.candidates.push_back(std::move(texels[o]));
+    return f;
+  }
+
   // The uniform batch, then (in the material stage) the focused texels, each set with its own
   // seed stream; every connection traced samples_per_ray times.
-  Batch sampleBatch(const TexelSpace& space, uint64_t iteration, const MaterialFocus& focus = {}) const {
+  Batch sampleBatch(const TexelSpace& space, uint64_t iteration, RayFootprint footprint, const BatchFocus& focus = {}) const {
     if (c_.sampler != "texture")
-      return ImageSpaceSampler(w_.trainingFrames()).sample(c_.seed, iteration, c_.imageRays, *w_.scene, footprint_, c_.samplesPerRay);
+      return ImageSpaceSampler(w_.trainingFrames()).sample(c_.seed, iteration, c_.imageRays, *w_.scene, footprint, c_.samplesPerRay);
     const TextureSpaceSampler sampler(*w_.scene, space.map, space.sampleable, w_.vis, w_.trainingFrames());
-    Batch b = sampler.sample(c_.seed, iteration, {c_.batchTexels, c_.framesPerTexel, footprint_, c_.samplesPerRay});
-    auto add = [&](const std::vector<uint32_t>& texels, int count, uint64_t stream) {
+    Batch b = sampler.sample(c_.seed, iteration, {c_.batchTexels, c_.framesPerTexel, footprint, c_.samplesPerRay});
+    auto add = [&](const std::vector<uint32_t>& texels, int count, RayFootprint fp, uint64_t stream) {
       if (texels.empty() || count == 0) return;
       const TextureSpaceSampler focused(*w_.scene, space.map, texels, w_.vis, w_.trainingFrames());
-      b.append(focused.sample(hashTuple({c_.seed, stream}), iteration, {count, c_.framesPerTexel, materialFootprint_, c_.samplesPerRay}));
+      b.append(focused.sample(hashTuple({c_.seed, stream}), iteration, {count, c_.framesPerTexel, fp, c_.samplesPerRay}));
     };
-    add(focus.objects, c_.materialBatchTexels, 0x6d6174);
-    add(focus.highlights, c_.highlightBatchTexels, 0x686c74);
+    add(focus.objects, c_.materialBatchTexels, materialFootprint_, 0x6d6174);
+    add(focus.highlights, c_.highlightBatchTexels, materialFootprint_, 0x686c74);
+    const int perCandidate = focus.candidates.empty() ? 0 : std::max<int>(1, c_.emissionBatchTexels / static_cast<int>(focus.candidates.size()));
+    for (size_t i = 0; i < focus.candidates.size(); ++i) add(focus.candidates[i], perCandidate, footprint, hashTuple({0x656d69, i}));
     return b;
   }
 
@@ -649,7 +679,9 @@ class Fit {
     FitPhaseTimes times;
     // One buffer per stage, cleared every iteration; curvature only where the albedo steps by it.
     Gradients grads(appearance_, newtonAlbedo() && st.active.active(ParamKind::Albedo));
-    const MaterialFocus focus = st.active.active(ParamKind::Roughness) ? materialFocus(space) : MaterialFocus{};
+    const BatchFocus focus = st.active.active(ParamKind::Roughness) ? materialFocus(space)
+                             : st.pruneAfter                         ? emissionFocus(space)
+                                                                     : BatchFocus{};
     for (int it = firstIteration; it < st.iterations; ++it) {
       const uint64_t iteration = static_cast<uint64_t>(globalIteration_);
       // For the groups settling here: constant, then over the stage's second half linear down to
@@ -658,7 +690,7 @@ class Fit {
       const float settleScale = it < half ? 1.0f : 1.0f - (1.0f - c_.lrFinalFraction) * (it - half) / std::max(1.0f, half);
       FitPhaseTimes now;
       Timer ts;
-      const Batch batch = sampleBatch(space, iteration, focus);
+      const Batch batch = sampleBatch(space, iteration, st.footprint, focus);
       now.sample = ts.seconds();
       stats_.add(batch.stats);
       if (st.pruneAfter)
@@ -825,7 +857,7 @@ class Fit {
     const int objects = appearance_.objectCount();
     HighlightEvidence evidence(objects);
     for (uint64_t probe = 0; probe < kHighlightProbeBatches; ++probe) {
-      const Batch batch = sampleBatch(space, (uint64_t{1} << 40) + probe);
+      const Batch batch = sampleBatch(space, (uint64_t{1} << 40) + probe, footprint_);
       std::vector<int8_t> sawLight(batch.rays.size(), -1);
       std::vector<float> lum(batch.rays.size(), 0.0f);
       tbb::parallel_for(size_t{0}, batch.rays.size(), [&](size_t j) {

@@ -30,12 +30,17 @@ struct FitConfig {
   // And this many from the fitted objects' texels that some frame sees with a light reflected in
   // them: the highlights, where roughness shows.
   int highlightBatchTexels = 0;
+  // In the emission stage (with emitter_parameterisation), this many more texels per iteration,
+  // shared evenly between the light-source candidates: each object's emission is then weighed
+  // against its own pixels, however small it is (fit.cpp, emissionFocus).
+  int emissionBatchTexels = 1024;
   // What the rays of those two focused sets are compared with (ray_footprint's values): a
   // highlight a few pixels wide is where the point estimate's blur (bilinear over box-filtered
   // pixels) would pass for a rougher material.
   std::string materialFootprint = "point";
   int imageRays = 16384;            // rays per iteration (image sampler)
   std::string rayFootprint = "point";  // point (the paper's) or pixel: what a ray is compared with (sampling/samplers.h)
+  std::string emissionFootprint = "pixel";  // the same for the emission stage's rays (fit.cpp, buildSchedule)
   // Independent (primal, adjoint) pairs per connection. 2 halves the variance of each ray's
   // albedo sensitivity (the indirectly lit ceiling sees the room through 1-spp paths): with
   // albedo_passes 100 and albedo_damping 0.005, the room's albedo MAE 0.033 -> 0.028 (README).

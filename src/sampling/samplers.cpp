@@ -117,8 +117,8 @@ Batch TextureSpaceSampler::sample(uint64_t seed, uint64_t iteration, const Textu
       const Camera& cam = frame.camera;
       const Vec3 toPoint = p - cam.position;
       const auto px = cam.project(p);
-      if (!(std::abs(n.dot(toPoint)) > 0.0f) || !px || !(px->x() >= 0.5f && px->y() >= 0.5f && px->x() <= cam.width - 0.5f &&
-                                               px->y() <= cam.height - 0.5f)) {
+      if (!(std::abs(n.dot(toPoint)) > 0.0f) || !px ||
+          !(px->x() >= 0.5f && px->y() >= 0.5f && px->x() <= cam.width - 0.5f && px->y() <= cam.height - 0.5f)) {
         ++out.stats.notSeen;
         continue;
       }

@@ -124,6 +124,7 @@ TEST(Fit, BadInputIsAOneLineError) {
   EXPECT_THROW(loadText(R"({"lr_albedo": -1})"), Error);           // out of range
   EXPECT_THROW(loadText(R"({"pairing": "both"})"), Error);
   EXPECT_THROW(loadText(R"({"ray_footprint": "area"})"), Error);
+  EXPECT_THROW(loadText(R"({"emission_footprint": "area"})"), Error);
   EXPECT_THROW(loadText(R"({"material_batch_texels": -1})"), Error);
   EXPECT_THROW(loadText(R"({"roulette_depth": 0})"), Error);
   EXPECT_NO_THROW(loadText(R"({"ray_footprint": "pixel", "material_batch_texels": 0})"));
@@ -358,4 +359,70 @@ TEST(Fit, MaterialsSettleInTheirOwnStage) {
     EXPECT_EQ(movedLater > 0, !own);
     EXPECT_GE(moved, 1);  // some object was fitted: otherwise this checks nothing
   }
+}
+
+// emission_footprint is what the emission stage's rays are compared with, ray_footprint what the
+// later stages' are: a pixel ray carries a second, independent direction through its pixel for
+// the adjoint pass, a point ray aims both passes at its texel.
+TEST(Fit, EachStageComparesItsRaysWithItsOwnFootprint) {
+  const fs::path dir = cornellWork("stage_footprints");
+  for (const auto& [emission, rest] : {std::pair{"pixel", "point"}, std::pair{"point", "pixel"}}) {
+    FitConfig c = smallConfig();
+    c.emissionIterations = 3, c.materialIterations = 3, c.albedoPasses = 1, c.materialBatchTexels = 0;
+    c.emissionFootprint = emission, c.rayFootprint = rest;
+    std::map<std::string, std::pair<size_t, size_t>> pixelRays;  // per stage: (pixel rays, rays)
+    FitHooks hooks;
+    hooks.writeFiles = false;
+    hooks.afterIteration = [&](const FitIteration& it) {
+      auto& [pixel, all] = pixelRays[it.stage];
+      for (const BatchRay& r : it.rays) pixel += r.adjointDirection() != r.dir, ++all;
+      return true;
+    };
+    runFit(dir / "work", c, false, hooks);
+    ASSERT_EQ(pixelRays.size(), 3u);  // emission, albedo@256, materials
+    for (const auto& [stage, counts] : pixelRays) {
+      const bool pixelStage = (stage == "emission" ? std::string(emission) : std::string(rest)) == "pixel";
+      ASSERT_GT(counts.second, 1000u) << stage;
+      if (pixelStage)
+        EXPECT_EQ(counts.first, counts.second) << stage << " (" << emission << " / " << rest << ")";
+      else
+        EXPECT_EQ(counts.first, 0u) << stage << " (" << emission << " / " << rest << ")";
+    }
+  }
+}
+
+// emission_batch_texels are shared evenly between the light-source candidates in the emission
+// stage: every seen object, however small, gets its share of rays there, and no other stage
+// changes.
+TEST(Fit, EmissionStageDrawsEveryCandidatesOwnTexels) {
+  const fs::path dir = cornellWork("emission_focus");
+  auto raysPerObject = [&](int focusTexels) {
+    FitConfig c = smallConfig();
+    c.emissionIterations = 4, c.materialIterations = 2, c.albedoPasses = 1, c.emissionBatchTexels = focusTexels;
+    std::map<std::string, std::map<int, double>> rays;  // per stage, per object, per iteration
+    FitHooks hooks;
+    hooks.writeFiles = false;
+    hooks.afterIteration = [&](const FitIteration& f) {
+      for (int o : f.rayObjects) rays[f.stage][o] += 1.0;
+      return true;
+    };
+    runFit(dir / "work", c, false, hooks);
+    for (auto& [stage, objects] : rays)
+      for (auto& [o, n] : objects) n /= stage == "emission" ? 4 : 1;
+    return rays;
+  };
+  auto on = raysPerObject(1024), off = raysPerObject(0);
+  const auto& emissionOn = on.at("emission");
+  const auto& emissionOff = off.at("emission");
+  ASSERT_GE(emissionOn.size(), 5u);
+  const double share = 1024.0 / emissionOn.size();  // texels per candidate per iteration
+  double fewestOff = 1e30;
+  for (const auto& [o, n] : emissionOn) {
+    const double before = emissionOff.count(o) ? emissionOff.at(o) : 0.0;
+    fewestOff = std::min(fewestOff, before);
+    // Each extra texel is connected to up to K = 4 frames; at least a third of one survives.
+    EXPECT_GT(n - before, share / 3) << "object " << o << ": " << before << " -> " << n;
+  }
+  EXPECT_LT(fewestOff, share / 3);  // some object was starved without it: otherwise this checks nothing
+  EXPECT_EQ(on.at("albedo@256"), off.at("albedo@256"));
 }

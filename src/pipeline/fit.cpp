@@ -644,8 +644,8 @@ class Fit {
     return f;
   }
 
-  // The uniform batch, then (in the material stage) the focused texels, each set with its own
-  // seed stream; every connection traced samples_per_ray times.
+  // The uniform batch, then (in the material and emission stages) the focused texels, each set
+  // with its own seed stream; every connection traced samples_per_ray times.
   Batch sampleBatch(const TexelSpace& space, uint64_t iteration, RayFootprint footprint, const BatchFocus& focus = {}) const {
     if (c_.sampler != "texture")
       return ImageSpaceSampler(w_.trainingFrames()).sample(c_.seed, iteration, c_.imageRays, *w_.scene, footprint, c_.samplesPerRay);

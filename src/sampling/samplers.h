@@ -1,9 +1,9 @@
 // Training batches. The texture-space sampler (the paper's, 3.3) draws texels uniformly from the
 // valid texels of the current resolution, maps them to surface points through the texel map and
 // connects each to up to K frames that see it (candidates from the visibility index; inside the
-// frustum, not edge-on (either side), and the camera ray's first hit must be that surface point). The image-space
-// sampler (random frames, random pixels) is the ablation's baseline. Both are deterministic: slot
-// j of iteration i is seeded from (seed, i, j), whatever the thread count.
+// frustum, not edge-on (either side), and the camera ray's first hit must be that surface point).
+// The image-space sampler (random frames, random pixels) is the ablation's baseline. Both are
+// deterministic: slot j of iteration i is seeded from (seed, i, j), whatever the thread count.
 #pragma once
 #include <span>
 #include <string>

@@ -2,8 +2,6 @@
 
 #include <tbb/parallel_for.h>
 
-#include <cmath>
-
 #include "core/error.h"
 #include "core/rng.h"
 
@@ -115,13 +113,12 @@ Batch TextureSpaceSampler::sample(uint64_t seed, uint64_t iteration, const Textu
       ++out.stats.candidates;
       const Frame& frame = (*frames_.frames)[f];
       const Camera& cam = frame.camera;
-      const Vec3 toPoint = p - cam.position;
-      const auto px = cam.project(p);
-      if (!(std::abs(n.dot(toPoint)) > 0.0f) || !px ||
-          !(px->x() >= 0.5f && px->y() >= 0.5f && px->x() <= cam.width - 0.5f && px->y() <= cam.height - 0.5f)) {
+      const auto px = inView(cam, p, n);
+      if (!px) {
         ++out.stats.notSeen;
         continue;
       }
+      const Vec3 toPoint = p - cam.position;
       const float dist = toPoint.norm();
       const Vec3 dir = toPoint / dist;
       // The training ray must first hit this surface point: anything else (an occluder, or a

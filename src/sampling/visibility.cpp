@@ -15,19 +15,24 @@
 namespace relume {
 namespace fs = std::filesystem;
 
-std::optional<Vec2> observe(const Scene& scene, const Camera& cam, const Vec3& p, const Vec3& n) {
-  const Vec3 toCam = cam.position - p;
+std::optional<Vec2> inView(const Camera& cam, const Vec3& p, const Vec3& n) {
   // Either side: BSDFs are two-sided, so a wall wound away from the room is still seen from it.
-  const float facing = n.dot(toCam);
-  if (!(std::abs(facing) > 0.0f)) return std::nullopt;  // edge-on; also rejects NaN
+  if (!(std::abs(n.dot(cam.position - p)) > 0.0f)) return std::nullopt;  // edge-on; also rejects NaN
   const auto px = cam.project(p);
   if (!px || !(px->x() >= 0.5f && px->y() >= 0.5f && px->x() <= cam.width - 0.5f && px->y() <= cam.height - 0.5f))
     return std::nullopt;
+  return px;
+}
+
+std::optional<Vec2> observe(const Scene& scene, const Camera& cam, const Vec3& p, const Vec3& n) {
+  const auto px = inView(cam, p, n);
+  if (!px) return std::nullopt;
+  const Vec3 toCam = cam.position - p;
   const float dist = toCam.norm();
   const float tmax = dist - 2 * rayEpsilon(cam.position);
   if (!(tmax > 0.0f)) return std::nullopt;  // a point at the camera's own position
   const Vec3 dir = toCam / dist;
-  const Vec3 o = p + rayEpsilon(p) * (facing > 0.0f ? n : Vec3(-n));
+  const Vec3 o = p + rayEpsilon(p) * (n.dot(toCam) > 0.0f ? n : Vec3(-n));
   if (scene.occluded(o, dir, tmax)) return std::nullopt;
   return px;
 }

@@ -14,9 +14,12 @@
 
 namespace relume {
 
-// Where camera `cam` sees surface point p with normal n: the pixel, if p is inside the image, is
-// not seen edge-on (either side of n: the BSDF is two-sided) and nothing lies between them.
-// NaN-safe: a non-finite point or normal is never observed.
+// Where camera `cam` would see surface point p with normal n were nothing in between: the pixel,
+// if p is inside the image (half a pixel in) and not seen edge-on (from either side of n: the BSDF
+// is two-sided). NaN-safe: a non-finite point or normal is never in view.
+std::optional<Vec2> inView(const Camera& cam, const Vec3& p, const Vec3& n);
+
+// inView, and nothing lies between the camera and p (one occlusion ray).
 std::optional<Vec2> observe(const Scene& scene, const Camera& cam, const Vec3& p, const Vec3& n);
 
 struct VisibilityIndex {

@@ -333,16 +333,16 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   // (I = E), while fitted together with the albedo it drifts along the near-null direction
   // "brighter lights, darker albedo" (room: 3% after stage 1, 10% after the albedo stages).
   const ParamMask albedo = ParamMask::only({K::Albedo});
-  s.push_back({fmt::format("albedo@{}", resolutions.front()), albedo, resolutions.front(), albedoIterations(resolutions.front()), false, false, {0}, rays});
+  s.push_back({fmt::format("albedo@{}", resolutions.front()), albedo, resolutions.front(), albedoIterations(resolutions.front())});
   // With material_stage_settles, roughness and specular settle in their own stage and the finer
   // albedo stages fit the albedo alone: the material texels make the 1K room's albedo@1024
   // iterations 1.3x dearer, but without them its albedo came out worse (README).
   const ParamMask materials = ParamMask::only({K::Albedo, K::Roughness, K::Specular});
   const ParamMask afterMaterials = c.materialStageSettles ? albedo : materials;
   const size_t materialStage = s.size();
-  s.push_back({"materials", materials, resolutions.front(), c.materialIterations, false, false, {0}, rays});
+  s.push_back({"materials", materials, resolutions.front(), c.materialIterations});
   for (size_t i = 1; i < resolutions.size(); ++i)
-    s.push_back({fmt::format("albedo@{}", resolutions[i]), afterMaterials, resolutions[i], albedoIterations(resolutions[i]), false, false, {0}, rays});
+    s.push_back({fmt::format("albedo@{}", resolutions[i]), afterMaterials, resolutions[i], albedoIterations(resolutions[i])});
   s.back().settles = s.back().active;
   if (c.materialStageSettles) {
     s[materialStage].settles.set(K::Roughness, true);
@@ -350,8 +350,9 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   }
   if (c.emitterParameterisation && c.emissionTextures && c.emissionTextureIterations > 0) {
     const ParamMask textures = ParamMask::only({K::EmissionTexture});
-    s.push_back({"emission_texture", textures, finalRes, c.emissionTextureIterations, false, true, textures, rays});
+    s.push_back({"emission_texture", textures, finalRes, c.emissionTextureIterations, false, true, textures});
   }
+  for (size_t i = 1; i < s.size(); ++i) s[i].footprint = rays;  // every stage after the emission stage
   return s;
 }
 

@@ -190,18 +190,59 @@ Color sweep(const VertexRecord* records, int count, const Color& delta, const Ad
   return dIdAlbedo;
 }
 
-// Per-thread record buffers, bounded by the max depth: constant memory per ray.
+// Per-thread record buffers: kRecordedWaves waves of wavePaths(depth) paths of up to depth + 1
+// vertices each, a bounded size whatever the batch: constant memory per ray.
 class RecordBuffers {
  public:
   explicit RecordBuffers(int maxDepth)
-      : buffers_([n = static_cast<size_t>(maxDepth + 1)] { return std::vector<VertexRecord>(kRecordedPathsPerThread * n); }),
-        n_(maxDepth + 1) {}
-  VertexRecord* get(int which) { return buffers_.local().data() + which * n_; }
+      : n_(static_cast<size_t>(maxDepth + 1)), width_(wavePaths(maxDepth)),
+        buffers_([this] { return std::vector<VertexRecord>(kRecordedWaves * width_ * n_); }) {}
+  VertexRecord* get(int wave) { return buffers_.local().data() + wave * width_ * n_; }
+  size_t width() const { return width_; }
+  size_t stride() const { return n_; }
 
  private:
+  size_t n_, width_;
   tbb::enumerable_thread_specific<std::vector<VertexRecord>> buffers_;
-  size_t n_;
 };
+
+// Paths traced together as one wavefront (render/path_tracer.h), each recorded into its own slice
+// of one of a thread's record buffers.
+class RecordedWave {
+ public:
+  RecordedWave(const Appearance& appearance, RecordBuffers& buffers, int wave)
+      : appearance_(appearance), records_(buffers.get(wave)), stride_(buffers.stride()) {
+    paths_.reserve(buffers.width());
+    recorders_.reserve(buffers.width());
+  }
+  void clear() { paths_.clear(), recorders_.clear(); }
+  void add(const Vec3& origin, const Vec3& dir, uint64_t seed) {
+    AdjointRecorder& r = recorders_.emplace_back();
+    r.appearance = &appearance_;
+    r.records = records_ + recorders_.size() * stride_ - stride_;
+    paths_.emplace_back(origin, dir, Pcg32(seed));
+  }
+  void trace(const Scene& scene, const LightSampler& lights, const AppearanceScope& scope, const PathSettings& path) {
+    tracePaths(scene, lights, scope, path, std::span<PathSlot>(paths_),
+               [this](size_t i) -> AdjointRecorder& { return recorders_[i]; });
+  }
+  size_t size() const { return paths_.size(); }
+  const Color& radiance(size_t i) const { return paths_[i].L; }
+  const AdjointRecorder& path(size_t i) const { return recorders_[i]; }
+
+ private:
+  const Appearance& appearance_;
+  VertexRecord* records_;
+  size_t stride_;
+  std::vector<PathSlot> paths_;
+  std::vector<AdjointRecorder> recorders_;
+};
+
+// Calls waveOf(b, e) for consecutive sub-ranges of [begin, end) at most `width` long.
+template <typename F>
+void forEachWave(size_t begin, size_t end, size_t width, F&& waveOf) {
+  for (size_t b = begin; b < end; b += width) waveOf(b, std::min(end, b + width));
+}
 
 Color safeRadiance(const Color& c) { return isFinite(c) ? c : Color::Zero(); }
 
@@ -209,15 +250,28 @@ Color safeRadiance(const Color& c) { return isFinite(c) ? c : Color::Zero(); }
 
 size_t adjointRecordBytes() { return sizeof(VertexRecord); }
 
+size_t wavePaths(int maxDepth) {
+  const size_t perPath = sizeof(VertexRecord) * static_cast<size_t>(maxDepth + 1);
+  return std::clamp<size_t>(kWaveRecordBytes / perPath, 1, kWavefrontWidth);
+}
+
+size_t adjointRecordBytesPerThread(int maxDepth) {
+  return kRecordedWaves * wavePaths(maxDepth) * static_cast<size_t>(maxDepth + 1) * sizeof(VertexRecord);
+}
+
 std::vector<Color> traceRays(const Scene& scene, const LightSampler& lights, const AppearanceScope& scope,
                              const std::vector<BatchRay>& rays, const PathSettings& path,
                              const std::function<uint64_t(size_t)>& seedOf) {
   std::vector<Color> estimate(rays.size());
   tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
-    for (size_t j = range.begin(); j < range.end(); ++j) {
-      Pcg32 rng(seedOf(j));
-      estimate[j] = safeRadiance(tracePath(scene, lights, scope, path, rays[j].origin, rays[j].dir, rng));
-    }
+    std::vector<PathSlot> paths;
+    NullPathObserver none;
+    forEachWave(range.begin(), range.end(), kWavefrontWidth, [&](size_t b, size_t e) {
+      paths.clear();
+      for (size_t j = b; j < e; ++j) paths.emplace_back(rays[j].origin, rays[j].dir, Pcg32(seedOf(j)));
+      tracePaths(scene, lights, scope, path, std::span<PathSlot>(paths), [&](size_t) -> NullPathObserver& { return none; });
+      for (size_t j = b; j < e; ++j) estimate[j] = safeRadiance(paths[j - b].L);
+    });
   });
   return estimate;
 }
@@ -234,17 +288,19 @@ std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, 
   std::vector<Color> estimate(rays.size());
   albedoSensitivity->assign(rays.size(), Color::Zero());
   tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
-    AdjointRecorder rec;
-    rec.appearance = &appearance;
-    rec.records = buffers.get(0);
+    RecordedWave wave(appearance, buffers, 0);
     NoScatter none;
-    for (size_t j = range.begin(); j < range.end(); ++j) {
-      Pcg32 rng(primalSeed(settings, iteration, j));
-      rec.count = 0;
-      estimate[j] = safeRadiance(tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rng, rec));
-      if ((estimate[j] != 0.0f).any())  // safeRadiance: finite; zero radiance has zero sensitivity
-        (*albedoSensitivity)[j] = sweep(rec.records, rec.count, Color::Zero(), settings, none);
-    }
+    forEachWave(range.begin(), range.end(), buffers.width(), [&](size_t b, size_t e) {
+      wave.clear();
+      for (size_t j = b; j < e; ++j) wave.add(rays[j].origin, rays[j].dir, primalSeed(settings, iteration, j));
+      wave.trace(scene, lights, scope, settings.path);
+      for (size_t j = b; j < e; ++j) {
+        const AdjointRecorder& rec = wave.path(j - b);
+        estimate[j] = safeRadiance(wave.radiance(j - b));
+        if ((estimate[j] != 0.0f).any())  // safeRadiance: finite; zero radiance has zero sensitivity
+          (*albedoSensitivity)[j] = sweep(rec.records, rec.count, Color::Zero(), settings, none);
+      }
+    });
   });
   return estimate;
 }
@@ -257,21 +313,27 @@ void adjointPass(const Scene& scene, const Appearance& appearance, const LightSa
   const float invN = 1.0f / static_cast<float>(rays.size());
   grads.accumulate(rays.size(), [&](Gradients::Chunk& chunk, size_t begin, size_t end) {
     Scatterer out(appearance, settings, chunk);
-    AdjointRecorder rec;
-    rec.appearance = &appearance;
-    rec.records = buffers.get(0);
-    for (size_t j = begin; j < end; ++j) {
-      if ((delta[j] == 0.0f).all()) continue;  // exact: deltas are tiny (1/N), isZero() would drop them
-      Pcg32 rng(adjointSeed(settings, iteration, j));
-      rec.count = 0;
-      const BatchRay& ray = rays[j];
-      const Color L = tracePath(scene, lights, scope, settings.path, ray.origin, ray.adjointDirection(), rng, rec);
-      if (!isFinite(L)) continue;
-      const Color slope = lossResidualSlope(L, ray.reference, ray.clip);
-      const Color x = slope * sweep(rec.records, rec.count, delta[j] * slope, settings, out);
-      const Color partner = primalSensitivity ? (*primalSensitivity)[j] : x;
-      out.albedoCurvature(rec, rayCurvatureWeight(x, partner, ray.weight * invN));
-    }
+    RecordedWave wave(appearance, buffers, 0);
+    std::vector<size_t> traced;  // the wave's rays: those with a nonzero delta
+    forEachWave(begin, end, buffers.width(), [&](size_t b, size_t e) {
+      wave.clear(), traced.clear();
+      for (size_t j = b; j < e; ++j) {
+        if ((delta[j] == 0.0f).all()) continue;  // exact: deltas are tiny (1/N), isZero() would drop them
+        traced.push_back(j);
+        wave.add(rays[j].origin, rays[j].adjointDirection(), adjointSeed(settings, iteration, j));
+      }
+      wave.trace(scene, lights, scope, settings.path);
+      for (size_t i = 0; i < traced.size(); ++i) {
+        const size_t j = traced[i];
+        const Color& L = wave.radiance(i);
+        if (!isFinite(L)) continue;
+        const AdjointRecorder& rec = wave.path(i);
+        const Color slope = lossResidualSlope(L, rays[j].reference, rays[j].clip);
+        const Color x = slope * sweep(rec.records, rec.count, delta[j] * slope, settings, out);
+        const Color partner = primalSensitivity ? (*primalSensitivity)[j] : x;
+        out.albedoCurvature(rec, rayCurvatureWeight(x, partner, rays[j].weight * invN));
+      }
+    });
   });
 }
 
@@ -318,33 +380,37 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
   Timer t;
   grads.accumulate(rays.size(), [&](Gradients::Chunk& chunk, size_t begin, size_t end) {
     Scatterer out(appearance, settings, chunk);
-    AdjointRecorder recA, recB;
-    recA.appearance = recB.appearance = &appearance;
-    recA.records = buffers.get(0);
-    recB.records = buffers.get(1);
-    for (size_t j = begin; j < end; ++j) {
-      Pcg32 rngA(primalSeed(settings, iteration, j));
-      recA.count = 0;
-      const Color a = tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].dir, rngA, recA);
-      if (!crossfit) {
-        if (!isFinite(a)) continue;  // as in the decorrelated pass: no gradient from a broken path
-        loss[j] = lossOf(j, a);
-        const Color x = slopeOf(j, a) * sweep(recA.records, recA.count, deltaOf(j, a) * slopeOf(j, a), settings, out);
-        out.albedoCurvature(recA, rayCurvatureWeight(x, x, rays[j].weight * invN));  // biased, as reuse is
-        continue;
+    RecordedWave waveA(appearance, buffers, 0), waveB(appearance, buffers, 1);
+    forEachWave(begin, end, buffers.width(), [&](size_t b, size_t e) {
+      waveA.clear(), waveB.clear();
+      for (size_t j = b; j < e; ++j) {
+        waveA.add(rays[j].origin, rays[j].dir, primalSeed(settings, iteration, j));
+        if (crossfit) waveB.add(rays[j].origin, rays[j].adjointDirection(), adjointSeed(settings, iteration, j));
       }
-      Pcg32 rngB(adjointSeed(settings, iteration, j));
-      recB.count = 0;
-      const Color b = tracePath(scene, lights, scope, settings.path, rays[j].origin, rays[j].adjointDirection(), rngB, recB);
-      const Color sa = safeRadiance(a), sb = safeRadiance(b);
-      loss[j] = 0.5 * (lossOf(j, sa) + lossOf(j, sb));
-      // Each sample's delta drives the other's path: the derivative of r(a) r(b), a product of
-      // independent estimates. A non-finite sample drives nothing and receives nothing.
-      if (!isFinite(a) || !isFinite(b)) continue;
-      const Color xb = slopeOf(j, b) * sweep(recB.records, recB.count, 0.5f * deltaOf(j, a) * slopeOf(j, b), settings, out);
-      const Color xa = slopeOf(j, a) * sweep(recA.records, recA.count, 0.5f * deltaOf(j, b) * slopeOf(j, a), settings, out);
-      out.albedoCurvature(recA, rayCurvatureWeight(xa, xb, rays[j].weight * invN));
-    }
+      waveA.trace(scene, lights, scope, settings.path);
+      if (crossfit) waveB.trace(scene, lights, scope, settings.path);
+      for (size_t j = b; j < e; ++j) {
+        const AdjointRecorder& recA = waveA.path(j - b);
+        const Color a = waveA.radiance(j - b);
+        if (!crossfit) {
+          if (!isFinite(a)) continue;  // as in the decorrelated pass: no gradient from a broken path
+          loss[j] = lossOf(j, a);
+          const Color x = slopeOf(j, a) * sweep(recA.records, recA.count, deltaOf(j, a) * slopeOf(j, a), settings, out);
+          out.albedoCurvature(recA, rayCurvatureWeight(x, x, rays[j].weight * invN));  // biased, as reuse is
+          continue;
+        }
+        const AdjointRecorder& recB = waveB.path(j - b);
+        const Color b2 = waveB.radiance(j - b);
+        const Color sa = safeRadiance(a), sb = safeRadiance(b2);
+        loss[j] = 0.5 * (lossOf(j, sa) + lossOf(j, sb));
+        // Each sample's delta drives the other's path: the derivative of r(a) r(b), a product of
+        // independent estimates. A non-finite sample drives nothing and receives nothing.
+        if (!isFinite(a) || !isFinite(b2)) continue;
+        const Color xb = slopeOf(j, b2) * sweep(recB.records, recB.count, 0.5f * deltaOf(j, a) * slopeOf(j, b2), settings, out);
+        const Color xa = slopeOf(j, a) * sweep(recA.records, recA.count, 0.5f * deltaOf(j, b2) * slopeOf(j, a), settings, out);
+        out.albedoCurvature(recA, rayCurvatureWeight(xa, xb, rays[j].weight * invN));
+      }
+    });
   });
   result.times.adjoint = t.seconds();
   double lossSum = 0;

@@ -77,9 +77,15 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
                                 const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration,
                                 Gradients& grads);
 
-// Bytes of one cached vertex record (reported by the profiler). Each thread holds the records of
-// kRecordedPathsPerThread paths (crossfit sweeps two) of up to depth + 1 vertices.
+// Bytes of one cached vertex record (reported by the profiler).
 size_t adjointRecordBytes();
-inline constexpr int kRecordedPathsPerThread = 2;
+// Paths one thread traces together as a wavefront while recording them: as many as fit in
+// kWaveRecordBytes of vertex records at this depth, at most kWavefrontWidth.
+inline constexpr size_t kWaveRecordBytes = size_t{256} << 10;
+size_t wavePaths(int maxDepth);
+// Vertex records one thread holds: kRecordedWaves waves (crossfit records two) of wavePaths paths
+// of up to depth + 1 vertices. Bounded, whatever the batch size or depth.
+inline constexpr size_t kRecordedWaves = 2;
+size_t adjointRecordBytesPerThread(int maxDepth);
 
 }  // namespace relume

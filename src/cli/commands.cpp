@@ -176,8 +176,8 @@ void printFitProfile(const ProfileArgs& a) {
              (p.primal + p.adjoint) / p.primal);
   fmt::print("    adjoint, no parameter active    {:8.2f} ms  (derivatives + scatter: {:.2f} ms)\n", 1e3 * p.adjointNoScatter,
              1e3 * (p.adjoint - p.adjointNoScatter));
-  fmt::print("  per ray {} B between the passes, vertex record {} B x (depth+1) x {} paths per thread\n", p.rayStateBytes, p.recordBytes,
-             kRecordedPathsPerThread);
+  fmt::print("  per ray {} B between the passes, vertex record {} B x (depth+1) x {} paths per thread ({:.0f} KiB)\n", p.rayStateBytes,
+             p.recordBytes, kRecordedWaves * wavePaths(p.maxDepth), adjointRecordBytesPerThread(p.maxDepth) / 1024.0);
   fmt::print("  memory held by the fit (MiB):");
   for (const auto& [k, v] : p.memory.items()) fmt::print(" {} {:.1f},", k, v.get<double>() / 1048576.0);
   fmt::print("\n  peak RSS {:.0f} MiB (whole process)\n", p.peakRssMiB);
@@ -217,8 +217,8 @@ int runProfile(const ProfileArgs& a) {
       fmt::print("  adjoint (full)       {:8.3f} s   iteration/primal = {:.2f}x\n", p.adjointFull, iterFull / p.primal);
       fmt::print("  crossfit (1 pass)    {:8.3f} s   iteration/primal = {:.2f}x\n", p.crossfit, p.crossfit / p.primal);
       fmt::print("  reuse (1 pass)       {:8.3f} s   iteration/primal = {:.2f}x\n", p.reuse, p.reuse / p.primal);
-      fmt::print("  per-ray state {} B (delta), vertex record {} B x (depth+1) x {} paths per thread\n", sizeof(Color), p.recordBytes,
-                 kRecordedPathsPerThread);
+      fmt::print("  per-ray state {} B (delta), vertex record {} B x (depth+1) x {} paths per thread ({:.0f} KiB)\n", sizeof(Color),
+                 p.recordBytes, kRecordedWaves * wavePaths(p.maxDepth), adjointRecordBytesPerThread(p.maxDepth) / 1024.0);
       fmt::print("  peak RSS {:.0f} MiB (whole process)\n", peakRssMiB());
     }
     if (wants("pairing")) {

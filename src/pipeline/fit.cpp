@@ -894,7 +894,7 @@ class Fit {
     const double mesh = (m.positions.size() + m.normals.size()) * sizeof(Vec3) + m.uvs.size() * sizeof(Vec2) +
                         m.triangles.size() * (sizeof(Eigen::Vector3i) + sizeof(int32_t));
     const double batchBytes = batch.rays.size() * (sizeof(BatchRay) + sizeof(uint32_t) + sizeof(int) + 3 * sizeof(Color));
-    const double records = double(kRecordedPathsPerThread) * threadCount() * (settings.path.maxDepth + 1) * adjointRecordBytes();
+    const double records = double(threadCount()) * adjointRecordBytesPerThread(settings.path.maxDepth);
     Json j = {{"parameters", parameters}, {"gradients", gradients}, {"optimiser_state", optimiser}, {"averages", averages},
               {"texel_map", texels}, {"mesh", mesh}, {"visibility_index", static_cast<double>(w_.vis.bytes())},
               {"frame_cache_mapped", static_cast<double>(w_.store->mappedBytes())}, {"batch", batchBytes},

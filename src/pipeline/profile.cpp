@@ -40,8 +40,13 @@ std::vector<RecordedRay> recordPathRays(const Scene& scene, const LightSampler& 
   tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 256), [&](const tbb::blocked_range<size_t>& range) {
     RayRecorder rec;
     rec.out = &recorded.local();
-    for (size_t j = range.begin(); j < range.end(); ++j)
-      if (auto s = start(j)) tracePath(scene, lights, scope, path, s->origin, s->dir, s->rng, rec);
+    std::vector<PathSlot> wave;
+    for (size_t b = range.begin(); b < range.end(); b += kWavefrontWidth) {  // as the passes trace them
+      wave.clear();
+      for (size_t j = b; j < std::min(range.end(), b + kWavefrontWidth); ++j)
+        if (auto s = start(j)) wave.emplace_back(s->origin, s->dir, s->rng);
+      tracePaths(scene, lights, scope, path, std::span<PathSlot>(wave), [&](size_t) -> RayRecorder& { return rec; });
+    }
   });
   std::vector<RecordedRay> rays;
   for (auto& v : recorded) rays.insert(rays.end(), v.begin(), v.end());

@@ -62,35 +62,48 @@ RenderResult renderImage(const Scene& scene, const Appearance& appearance, const
   Progress progress("render", static_cast<size_t>(H));
   tbb::parallel_for(tbb::blocked_range2d<int>(0, H, 16, 0, W, 16), [&](const tbb::blocked_range2d<int>& r) {
     RayCounter counter;
+    const int tileW = r.cols().size(), spp = options.spp;
+    const size_t pixels = static_cast<size_t>(r.rows().size()) * tileW;
+    // The tile's paths, pixel by pixel and sample by sample, traced a wave at a time; each pixel
+    // sums its samples in order and keeps its first sample's hit.
+    std::vector<Color> sum(pixels, Color::Zero());
+    std::vector<SurfaceHit> first(pixels);
+    for (SurfaceHit& h : first) h.t = -1.0f;
+    std::vector<PathSlot> wave;
+    const size_t samples = pixels * spp;
+    for (size_t b = 0; b < samples; b += kWavefrontWidth) {
+      wave.clear();
+      for (size_t k = b; k < std::min(samples, b + kWavefrontWidth); ++k) {
+        const size_t pixel = k / spp;
+        const int s = static_cast<int>(k % spp);
+        const int x = r.cols().begin() + static_cast<int>(pixel % tileW), y = r.rows().begin() + static_cast<int>(pixel / tileW);
+        const CameraSample cs = cameraSample(camera, x, y, s, options.seed);
+        PathSlot& p = wave.emplace_back(camera.position, cs.dir.value_or(Vec3::UnitZ()), cs.rng, s == 0 ? &first[pixel] : nullptr);
+        p.alive = cs.dir.has_value();
+      }
+      tracePaths(scene, lights, scope, options.path, std::span<PathSlot>(wave), [&](size_t) -> RayCounter& { return counter; });
+      for (size_t k = b; k < b + wave.size(); ++k)
+        if (const Color& L = wave[k - b].L; isFinite(L)) sum[k / spp] += L;
+    }
     for (int y = r.rows().begin(); y < r.rows().end(); ++y) {
       for (int x = r.cols().begin(); x < r.cols().end(); ++x) {
-        Color sum = Color::Zero();
-        SurfaceHit first{};
-        bool anyHit = false;
-        for (int s = 0; s < options.spp; ++s) {
-          CameraSample cs = cameraSample(camera, x, y, s, options.seed);
-          if (!cs.dir) continue;
-          SurfaceHit hit;
-          hit.t = -1.0f;
-          const Color L = tracePath(scene, lights, scope, options.path, camera.position, *cs.dir, cs.rng, counter, s == 0 ? &hit : nullptr);
-          if (isFinite(L)) sum += L;
-          if (s == 0 && hit.t >= 0.0f) first = hit, anyHit = true;
-        }
-        result.color.set(x, y, sum / static_cast<float>(options.spp));
-        if (!anyHit) continue;
+        const size_t pixel = static_cast<size_t>(y - r.rows().begin()) * tileW + (x - r.cols().begin());
+        result.color.set(x, y, sum[pixel] / static_cast<float>(spp));
+        const SurfaceHit& hit = first[pixel];
+        if (hit.t < 0.0f) continue;
         for (size_t a = 0; a < options.aovs.size(); ++a) {
           Color v = Color::Zero();
           switch (options.aovs[a]) {
-            case Aov::Albedo: v = appearance.albedoAt(first.object, first.uv); break;
-            case Aov::Normal: v = first.ns.array(); break;
-            case Aov::Depth: v = Color::Constant((first.p - camera.position).dot(camera.rotation.col(2))); break;
-            case Aov::Object: v = Color::Constant(static_cast<float>(first.object)); break;
+            case Aov::Albedo: v = appearance.albedoAt(hit.object, hit.uv); break;
+            case Aov::Normal: v = hit.ns.array(); break;
+            case Aov::Depth: v = Color::Constant((hit.p - camera.position).dot(camera.rotation.col(2))); break;
+            case Aov::Object: v = Color::Constant(static_cast<float>(hit.object)); break;
           }
           result.aovs[a].set(x, y, v);
         }
       }
-      if (r.cols().begin() == 0) progress.advance(1);
     }
+    if (r.cols().begin() == 0) progress.advance(r.rows().size());
     rayCount.local() += counter.rays;
   });
   result.stats.seconds = timer.seconds();

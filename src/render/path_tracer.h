@@ -4,6 +4,7 @@
 // AppearanceScope names, while every sampling decision (lobe choice, directions, pdfs, MIS
 // weights, light choice, Russian roulette) uses `scope.sampling` only: sampling is detached.
 #pragma once
+#include <span>
 #include <type_traits>
 
 #include "core/rng.h"
@@ -18,6 +19,10 @@ namespace relume {
 // counts indirect bounces, so it equals depth B + 1; the default 9 is Cycles' default 8 (measured
 // against Cycles 3.4: README "Agreement with Blender Cycles").
 inline constexpr int kDefaultMaxDepth = 9;
+
+// Paths a thread traces together (tracePaths below): wide enough that a whole bounce's other paths
+// lie between a prefetch and its use, narrow enough that their state stays in the L2 cache.
+inline constexpr size_t kWavefrontWidth = 256;
 
 struct PathSettings {
   int maxDepth = kDefaultMaxDepth;
@@ -66,99 +71,159 @@ struct NullPathObserver {
   void scatter(int depth, const Vec3& wiLocal, const Color& f, float cosI, float pdf, float survival) {}
 };
 
+// One path of a wavefront: the caller sets its ray and generator (and, optionally, where to keep
+// its first vertex) and reads its estimate L; the rest carries the path from one bounce to the next.
+struct PathSlot {
+  Vec3 origin, dir;
+  Pcg32 rng;
+  SurfaceHit* firstHit = nullptr;
+  Color L = Color::Zero();
+  Color beta = Color::Constant(1.0f), betaSampling = Color::Constant(1.0f);
+  float prevPdf = 0.0f;
+  bool alive = true;
+  RayHit next;     // the closest hit of the current ray, before its attributes are read
+  SurfaceHit hit;  // ... and after
+
+  PathSlot() = default;
+  PathSlot(const Vec3& o, const Vec3& d, const Pcg32& r, SurfaceHit* first = nullptr)
+      : origin(o), dir(d), rng(r), firstHit(first) {}
+};
+
+// Everything a path does at vertex `depth` once its hit is known: emission, next-event estimation
+// and the BSDF sample that sets its next ray (or ends it).
+template <class Observer>
+void shadeVertex(const Scene& scene, const LightSampler& lights, const AppearanceScope& scope,
+                 const PathSettings& settings, int depth, PathSlot& path, Observer& obs) {
+  constexpr bool kDifferentiating = std::decay_t<Observer>::kDifferentiating;
+  const SurfaceHit& hit = path.hit;
+  Pcg32& rng = path.rng;
+  const Vec3 dir = path.dir;
+  const bool frontFacing = hit.ng.dot(dir) < 0.0f;
+  ShadingFrame frame(frontFacing ? hit.ns : Vec3(-hit.ns));  // two-sided BSDF: frame on the viewer's side
+  const Vec3 wo = frame.toLocal(-dir);
+  obs.vertex(depth, hit, frame, wo, path.beta);
+
+  // Emission reached by the camera ray or by BSDF sampling from the previous vertex.
+  const Color le = emittedRadiance(scope.emission(depth - 1), hit, dir);
+  if ((le != 0.0f).any() || (kDifferentiating && frontFacing)) {
+    float mis = 1.0f;
+    if (depth > 0) {
+      const float pdfLight = lights.pdfArea(hit.object) * hit.t * hit.t / std::abs(hit.ng.dot(dir));
+      mis = powerHeuristic(path.prevPdf, pdfLight);
+    }
+    obs.emission(depth, hit, mis, le);
+    path.L += path.beta * mis * le;
+  }
+  if (depth >= settings.maxDepth) {
+    path.alive = false;
+    return;
+  }
+
+  const bool frozen = &scope.bsdf(depth) != scope.sampling;  // evaluate with other parameters
+  const BsdfParams sampleParams = bsdfParamsAt(*scope.sampling, hit);
+  const BsdfParams evalParams = frozen ? bsdfParamsAt(scope.bsdf(depth), hit) : sampleParams;
+  const VertexBsdf bsdf(sampleParams, wo);
+  // Next-event estimation.
+  const float uObject = rng.next1D(), uTri = rng.next1D();
+  const Vec2 uPoint(rng.next1D(), rng.next1D());
+  if (const auto ls = lights.sample(uObject, uTri, uPoint)) {
+    Vec3 toLight = ls->hit.p - hit.p;
+    const float dist2 = toLight.squaredNorm();
+    const float dist = std::sqrt(dist2);
+    toLight /= dist;
+    const float cosLight = -ls->hit.ng.dot(toLight);
+    const Vec3 wi = frame.toLocal(toLight);
+    if (cosLight > 0.0f && wi.z() > 0.0f && dist > 0.0f) {
+      const Color leLight = scope.emission(depth).emissionAt(ls->hit.object, ls->hit.uv);
+      const BsdfEval sampled = bsdf.eval(wi, kBsdfValue | kBsdfPdf);
+      const Color f = frozen ? evalBsdf(evalParams, wo, wi).f : sampled.f;
+      if ((leLight != 0.0f).any() && (f.maxCoeff() > 0.0f || kDifferentiating)) {
+        // Both ends are offset off their surfaces and the shadow ray joins them: a ray from the
+        // offset origin along toLight would cross the light's own plane before a shortened tmax
+        // wherever the light is seen at a slant, and count the light as its own occluder.
+        const Vec3 o = Scene::offsetOrigin(hit, toLight);
+        Vec3 shadowDir = Scene::offsetOrigin(ls->hit, -toLight) - o;
+        const float tmax = shadowDir.norm();
+        bool visible = true;  // ends within an epsilon of each other: nothing between, no ray to trace
+        if (tmax > 0.0f) {
+          shadowDir /= tmax;
+          obs.traced(o, shadowDir, tmax, true);
+          visible = !scene.occluded(o, shadowDir, tmax);
+        }
+        if (visible) {
+          const float pdfLight = ls->pdfArea * dist2 / cosLight;
+          const float mis = powerHeuristic(pdfLight, sampled.pdf);
+          const float scale = mis / pdfLight;
+          obs.nee(depth, wi, f, wi.z(), scale, leLight, ls->hit);
+          path.L += path.beta * f * (wi.z() * scale) * leLight;
+        }
+      }
+    }
+  }
+
+  // BSDF sampling.
+  path.alive = false;
+  const float uLobe = rng.next1D();
+  const Vec2 uDir(rng.next1D(), rng.next1D());
+  const auto bs = bsdf.sample(uLobe, uDir);
+  if (!bs) return;
+  const Color f = frozen ? evalBsdf(evalParams, wo, bs->wi).f : bs->f;
+  float survival = 1.0f;
+  path.betaSampling *= bs->weight;
+  if (settings.russianRoulette && depth + 1 >= settings.rouletteDepth) {
+    survival = std::clamp(path.betaSampling.maxCoeff(), 0.05f, 0.95f);
+    if (rng.next1D() >= survival) return;
+    path.betaSampling /= survival;
+  }
+  obs.scatter(depth, bs->wi, f, bs->wi.z(), bs->pdf, survival);
+  path.beta *= f * (bs->wi.z() / (bs->pdf * survival));
+  if (path.beta.maxCoeff() <= 0.0f && !kDifferentiating) return;
+  path.dir = frame.toWorld(bs->wi);
+  path.origin = Scene::offsetOrigin(hit, path.dir);
+  path.prevPdf = bs->pdf;
+  path.alive = true;
+}
+
+// Traces a wavefront of paths one bounce at a time: every live path's ray traverses the BVH (each
+// traversal prefetching its face record), then every hit's attributes are read and its albedo
+// texels prefetched, then every vertex is shaded. Between issuing a load and using it lies the
+// work of the other paths, so the dependent cache misses of one path overlap (a path at a time,
+// each miss stalls it). Each path's arithmetic and random numbers are exactly those of tracing it
+// alone, so results do not depend on the wavefront's width. observerOf(i) is path i's observer.
+template <class ObserverOf>
+void tracePaths(const Scene& scene, const LightSampler& lights, const AppearanceScope& scope,
+                const PathSettings& settings, std::span<PathSlot> paths, ObserverOf&& observerOf) {
+  for (int depth = 0;; ++depth) {
+    bool any = false;
+    for (size_t i = 0; i < paths.size(); ++i) {
+      PathSlot& p = paths[i];
+      if (!p.alive) continue;
+      p.next = scene.traverse(p.origin, p.dir);
+      observerOf(i).traced(p.origin, p.dir, INFINITY, false);
+      p.alive = p.next.found();
+      any |= p.alive;
+    }
+    if (!any) return;
+    for (PathSlot& p : paths) {
+      if (!p.alive) continue;
+      p.hit = scene.surfaceAt(p.next, p.origin, p.dir);
+      if (depth == 0 && p.firstHit) *p.firstHit = p.hit;
+      scope.sampling->prefetchAlbedo(p.hit.object, p.hit.uv);
+    }
+    for (size_t i = 0; i < paths.size(); ++i)
+      if (paths[i].alive) shadeVertex(scene, lights, scope, settings, depth, paths[i], observerOf(i));
+  }
+}
+
+// One path alone (a wavefront of one).
 template <class Observer = NullPathObserver>
 Color tracePath(const Scene& scene, const LightSampler& lights, const AppearanceScope& scope,
                 const PathSettings& settings, Vec3 origin, Vec3 dir, Pcg32& rng, Observer&& obs = Observer{},
                 SurfaceHit* firstHit = nullptr) {
-  Color L = Color::Zero(), beta = Color::Constant(1.0f), betaSampling = Color::Constant(1.0f);
-  float prevPdf = 0.0f;
-  for (int depth = 0;; ++depth) {
-    const auto hit = scene.intersect(origin, dir);
-    obs.traced(origin, dir, INFINITY, false);
-    if (!hit) break;
-    if (depth == 0 && firstHit) *firstHit = *hit;
-
-    const bool frontFacing = hit->ng.dot(dir) < 0.0f;
-    ShadingFrame frame(frontFacing ? hit->ns : Vec3(-hit->ns));  // two-sided BSDF: frame on the viewer's side
-    const Vec3 wo = frame.toLocal(-dir);
-    obs.vertex(depth, *hit, frame, wo, beta);
-
-    // Emission reached by the camera ray or by BSDF sampling from the previous vertex.
-    const Color le = emittedRadiance(scope.emission(depth - 1), *hit, dir);
-    if ((le != 0.0f).any() || (std::decay_t<Observer>::kDifferentiating && frontFacing)) {
-      float mis = 1.0f;
-      if (depth > 0) {
-        const float pdfLight = lights.pdfArea(hit->object) * hit->t * hit->t / std::abs(hit->ng.dot(dir));
-        mis = powerHeuristic(prevPdf, pdfLight);
-      }
-      obs.emission(depth, *hit, mis, le);
-      L += beta * mis * le;
-    }
-    if (depth >= settings.maxDepth) break;
-
-    const bool frozen = &scope.bsdf(depth) != scope.sampling;  // evaluate with other parameters
-    const BsdfParams sampleParams = bsdfParamsAt(*scope.sampling, *hit);
-    const BsdfParams evalParams = frozen ? bsdfParamsAt(scope.bsdf(depth), *hit) : sampleParams;
-    const VertexBsdf bsdf(sampleParams, wo);
-    // Next-event estimation.
-    const float uObject = rng.next1D(), uTri = rng.next1D();
-    const Vec2 uPoint(rng.next1D(), rng.next1D());
-    if (const auto ls = lights.sample(uObject, uTri, uPoint)) {
-      Vec3 toLight = ls->hit.p - hit->p;
-      const float dist2 = toLight.squaredNorm();
-      const float dist = std::sqrt(dist2);
-      toLight /= dist;
-      const float cosLight = -ls->hit.ng.dot(toLight);
-      const Vec3 wi = frame.toLocal(toLight);
-      if (cosLight > 0.0f && wi.z() > 0.0f && dist > 0.0f) {
-        const Color leLight = scope.emission(depth).emissionAt(ls->hit.object, ls->hit.uv);
-        const BsdfEval sampled = bsdf.eval(wi, kBsdfValue | kBsdfPdf);
-        const Color f = frozen ? evalBsdf(evalParams, wo, wi).f : sampled.f;
-        if ((leLight != 0.0f).any() && (f.maxCoeff() > 0.0f || std::decay_t<Observer>::kDifferentiating)) {
-          // Both ends are offset off their surfaces and the shadow ray joins them: a ray from the
-          // offset origin along toLight would cross the light's own plane before a shortened tmax
-          // wherever the light is seen at a slant, and count the light as its own occluder.
-          const Vec3 o = Scene::offsetOrigin(*hit, toLight);
-          Vec3 shadowDir = Scene::offsetOrigin(ls->hit, -toLight) - o;
-          const float tmax = shadowDir.norm();
-          bool visible = true;  // ends within an epsilon of each other: nothing between, no ray to trace
-          if (tmax > 0.0f) {
-            shadowDir /= tmax;
-            obs.traced(o, shadowDir, tmax, true);
-            visible = !scene.occluded(o, shadowDir, tmax);
-          }
-          if (visible) {
-            const float pdfLight = ls->pdfArea * dist2 / cosLight;
-            const float mis = powerHeuristic(pdfLight, sampled.pdf);
-            const float scale = mis / pdfLight;
-            obs.nee(depth, wi, f, wi.z(), scale, leLight, ls->hit);
-            L += beta * f * (wi.z() * scale) * leLight;
-          }
-        }
-      }
-    }
-
-    // BSDF sampling.
-    const float uLobe = rng.next1D();
-    const Vec2 uDir(rng.next1D(), rng.next1D());
-    const auto bs = bsdf.sample(uLobe, uDir);
-    if (!bs) break;
-    const Color f = frozen ? evalBsdf(evalParams, wo, bs->wi).f : bs->f;
-    float survival = 1.0f;
-    betaSampling *= bs->weight;
-    if (settings.russianRoulette && depth + 1 >= settings.rouletteDepth) {
-      survival = std::clamp(betaSampling.maxCoeff(), 0.05f, 0.95f);
-      if (rng.next1D() >= survival) break;
-      betaSampling /= survival;
-    }
-    obs.scatter(depth, bs->wi, f, bs->wi.z(), bs->pdf, survival);
-    beta *= f * (bs->wi.z() / (bs->pdf * survival));
-    if (beta.maxCoeff() <= 0.0f && !std::decay_t<Observer>::kDifferentiating) break;
-    dir = frame.toWorld(bs->wi);
-    origin = Scene::offsetOrigin(*hit, dir);
-    prevPdf = bs->pdf;
-  }
-  return L;
+  PathSlot path(origin, dir, rng, firstHit);
+  tracePaths(scene, lights, scope, settings, std::span<PathSlot>(&path, 1), [&](size_t) -> auto& { return obs; });
+  rng = path.rng;
+  return path.L;
 }
 
 }  // namespace relume

@@ -37,6 +37,10 @@ struct Appearance {
   Color albedoAt(int object, const Vec2& uv) const {
     return usesTexture(object) ? albedo.lookup(uv) : albedoConstant[object];
   }
+  // always_inline, as Texture::prefetch: else GCC deletes the call.
+  [[gnu::always_inline]] void prefetchAlbedo(int object, const Vec2& uv) const {
+    if (usesTexture(object)) albedo.prefetch(uv);
+  }
   const Texture* emissionTexture(int object) const {
     return emissionTextureOf[object] >= 0 ? &emissionTextures[emissionTextureOf[object]] : nullptr;
   }

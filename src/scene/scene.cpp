@@ -104,15 +104,27 @@ float Scene::hitDistance(const Vec3& o, const Vec3& d, float tmax) const {
   return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? INFINITY : rh.ray.tfar;
 }
 
-std::optional<SurfaceHit> Scene::intersect(const Vec3& o, const Vec3& d, float tmax) const {
-  if (!traceable(o, d, tmax)) return std::nullopt;
+RayHit Scene::traverse(const Vec3& o, const Vec3& d, float tmax) const {
+  if (!traceable(o, d, tmax)) return {};
   const RTCRayHit rh = traceClosest(scene_, o, d, tmax);
-  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return {};
+  __builtin_prefetch(&faces_[rh.hit.primID]);
+  __builtin_prefetch(reinterpret_cast<const char*>(&faces_[rh.hit.primID] + 1) - 1);  // a record spans two lines
+  return {rh.hit.primID, rh.hit.u, rh.hit.v, rh.ray.tfar};
+}
+
+SurfaceHit Scene::surfaceAt(const RayHit& hit, const Vec3& o, const Vec3& d) const {
   // The hit point from the ray (no vertex fetch); Embree's t is accurate to a few ulps.
-  SurfaceHit h = hitFromFace(rh.hit.primID, rh.hit.u, rh.hit.v);
-  h.t = rh.ray.tfar;
+  SurfaceHit h = hitFromFace(hit.prim, hit.b1, hit.b2);
+  h.t = hit.t;
   h.p = o + h.t * d;
   return h;
+}
+
+std::optional<SurfaceHit> Scene::intersect(const Vec3& o, const Vec3& d, float tmax) const {
+  const RayHit hit = traverse(o, d, tmax);
+  if (!hit.found()) return std::nullopt;
+  return surfaceAt(hit, o, d);
 }
 
 bool Scene::occluded(const Vec3& o, const Vec3& d, float tmax) const {

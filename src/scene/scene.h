@@ -20,6 +20,15 @@ struct SurfaceHit {
   float t = 0;
 };
 
+// A closest hit before its surface attributes are gathered: a wavefront of paths keeps it between
+// traversal and shading, so the face record that `traverse` prefetches has landed when it is read.
+struct RayHit {
+  static constexpr uint32_t kNone = 0xFFFFFFFFu;
+  uint32_t prim = kNone;
+  float b1 = 0, b2 = 0, t = 0;  // barycentrics of vertices 1 and 2, ray distance
+  bool found() const { return prim != kNone; }
+};
+
 struct SceneOptions {
   bool robust = false;  // RTC_SCENE_FLAG_ROBUST: see README "Performance" for its measured cost
 };
@@ -36,6 +45,10 @@ class Scene {
   // NaN or negative (an inverted segment), never reaches Embree. Debug builds assert; release builds
   // skip the ray (intersect: no hit, occluded: true, hitDistance: infinity) and count it.
   std::optional<SurfaceHit> intersect(const Vec3& origin, const Vec3& dir, float tmax = INFINITY) const;
+  // intersect() in two steps: the traversal (which starts loading the hit's face record), and the
+  // hit's surface attributes.
+  RayHit traverse(const Vec3& origin, const Vec3& dir, float tmax = INFINITY) const;
+  SurfaceHit surfaceAt(const RayHit& hit, const Vec3& origin, const Vec3& dir) const;
   bool occluded(const Vec3& origin, const Vec3& dir, float tmax) const;
   // Closest-hit distance only (no surface attributes): Embree's cost alone, for profiling.
   float hitDistance(const Vec3& origin, const Vec3& dir, float tmax = INFINITY) const;

@@ -174,6 +174,79 @@ TEST(Render, DeterministicAcrossThreadCounts) {
   EXPECT_NE(0, std::memcmp(images[0].data(), other.data(), other.size() * sizeof(float)));
 }
 
+// Every event a path reports, in order, with its values (a differentiating observer, so the
+// zero-valued events are reported too).
+struct EventLog : NullPathObserver {
+  static constexpr bool kDifferentiating = true;
+  std::vector<float> log;
+  int vertices = 0;
+  void put(std::initializer_list<float> v) { log.insert(log.end(), v); }
+  void traced(const Vec3& o, const Vec3& d, float tmax, bool shadow) { put({1, o.x(), o.y(), o.z(), d.x(), d.y(), d.z(), tmax, float(shadow)}); }
+  void vertex(int depth, const SurfaceHit& hit, const ShadingFrame&, const Vec3& wo, const Color& beta) {
+    ++vertices;
+    put({2, float(depth), hit.p.x(), hit.p.y(), hit.p.z(), hit.uv.x(), hit.uv.y(), float(hit.object), wo.z(), beta[0], beta[1], beta[2]});
+  }
+  void emission(int depth, const SurfaceHit&, float mis, const Color& le) { put({3, float(depth), mis, le[0], le[1], le[2]}); }
+  void nee(int depth, const Vec3& wi, const Color& f, float cosI, float scale, const Color& le, const SurfaceHit& light) {
+    put({4, float(depth), wi.z(), f[0], f[1], f[2], cosI, scale, le[0], float(light.object)});
+  }
+  void scatter(int depth, const Vec3& wi, const Color& f, float cosI, float pdf, float survival) {
+    put({5, float(depth), wi.x(), wi.z(), f[0], f[1], f[2], cosI, pdf, survival});
+  }
+};
+
+// A wavefront interleaves its paths bounce by bounce; each path must still do exactly what it does
+// traced alone (same hits, random numbers, events and estimate), whatever the wave's width and
+// whichever of its neighbours end early (roulette, escaping rays, cameras rays that miss).
+TEST(Render, AWavefrontTracesEachPathExactlyAsItIsTracedAlone) {
+  SynthScene room = makeSynthScene(SynthSceneKind::Room, 256);
+  Scene scene(room.scene.mesh);
+  const Appearance& a = room.scene.appearance;
+  LightSampler lights(scene, a);
+  const AppearanceScope scope = AppearanceScope::uniform(a);
+  const Camera cam = synthCameraPath(SynthSceneKind::Room, 8, 24, 16, 0.0)[2];
+  PathSettings settings;
+  settings.russianRoulette = true;
+  settings.rouletteDepth = 2;
+  std::vector<PathSlot> alone;
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) {
+      const CameraSample cs = cameraSample(cam, x, y, 0, 5);
+      ASSERT_TRUE(cs.dir);
+      // Every third ray starts far outside the room, pointing away from it: it hits nothing.
+      const bool away = (x + y) % 3 == 0;
+      alone.emplace_back(away ? Vec3(cam.position - 100.0f * *cs.dir) : cam.position, away ? Vec3(-*cs.dir) : *cs.dir, cs.rng);
+    }
+  std::vector<EventLog> aloneLogs(alone.size());
+  std::vector<SurfaceHit> aloneFirst(alone.size());
+  for (size_t i = 0; i < alone.size(); ++i) {
+    Pcg32 rng = alone[i].rng;
+    alone[i].L = tracePath(scene, lights, scope, settings, alone[i].origin, alone[i].dir, rng, aloneLogs[i], &aloneFirst[i]);
+  }
+  int missed = 0, ended = 0, deep = 0;
+  for (const EventLog& e : aloneLogs) missed += e.vertices == 0, ended += e.vertices > 0 && e.vertices < 4, deep += e.vertices >= 6;
+  EXPECT_GT(missed, 50);  // neighbours that end at once, early (roulette), and late
+  EXPECT_GT(ended, 10);
+  EXPECT_GT(deep, 10);
+  for (size_t width : {size_t{1}, size_t{7}, alone.size()}) {
+    for (size_t b = 0; b < alone.size(); b += width) {
+      const size_t n = std::min(width, alone.size() - b);
+      std::vector<PathSlot> wave;
+      std::vector<EventLog> logs(n);
+      std::vector<SurfaceHit> first(n);
+      for (size_t i = 0; i < n; ++i) wave.emplace_back(alone[b + i].origin, alone[b + i].dir, alone[b + i].rng, &first[i]);
+      tracePaths(scene, lights, scope, settings, std::span<PathSlot>(wave), [&](size_t i) -> EventLog& { return logs[i]; });
+      for (size_t i = 0; i < n; ++i) {
+        SCOPED_TRACE(::testing::Message() << "width " << width << " path " << b + i);
+        EXPECT_EQ(0, std::memcmp(wave[i].L.data(), alone[b + i].L.data(), sizeof(Color)));
+        EXPECT_EQ(logs[i].log, aloneLogs[b + i].log);
+        EXPECT_EQ(first[i].prim, aloneFirst[b + i].prim);
+        EXPECT_EQ(first[i].t, aloneFirst[b + i].t);
+      }
+    }
+  }
+}
+
 // Emission scaled past float range (gradcheck --emission-scale 1e38 made it inf) used to leave the
 // power table empty and crash in sampling; a scene without emitters is still valid.
 TEST(Render, LightSamplerRejectsNonFiniteEmissionAndAcceptsNone) {

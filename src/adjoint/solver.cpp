@@ -334,7 +334,7 @@ void adjointPass(const Scene& scene, const Appearance& appearance, const LightSa
         out.albedoCurvature(rec, rayCurvatureWeight(x, partner, rays[j].weight * invN));
       }
     });
-  });
+  }, settings.splatVertices());
 }
 
 GradientResult computeGradients(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
@@ -411,7 +411,7 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
         out.albedoCurvature(recA, rayCurvatureWeight(xa, xb, rays[j].weight * invN));
       }
     });
-  });
+  }, settings.splatVertices());
   result.times.adjoint = t.seconds();
   double lossSum = 0;
   for (double l : loss) lossSum += l;

@@ -1,9 +1,9 @@
 // Two-pass radiance-cached adjoint solver. Pass 1 (primal, seed s1) estimates each ray's radiance
 // and keeps only delta_j = dLoss/dI_hat_j. Pass 2 (adjoint, seed s2) traces each path once,
-// caching a fixed-size record per vertex in a per-thread buffer bounded by the max depth, then
-// sweeps it backwards: the radiance arriving at every vertex is accumulated as a suffix (never
-// subtracted from a total), and delta_j x derivative is scattered onto the parameters.
-// Memory: O(batch) for delta + O(threads x max depth) for records.
+// caching a fixed-size record per vertex in a per-thread buffer (a wavefront of paths, as many as
+// fit its bound), then sweeps each path backwards: the radiance arriving at every vertex is
+// accumulated as a suffix (never subtracted from a total), and delta_j x derivative is scattered
+// onto the parameters. Memory: O(batch) for delta + O(threads x kWaveRecordBytes) for records.
 #pragma once
 #include <functional>
 #include <vector>
@@ -34,6 +34,10 @@ struct AdjointSettings {
   bool bsdfGradientAt(int depth) const { return mode == GradientMode::Full || depth == 0; }
   bool emissionGradientFrom(int fromVertex) const {
     return mode == GradientMode::Full || emitters == EmitterGradients::AllDepth || fromVertex <= 0;
+  }
+  // Path vertices of a ray whose terms may splat texels (Gradients::accumulate bounds its logs by it).
+  size_t splatVertices() const {
+    return mode == GradientMode::Full || emitters == EmitterGradients::AllDepth ? static_cast<size_t>(path.maxDepth + 1) : 1;
   }
 };
 

@@ -44,7 +44,7 @@ float* Gradients::texelData(uint32_t entry) {
   return emissionTexture[t].data() + 3 * static_cast<size_t>(entry - emissionBase_[t]);
 }
 
-void Gradients::accumulate(size_t count, const std::function<void(Chunk&, size_t, size_t)>& trace) {
+void Gradients::accumulate(size_t count, const std::function<void(Chunk&, size_t, size_t)>& trace, size_t splatVertices) {
   if (chunks_.empty()) {
     chunks_.resize(kSubBatchRays / kChunkRays);
     for (Chunk& c : chunks_) {
@@ -54,8 +54,9 @@ void Gradients::accumulate(size_t count, const std::function<void(Chunk&, size_t
   }
   for (Chunk& c : chunks_) c.owner_ = this;  // this object may have moved since
   std::vector<double> objectSum(objects.size(), 0.0);
-  for (size_t first = 0; first < count; first += kSubBatchRays) {
-    const size_t last = std::min(count, first + kSubBatchRays);
+  const size_t subBatch = kChunkRays * std::max(kMinSubBatchChunks, chunks_.size() / std::max<size_t>(1, splatVertices));
+  for (size_t first = 0; first < count; first += subBatch) {
+    const size_t last = std::min(count, first + subBatch);
     const size_t chunks = (last - first + kChunkRays - 1) / kChunkRays;
     tbb::parallel_for(size_t{0}, chunks, [&](size_t c) {
       const size_t begin = first + c * kChunkRays;

@@ -52,8 +52,11 @@ class Gradients {
   };
 
   // Runs trace(chunk, begin, end) over the rays [0, count) in chunks of kChunkRays, in parallel,
-  // and adds every chunk's terms to the buffers below in chunk order.
-  void accumulate(size_t count, const std::function<void(Chunk&, size_t, size_t)>& trace);
+  // and adds every chunk's terms to the buffers below in chunk order. `splatVertices`: how many
+  // path vertices of a ray may splat texels (1 when only the first vertex is differentiated, the
+  // path length when every vertex is): the sub-batch shrinks with it, so the logs' memory does
+  // not grow with the depth. The sub-batch changes when terms are applied, never their order.
+  void accumulate(size_t count, const std::function<void(Chunk&, size_t, size_t)>& trace, size_t splatVertices = 1);
   // Bytes the splat logs hold (each bucket's capacity: the most it has held in one sub-batch,
   // with the vectors' growth slack).
   size_t logBytes() const;
@@ -69,8 +72,10 @@ class Gradients {
   static constexpr size_t kChunkRays = 256;  // fixed: the per-object sums are grouped by it
 
  private:
-  // Rays traced before their splats are applied: bounds the logs' memory (constant per ray).
+  // Rays traced before their splats are applied: bounds the logs' memory (constant per ray), at
+  // one splatting vertex per ray; never fewer chunks than keep every core busy.
   static constexpr size_t kSubBatchRays = 64 * kChunkRays;
+  static constexpr size_t kMinSubBatchChunks = 8;
   static constexpr uint32_t kBuckets = 64;
   void apply(size_t chunks);
   float* texelData(uint32_t entry);

@@ -198,3 +198,26 @@ TEST(GradientSums, AreBitIdenticalAtAnyThreadCount) {
     }
   }
 }
+
+TEST(GradientSums, SubBatchesShrinkWithTheSplattingVerticesAndSumTheSame) {
+  // A ray that splats at every vertex of a deep path fills the logs depth times faster: the
+  // sub-batch shrinks with the vertices that splat (bounded logs), and the sums do not change,
+  // since a sub-batch sets when terms are applied, never their order.
+  const SynthScene cornell = makeSynthScene(SynthSceneKind::Cornell, 64);
+  const size_t texels = cornell.scene.appearance.albedo.texelCount();
+  auto accumulated = [&](size_t splatVertices) {
+    Gradients g(cornell.scene.appearance);
+    g.accumulate(40000, [&](Gradients::Chunk& chunk, size_t begin, size_t end) {
+      for (size_t ray = begin; ray < end; ++ray)
+        for (uint64_t v = 0; v < 8; ++v) {
+          const uint64_t h = hashTuple({ray, v});
+          chunk.addAlbedo(static_cast<uint32_t>(h % texels), Color::Constant(1e-3f * static_cast<float>(h % 1000)));
+        }
+    }, splatVertices);
+    return std::pair{g.albedo, g.logBytes()};
+  };
+  const auto [shallow, shallowBytes] = accumulated(1);
+  const auto [deep, deepBytes] = accumulated(8);
+  EXPECT_TRUE(shallow == deep);
+  EXPECT_LT(deepBytes, shallowBytes / 4) << shallowBytes << " vs " << deepBytes;
+}

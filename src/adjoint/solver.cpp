@@ -226,7 +226,6 @@ class RecordedWave {
     tracePaths(scene, lights, scope, path, std::span<PathSlot>(paths_),
                [this](size_t i) -> AdjointRecorder& { return recorders_[i]; });
   }
-  size_t size() const { return paths_.size(); }
   const Color& radiance(size_t i) const { return paths_[i].L; }
   const AdjointRecorder& path(size_t i) const { return recorders_[i]; }
 

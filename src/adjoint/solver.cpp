@@ -237,12 +237,6 @@ class RecordedWave {
   std::vector<AdjointRecorder> recorders_;
 };
 
-// Calls waveOf(b, e) for consecutive sub-ranges of [begin, end) at most `width` long.
-template <typename F>
-void forEachWave(size_t begin, size_t end, size_t width, F&& waveOf) {
-  for (size_t b = begin; b < end; b += width) waveOf(b, std::min(end, b + width));
-}
-
 Color safeRadiance(const Color& c) { return isFinite(c) ? c : Color::Zero(); }
 
 }  // namespace

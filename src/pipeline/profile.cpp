@@ -41,12 +41,12 @@ std::vector<RecordedRay> recordPathRays(const Scene& scene, const LightSampler& 
     RayRecorder rec;
     rec.out = &recorded.local();
     std::vector<PathSlot> wave;
-    for (size_t b = range.begin(); b < range.end(); b += kWavefrontWidth) {  // as the passes trace them
+    forEachWave(range.begin(), range.end(), kWavefrontWidth, [&](size_t b, size_t e) {  // as the passes trace them
       wave.clear();
-      for (size_t j = b; j < std::min(range.end(), b + kWavefrontWidth); ++j)
+      for (size_t j = b; j < e; ++j)
         if (auto s = start(j)) wave.emplace_back(s->origin, s->dir, s->rng);
       tracePaths(scene, lights, scope, path, std::span<PathSlot>(wave), [&](size_t) -> RayRecorder& { return rec; });
-    }
+    });
   });
   std::vector<RecordedRay> rays;
   for (auto& v : recorded) rays.insert(rays.end(), v.begin(), v.end());

@@ -71,9 +71,9 @@ RenderResult renderImage(const Scene& scene, const Appearance& appearance, const
     for (SurfaceHit& h : first) h.t = -1.0f;
     std::vector<PathSlot> wave;
     const size_t samples = pixels * spp;
-    for (size_t b = 0; b < samples; b += kWavefrontWidth) {
+    forEachWave(0, samples, kWavefrontWidth, [&](size_t b, size_t e) {
       wave.clear();
-      for (size_t k = b; k < std::min(samples, b + kWavefrontWidth); ++k) {
+      for (size_t k = b; k < e; ++k) {
         const size_t pixel = k / spp;
         const int s = static_cast<int>(k % spp);
         const int x = r.cols().begin() + static_cast<int>(pixel % tileW), y = r.rows().begin() + static_cast<int>(pixel / tileW);
@@ -82,9 +82,9 @@ RenderResult renderImage(const Scene& scene, const Appearance& appearance, const
         p.alive = cs.dir.has_value();
       }
       tracePaths(scene, lights, scope, options.path, std::span<PathSlot>(wave), [&](size_t) -> RayCounter& { return counter; });
-      for (size_t k = b; k < b + wave.size(); ++k)
+      for (size_t k = b; k < e; ++k)
         if (const Color& L = wave[k - b].L; isFinite(L)) sum[k / spp] += L;
-    }
+    });
     for (int y = r.rows().begin(); y < r.rows().end(); ++y) {
       for (int x = r.cols().begin(); x < r.cols().end(); ++x) {
         const size_t pixel = static_cast<size_t>(y - r.rows().begin()) * tileW + (x - r.cols().begin());

@@ -215,6 +215,12 @@ void tracePaths(const Scene& scene, const LightSampler& lights, const Appearance
   }
 }
 
+// Calls waveOf(b, e) for consecutive sub-ranges of [begin, end) at most `width` long.
+template <typename F>
+void forEachWave(size_t begin, size_t end, size_t width, F&& waveOf) {
+  for (size_t b = begin; b < end; b += width) waveOf(b, std::min(end, b + width));
+}
+
 // One path alone (a wavefront of one).
 template <class Observer = NullPathObserver>
 Color tracePath(const Scene& scene, const LightSampler& lights, const AppearanceScope& scope,

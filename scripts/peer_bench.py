@@ -22,6 +22,13 @@ fit SCENE_XML TRANSFORMS OUT_DIR --snapshots S1,S2,... [--depth 9] [--lr 0.05] [
   clock starts after the scene and frames are loaded; at each snapshot time (seconds) the state
   is written to OUT_DIR/t<k>/ (albedo.exr + scene.json for `relume eval`, clock paused meanwhile).
 
+efficiency SCENE_XML TRANSFORMS RAYS_BIN --spp 4 --depth D [--repeats 3]
+  Renderer efficiency, Mitsuba's: its `path` integrator (max_depth D + 1, no Russian roulette,
+  llvm_ad_rgb, no AD) renders the camera at SPP, and its Embree traversal alone replays RAYS_BIN,
+  the rays relume's render of the same camera, spp and depth traced (`relume profile --what render
+  --scene --cameras --rays-out`): closest hits through ray_intersect_preliminary, shadow rays
+  through ray_test. Best of REPEATS after a warm-up each (JIT). Prints one JSON line.
+
 initscene GT_SCENE WORK OUT_DIR --res 512
   The starting point of the Mitsuba fit, as a relume scene.json on the work folder's atlas mesh
   (the uv space relume's fit and eval use): albedo 0.5 grey (res^2), roughness and specular 0.5 on
@@ -140,6 +147,51 @@ def cmd_iter(a):
                       "rss_loaded_mib": rss0, "peak_rss_mib": rss_mib("VmHWM"), "params": [ka] + ke}))
 
 
+def cmd_efficiency(a):
+    mi = mitsuba()
+    import drjit as dr
+    scene = mi.load_file(a.scene_xml)
+    fr, get = next(frames(a.transforms))
+    sensor = mi.load_dict(sensor_dict(mi, fr, get, a.spp))
+    integrator = mi.load_dict({"type": "path", "max_depth": a.depth + 1, "rr_depth": 1 << 20})
+
+    def best(run):
+        times = []
+        for _ in range(1 + a.repeats):  # the first compiles (or loads) the kernels
+            t0 = time.perf_counter()
+            run()
+            dr.sync_thread()
+            times.append(time.perf_counter() - t0)
+        return min(times[1:])
+
+    def render():
+        dr.eval(mi.render(scene, sensor=sensor, integrator=integrator, spp=a.spp, seed=1))
+
+    rays = np.fromfile(a.rays, dtype="<f4").reshape(-1, 8)
+    shadow = rays[:, 7] > 0.5
+    hits = {}
+
+    def ray_batch(r):
+        return mi.Ray3f(mi.Point3f(*[mi.Float(np.ascontiguousarray(r[:, k])) for k in range(3)]),
+                        mi.Vector3f(*[mi.Float(np.ascontiguousarray(r[:, k])) for k in range(3, 6)]),
+                        mi.Float(np.ascontiguousarray(np.minimum(r[:, 6], 3.0e38))), mi.Float(0.0), [])
+
+    closest, occl = ray_batch(rays[~shadow]), ray_batch(rays[shadow])
+
+    def trace():
+        pi = scene.ray_intersect_preliminary(closest)
+        blocked = scene.ray_test(occl)
+        hits["closest"], hits["blocked"] = dr.count(pi.is_valid()), dr.count(blocked)
+        dr.eval(hits["closest"], hits["blocked"])
+
+    render_s, trace_s = best(render), best(trace)
+    print(json.dumps({"render_seconds": render_s, "trace_only_seconds": trace_s, "efficiency": trace_s / render_s,
+                      "closest_rays": int((~shadow).sum()), "shadow_rays": int(shadow.sum()),
+                      "closest_hit_fraction": int(hits["closest"][0]) / max(1, int((~shadow).sum())),
+                      "shadow_blocked_fraction": int(hits["blocked"][0]) / max(1, int(shadow.sum())),
+                      "spp": a.spp, "depth": a.depth}))
+
+
 def cmd_initscene(a):
     gt = json.load(open(a.gt))
     os.makedirs(a.out, exist_ok=True)
@@ -229,7 +281,7 @@ def parse_relume_profile(path):
     f = lambda pat: float(re.search(pat, txt).group(1))
     return {"primal": f(r"primal\s+([\d.]+) s"), "loss": f(r"loss\s+([\d.]+) s"),
             "direct": f(r"adjoint \(direct\)\s+([\d.]+) s"), "full": f(r"adjoint \(full\)\s+([\d.]+) s"),
-            "rss": f(r"peak RSS ([\d.]+) MiB")}
+            "rss": f(r"peak RSS ([\d.]+) MiB"), "floor": f(r"Embree alone\s+([\d.]+) s")}
 
 
 def read_or(path, default):
@@ -256,11 +308,14 @@ def cmd_table(a):
       "at sqrt(N)^2 pixels and 1 spp + L2 loss against relume's 4-spp render + dr.backward over the albedo texture "
       "(1024^2) and both emitters' radiance, gradients evaluated; one timed iteration after a warm-up one (JIT). "
       "Each cell: median over %d interleaved rounds (relume, Mitsuba, relume, ...). Peak RSS = whole process "
-      "(relume: its own report; Mitsuba: VmHWM, in brackets VmRSS after loading, before the first iteration)."
+      "(relume: its own report; Mitsuba: VmHWM, in brackets VmRSS after loading, before the first iteration). "
+      "Embree floor: relume's primal and adjoint-pass rays of that iteration replayed through Embree alone "
+      "(`rtcIntersect1` / `rtcOccluded1`), the iteration's cost if all else were free; Mitsuba traces with Embree "
+      "too, so Mitsuba / floor bounds how much faster than Mitsuba any relume built on this traversal can be."
       % meta["rounds"])
     P("")
-    P("| rays | depth | relume full (s) | relume direct (s) | Mitsuba prb (s) | Mitsuba / relume full | relume peak RSS (MiB) | Mitsuba peak RSS (MiB) [loaded] |")
-    P("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    P("| rays | depth | relume full (s) | relume direct (s) | Mitsuba prb (s) | Mitsuba / relume full | relume Embree floor (s) | Mitsuba / floor | relume peak RSS (MiB) | Mitsuba peak RSS (MiB) [loaded] |")
+    P("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     ratios = []
     rows = {}
     for s in meta["settings"]:
@@ -277,8 +332,10 @@ def cmd_table(a):
         per = [min(m["seconds"]) / (r["primal"] + r["loss"] + r["full"]) for r, m in zip(rel, mts)]
         ratios.append(med(per))
         rows[(n, d)] = (rf, mt, med([r["rss"] for r in rel]), med([m["peak_rss_mib"] for m in mts]))
-        P("| %d | %d | %.3f | %.3f | %.3f | %.2fx (rounds: %s) | %.0f | %.0f [%.0f] |" % (
-            mts[0]["rays"], d, rf, rd, mt, med(per), ", ".join("%.2f" % x for x in per), med([r["rss"] for r in rel]),
+        floor = [min(m["seconds"]) / r["floor"] for r, m in zip(rel, mts)]
+        P("| %d | %d | %.3f | %.3f | %.3f | %.2fx (rounds: %s) | %.3f | %.2fx | %.0f | %.0f [%.0f] |" % (
+            mts[0]["rays"], d, rf, rd, mt, med(per), ", ".join("%.2f" % x for x in per), med([r["floor"] for r in rel]),
+            med(floor), med([r["rss"] for r in rel]),
             med([m["peak_rss_mib"] for m in mts]), med([m["rss_loaded_mib"] for m in mts])))
     P("")
     depth_rows = sorted(k for k in rows if k[0] == meta["depth_rays"])
@@ -294,6 +351,39 @@ def cmd_table(a):
           % (lo[1], lo[0], hi[0], rows[hi][0] / rows[lo][0], rows[hi][1] / rows[lo][1], rows[hi][2] - rows[lo][2],
              rows[hi][3] - rows[lo][3]))
     P("")
+    # (e)
+    eff_rel = sorted(glob.glob(os.path.join(out, "eff", "relume_r*.txt")))
+    eff_mts = sorted(glob.glob(os.path.join(out, "eff", "mitsuba_r*.json")))
+    if eff_rel and eff_mts:
+        P("## (e) Renderer efficiency: each tracer's render against its own Embree traversal alone on the same rays")
+        P("")
+        P("One held-out view, 256^2 pixels, 4 spp, depth 8 (no AD, no Russian roulette). relume: `relume profile --what "
+          "render --scene --cameras --spp 4 --max-depth 8 --rays-out` (render best of 5; its rays replayed with "
+          "`rtcIntersect1` / `rtcOccluded1`, best of 5). Mitsuba: `peer_bench.py efficiency`: `path` integrator "
+          "(max_depth 9) render of the same camera, then the same rays (relume's, read from the file) through "
+          "`ray_intersect_preliminary` / `ray_test`, best of 3 after a warm-up (JIT). Rounds interleaved.")
+        P("")
+        P("| round | relume render (s) | relume Embree alone (s) | relume efficiency | Mitsuba render (s) | Mitsuba Embree alone (s) | Mitsuba efficiency | relume / Mitsuba render |")
+        P("| --- | --- | --- | --- | --- | --- | --- | --- |")
+        rr, mm = [], []
+        for k, (rp, mp) in enumerate(zip(eff_rel, eff_mts)):
+            txt = open(rp).read()
+            f = lambda pat: float(re.search(pat, txt).group(1))
+            r = {"render": f(r"render\s+([\d.]+) s"), "trace": f(r"trace only\s+([\d.]+) s")}
+            m = json.loads(open(mp).read().strip().splitlines()[-1])
+            rr.append(r)
+            mm.append(m)
+            P("| %d | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.2fx |" % (
+                k + 1, r["render"], r["trace"], r["trace"] / r["render"], m["render_seconds"], m["trace_only_seconds"],
+                m["efficiency"], r["render"] / m["render_seconds"]))
+        P("| median | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.2fx |" % (
+            med([r["render"] for r in rr]), med([r["trace"] for r in rr]), med([r["trace"] / r["render"] for r in rr]),
+            med([m["render_seconds"] for m in mm]), med([m["trace_only_seconds"] for m in mm]),
+            med([m["efficiency"] for m in mm]), med([r["render"] / m["render_seconds"] for r, m in zip(rr, mm)])))
+        P("")
+        P("Rays: %d closest hits (%.4f%% hit in Mitsuba's copy of the scene), %d shadow rays." % (
+            mm[-1]["closest_rays"], 100 * mm[-1]["closest_hit_fraction"], mm[-1]["shadow_rays"]))
+        P("")
     # (b)
     P("## (b) Forward agreement (scripts/mitsuba_compare.sh, Mitsuba scalar_rgb on the exported ground truth)")
     P("")
@@ -412,6 +502,13 @@ def main():
         ap.add_argument("--repeats", type=int, default=2)
         ap.add_argument("--seed", type=int, default=1)
         cmd_iter(ap.parse_args(sys.argv[2:]))
+    elif mode == "efficiency":
+        for k in ("scene_xml", "transforms", "rays"):
+            ap.add_argument(k)
+        ap.add_argument("--spp", type=int, default=4)
+        ap.add_argument("--depth", type=int, required=True)
+        ap.add_argument("--repeats", type=int, default=3)
+        cmd_efficiency(ap.parse_args(sys.argv[2:]))
     elif mode == "initscene":
         ap.add_argument("gt"); ap.add_argument("work"); ap.add_argument("out"); ap.add_argument("--res", type=int, default=512)
         cmd_initscene(ap.parse_args(sys.argv[2:]))

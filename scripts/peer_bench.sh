@@ -3,14 +3,14 @@
 # mask_updates), on the built-in room through `relume export --mitsuba` (issue 12). Measures
 # (a) time and peak RSS of one gradient iteration by path depth and batch size, (b) forward
 # agreement (scripts/mitsuba_compare.sh), (c) albedo error of the same reconstruction at equal wall
-# clock. Writes OUT/peer.md (and prints it). Not part of the test suite; Mitsuba is never a
+# clock, (e) each renderer's efficiency (its render against its Embree traversal alone on the same rays). Writes OUT/peer.md (and prints it). Not part of the test suite; Mitsuba is never a
 # dependency of relume (pip install mitsuba; its llvm_ad_rgb variant needs libLLVM >= 16 on
 # bookworm: apt-get install libllvm19, Debian's libLLVM 14/15 fail to compile its kernels).
 #
 # Usage: scripts/peer_bench.sh [OUT]      (default out/peer_bench; ~25 minutes on 2 cores)
 # Environment: ROUNDS=3 (interleaved relume/Mitsuba rounds of (a)), BUDGETS=60,120,240 (seconds, (c)),
 #   FWD_SPP=16 (spp per half of (b)), SETTINGS="65536:2 65536:4 65536:8 65536:16 16384:8 262144:8" (rays:depth),
-#   PARTS="a b c" (which parts to run; the table shows the parts whose results OUT holds)
+#   PARTS="a b c e" (which parts to run; the table shows the parts whose results OUT holds)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 OUT="$(mkdir -p "${1:-$ROOT/out/peer_bench}" && cd "${1:-$ROOT/out/peer_bench}" && pwd)"
@@ -18,7 +18,7 @@ ROUNDS="${ROUNDS:-3}"
 BUDGETS="${BUDGETS:-60,120,240}"
 FWD_SPP="${FWD_SPP:-16}"
 SETTINGS="${SETTINGS:-65536:2 65536:4 65536:8 65536:16 16384:8 262144:8}"
-PARTS="${PARTS:-a b c}"
+PARTS="${PARTS:-a b c e}"
 RES=512
 PY="$ROOT/scripts/peer_bench.py"
 R="$ROOT/build/relume"
@@ -76,6 +76,22 @@ part a && for round in $(seq 1 "$ROUNDS"); do
       --depth "$d" --repeats 1 --seed "$round" > "$OUT/iter/mitsuba_${n}_${d}_r$round.json"
   done
 done
+
+# (e) renderer efficiency, both tracers: relume renders one held-out view (256^2, 4 spp, depth 8) and
+# replays exactly its rays through Embree alone (--rays-out keeps them); Mitsuba's `path` integrator
+# renders the same view and its own Embree traversal replays the same rays.
+if part e; then
+  mkdir -p "$OUT/eff"
+  [[ -f "$OUT/iter/cam_256.json" ]] || python3 "$PY" camera "$OUT/cap/transforms_test.json" "$OUT/iter/cam_256.json" --rays 65536
+  for round in $(seq 1 "$ROUNDS"); do
+    stamp "(e) round $round: renderer efficiency"
+    "$R" --log warn profile --what render --scene "$OUT/cap/gt/scene.json" --cameras "$OUT/iter/cam_256.json" --spp 4 \
+      --max-depth 8 --rays-out "$OUT/eff/rays.bin" > "$OUT/eff/relume_r$round.txt"
+    python3 "$PY" efficiency "$OUT/gt_mitsuba/scene.xml" "$OUT/iter/cam_256.json" "$OUT/eff/rays.bin" --spp 4 --depth 8 \
+      > "$OUT/eff/mitsuba_r$round.json"
+  done
+  rm -f "$OUT/eff/rays.bin"
+fi
 
 # (b) forward agreement: the existing comparison (Mitsuba scalar_rgb, exported ground truth, 4 held-out views 160x120).
 if part b; then

@@ -139,6 +139,7 @@ void registerPrepare(CLI::App& app, CommandTable& table) {
 struct ProfileArgs {
   std::string synth = "room", what = "render,adjoint";
   std::string work, config, stage = "albedo", json, scratch = "out/room";
+  std::string scene, cameras, raysOut;  // render: a scene.json seen from a transforms.json's first camera
   int iterations = 20;
   bool maxDepthGiven = false;  // fit: --max-depth overrides the config's
   int width = 320, height = 240, spp = 4, maxDepth = kDefaultMaxDepth, rays = 65536, repeats = 3, batches = 32, studyRays = 4096;
@@ -188,12 +189,13 @@ int runProfile(const ProfileArgs& a) {
   const SynthSceneKind kind = parseSynthScene(a.synth);
   auto wants = [&](const char* w) { return a.what.find(w) != std::string::npos; };
   if (wants("render")) {
-    const SynthScene s = makeSynthScene(kind, 1024);
-    const Camera cam = synthCameraPath(kind, 8, a.width, a.height, 0.0)[2];
-    const RenderProfile p = profileRender(s.scene, cam, a.spp, a.maxDepth);
+    const SceneDescription scene = a.scene.empty() ? makeSynthScene(kind, 1024).scene : loadSceneFile(a.scene);
+    const Camera cam = a.scene.empty() ? synthCameraPath(kind, 8, a.width, a.height, 0.0)[2]
+                                       : readTransforms(a.cameras).frames.at(0).camera;
+    const RenderProfile p = profileRender(scene, cam, a.spp, a.maxDepth, a.raysOut);
     const double rays = static_cast<double>(p.closestRays + p.shadowRays);
     fmt::print("primal render  {}x{} spp {} depth {} threads {} triangles {}\n", p.width, p.height, p.spp, p.maxDepth,
-               p.threads, s.scene.mesh.triangles.size());
+               p.threads, scene.mesh.triangles.size());
     fmt::print("  render       {:8.3f} s  {:7.3f} Mpaths/s  {:6.2f} Mrays/s ({:.1f} rays/path: {} closest, {} shadow)\n",
                p.renderSeconds, p.paths / p.renderSeconds * 1e-6, rays / p.renderSeconds * 1e-6, rays / p.paths,
                p.closestRays, p.shadowRays);
@@ -217,9 +219,13 @@ int runProfile(const ProfileArgs& a) {
       fmt::print("  adjoint (full)       {:8.3f} s   iteration/primal = {:.2f}x\n", p.adjointFull, iterFull / p.primal);
       fmt::print("  crossfit (1 pass)    {:8.3f} s   iteration/primal = {:.2f}x\n", p.crossfit, p.crossfit / p.primal);
       fmt::print("  reuse (1 pass)       {:8.3f} s   iteration/primal = {:.2f}x\n", p.reuse, p.reuse / p.primal);
+      fmt::print("  Embree alone         {:8.3f} s   primal's {} rays {:.3f} s + adjoint pass's {} rays {:.3f} s; "
+                 "full iteration = {:.2f}x it\n",
+                 p.traceOnlyFloor(), p.primalRaysTraced, p.primalTraceOnly, p.adjointRaysTraced, p.adjointTraceOnly,
+                 iterFull / p.traceOnlyFloor());
       fmt::print("  per-ray state {} B (delta), vertex record {} B x (depth+1) x {} paths per thread ({:.0f} KiB)\n", sizeof(Color),
                  p.recordBytes, kRecordedWaves * wavePaths(p.maxDepth), adjointRecordBytesPerThread(p.maxDepth) / 1024.0);
-      fmt::print("  peak RSS {:.0f} MiB (whole process)\n", peakRssMiB());
+      fmt::print("  peak RSS {:.0f} MiB (whole process, before the rays were recorded for Embree alone)\n", p.peakRssMiB);
     }
     if (wants("pairing")) {
       const auto stats = studyPairings(e.truth, e.current, e.rays, a.batches, 4 * a.batches);
@@ -283,7 +289,12 @@ void registerProfile(CLI::App& app, CommandTable& table) {
   c->add_option("--iterations", a->iterations, "fit: iterations timed")->capture_default_str()->check(inRange(1, 100000));
   c->add_option("--json", a->json, "fit: also write the profile as JSON here");
   c->add_option("--synth", a->synth, "room, cornell or furnace")->capture_default_str();
-  c->add_option("--width", a->width)->capture_default_str()->check(inRange(8, kMaxSide));
+  auto* scene = c->add_option("--scene", a->scene, "render: this scene.json instead of --synth")->check(CLI::ExistingFile);
+  c->add_option("--cameras", a->cameras, "render: with --scene, a transforms.json; its first camera is rendered")
+      ->check(CLI::ExistingFile)->needs(scene);
+  scene->needs("--cameras");
+  c->add_option("--rays-out", a->raysOut, "render: also write the replayed rays here (float32 records of 8: origin, "
+                "direction, tmax, shadow) for another tracer");
   c->add_option("--height", a->height)->capture_default_str()->check(inRange(8, kMaxSide));
   c->add_option("--spp", a->spp)->capture_default_str()->check(inRange(1, kMaxSpp));
   c->add_option("--max-depth", a->maxDepth, kMaxDepthHelp)->capture_default_str()->check(inRange(0, kMaxDepthLimit));

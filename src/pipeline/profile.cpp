@@ -5,11 +5,13 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <fstream>
 #include <numeric>
 
 #include "core/error.h"
 #include "core/system.h"
 #include "core/warp.h"
+#include "io/atomic_file.h"
 #include "render/film.h"
 
 namespace relume {
@@ -73,9 +75,23 @@ double traceOnlySeconds(const Scene& scene, const std::vector<RecordedRay>& rays
   return best;
 }
 
+void writeRays(const std::filesystem::path& path, const std::vector<RecordedRay>& rays) {
+  std::vector<float> records;
+  records.reserve(rays.size() * 8);
+  for (const RecordedRay& r : rays)
+    records.insert(records.end(), {r.origin.x(), r.origin.y(), r.origin.z(), r.dir.x(), r.dir.y(), r.dir.z(), r.tmax,
+                                   r.shadow ? 1.0f : 0.0f});
+  writeAtomically(path, [&](const std::filesystem::path& tmp) {
+    std::ofstream f(tmp, std::ios::binary);
+    f.write(reinterpret_cast<const char*>(records.data()), static_cast<std::streamsize>(records.size() * sizeof(float)));
+    if (!f.flush()) fail("cannot write {}", path.string());
+  });
+}
+
 }  // namespace
 
-RenderProfile profileRender(const SceneDescription& desc, const Camera& camera, int spp, int maxDepth) {
+RenderProfile profileRender(const SceneDescription& desc, const Camera& camera, int spp, int maxDepth,
+                            const std::filesystem::path& raysOut) {
   Scene scene(desc.mesh);
   LightSampler lights(scene, desc.appearance);
   RenderOptions ro;
@@ -102,6 +118,7 @@ RenderProfile profileRender(const SceneDescription& desc, const Camera& camera, 
   p.paths = r.stats.paths;
   for (const RecordedRay& ray : rays) (ray.shadow ? p.shadowRays : p.closestRays)++;
   p.traceOnlySeconds = traceOnlySeconds(scene, rays, 5);
+  if (!raysOut.empty()) writeRays(raysOut, rays);
   return p;
 }
 
@@ -140,6 +157,20 @@ AdjointProfile profileAdjoint(const SceneDescription& desc, const Appearance& cu
       best(pairing == Pairing::Crossfit ? p.crossfit : p.reuse, computeGradients(scene, current, lights, rays, s, r, g).times.adjoint);
     }
   }
+  p.peakRssMiB = peakRssMiB();
+  s.pairing = Pairing::Decorrelated;
+  const auto passRays = [&](bool adjoint) {
+    return recordPathRays(scene, lights, AppearanceScope::uniform(current), s.path, rays.size(), [&](size_t j) {
+      const BatchRay& ray = rays[j];
+      return std::optional<PathStart>({ray.origin, adjoint ? ray.adjointDirection() : ray.dir,
+                                       Pcg32(adjoint ? adjointSeed(s, 0, j) : primalSeed(s, 0, j))});
+    });
+  };
+  const std::vector<RecordedRay> primalRays = passRays(false), adjointRays = passRays(true);
+  p.primalRaysTraced = primalRays.size();
+  p.adjointRaysTraced = adjointRays.size();
+  p.primalTraceOnly = traceOnlySeconds(scene, primalRays, repeats);
+  p.adjointTraceOnly = traceOnlySeconds(scene, adjointRays, repeats);
   return p;
 }
 

@@ -14,8 +14,11 @@ struct RenderProfile {
   double efficiency() const { return traceOnlySeconds / renderSeconds; }
 };
 
-// Renders one view, then replays exactly the same rays through Embree alone.
-RenderProfile profileRender(const SceneDescription& scene, const Camera& camera, int spp, int maxDepth);
+// Renders one view, then replays exactly the same rays through Embree alone. With raysOut, also
+// writes those rays there (little-endian float32 records: origin xyz, direction xyz, tmax (inf for
+// a closest hit), 1 for a shadow ray / 0) so that another tracer can replay them.
+RenderProfile profileRender(const SceneDescription& scene, const Camera& camera, int spp, int maxDepth,
+                            const std::filesystem::path& raysOut = {});
 
 }  // namespace relume
 
@@ -25,9 +28,15 @@ struct AdjointProfile {
   size_t rays = 0;
   int maxDepth = 0, threads = 0;
   double primal = 0, loss = 0, adjointDirect = 0, adjointFull = 0, crossfit = 0, reuse = 0;
+  // Embree alone on the rays the primal and the adjoint pass trace (decorrelated, iteration 0):
+  // what an iteration would cost if everything but the traversal were free.
+  double primalTraceOnly = 0, adjointTraceOnly = 0;
+  size_t primalRaysTraced = 0, adjointRaysTraced = 0;
   size_t recordBytes = 0;
+  double peakRssMiB = 0;  // after the timed passes, before the rays are recorded for the replay
+  double traceOnlyFloor() const { return primalTraceOnly + adjointTraceOnly; }
 };
-// Times each pass of one iteration on a batch (best of `repeats`).
+// Times each pass of one iteration on a batch (best of `repeats`), and Embree alone on its rays.
 AdjointProfile profileAdjoint(const SceneDescription& scene, const Appearance& current, const std::vector<BatchRay>& rays,
                               int maxDepth, int repeats);
 

@@ -1,5 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <fstream>
+
+#include "pipeline/experiment.h"
 #include "pipeline/profile.h"
 #include "prepared_capture.h"
 
@@ -34,4 +37,63 @@ TEST(ProfileFit, TimesTheAskedStageAndWritesNothing) {
   EXPECT_GT(p.memory["total"].get<double>(), p.memory["parameters"].get<double>());
   for (const char* f : {"metrics.jsonl", "checkpoint.bin", "result"}) EXPECT_FALSE(fs::exists(work / f)) << f;
   EXPECT_THROW(profileFit(work, c, "no-such-stage", 1), Error);
+}
+
+namespace {
+std::vector<float> readFloats(const fs::path& path) {
+  std::ifstream f(path, std::ios::binary);
+  std::vector<float> v((fs::file_size(path) + sizeof(float) - 1) / sizeof(float));
+  f.read(reinterpret_cast<char*>(v.data()), static_cast<std::streamsize>(fs::file_size(path)));
+  return v;
+}
+}  // namespace
+
+// `profile --what render --rays-out`: the file holds exactly the rays replayed through Embree, as
+// the paths traced them: with depth 0 each pixel sample's camera ray alone, from the camera.
+TEST(ProfileRender, WritesTheRaysItReplays) {
+  const SynthScene s = makeSynthScene(SynthSceneKind::Room, 64);
+  const Camera cam = synthCameraPath(SynthSceneKind::Room, 8, 16, 12, 0.0)[2];
+  const fs::path dir = fs::path(testing::TempDir()) / "relume_profile_rays";
+  fs::create_directories(dir);
+  const RenderProfile direct = profileRender(s.scene, cam, 2, 0, dir / "depth0.bin");
+  EXPECT_EQ(direct.closestRays, 16u * 12 * 2);  // the room is closed: every camera ray hits
+  EXPECT_EQ(direct.shadowRays, 0u);
+  const std::vector<float> d0 = readFloats(dir / "depth0.bin");
+  ASSERT_EQ(d0.size(), 8 * direct.closestRays);
+  for (size_t i = 0; i < d0.size(); i += 8) {
+    EXPECT_EQ(Vec3(d0[i], d0[i + 1], d0[i + 2]), cam.position);
+    EXPECT_NEAR(Vec3(d0[i + 3], d0[i + 4], d0[i + 5]).norm(), 1.0f, 1e-5f);
+    EXPECT_EQ(d0[i + 6], INFINITY);
+    EXPECT_EQ(d0[i + 7], 0.0f);
+  }
+  const RenderProfile deep = profileRender(s.scene, cam, 2, 3, dir / "depth3.bin");
+  const std::vector<float> d3 = readFloats(dir / "depth3.bin");
+  ASSERT_EQ(d3.size(), 8 * (deep.closestRays + deep.shadowRays));
+  size_t shadow = 0;
+  for (size_t i = 0; i < d3.size(); i += 8) {
+    const bool isShadow = d3[i + 7] == 1.0f;
+    shadow += isShadow;
+    EXPECT_EQ(std::isfinite(d3[i + 6]), isShadow);  // shadow rays end at the light, closest hits do not
+  }
+  EXPECT_EQ(shadow, deep.shadowRays);
+  EXPECT_GT(deep.closestRays, direct.closestRays);
+}
+
+// `profile --what adjoint`: Embree alone replays the rays of the primal and of the adjoint pass;
+// with depth 0 each pass traces one ray per batch ray.
+TEST(ProfileAdjoint, ReplaysBothPassesRaysThroughEmbree) {
+  ExperimentOptions eo;
+  eo.rays = 300;
+  eo.maxDepth = 0;
+  const GradientExperiment e = makeGradientExperiment(SynthSceneKind::Room, eo);
+  const AdjointProfile direct = profileAdjoint(e.truth, e.current, e.rays, 0, 1);
+  EXPECT_EQ(direct.primalRaysTraced, e.rays.size());
+  EXPECT_EQ(direct.adjointRaysTraced, e.rays.size());
+  EXPECT_GT(direct.primalTraceOnly, 0);
+  EXPECT_GT(direct.adjointTraceOnly, 0);
+  EXPECT_EQ(direct.traceOnlyFloor(), direct.primalTraceOnly + direct.adjointTraceOnly);
+  const AdjointProfile deep = profileAdjoint(e.truth, e.current, e.rays, 4, 1);
+  EXPECT_GT(deep.primalRaysTraced, 2 * e.rays.size());  // closest hits and shadow rays at every vertex
+  EXPECT_GT(deep.adjointRaysTraced, 2 * e.rays.size());
+  EXPECT_GT(deep.peakRssMiB, 0);
 }

@@ -290,11 +290,13 @@ void registerProfile(CLI::App& app, CommandTable& table) {
   c->add_option("--json", a->json, "fit: also write the profile as JSON here");
   c->add_option("--synth", a->synth, "room, cornell or furnace")->capture_default_str();
   auto* scene = c->add_option("--scene", a->scene, "render: this scene.json instead of --synth")->check(CLI::ExistingFile);
-  c->add_option("--cameras", a->cameras, "render: with --scene, a transforms.json; its first camera is rendered")
+  c->add_option("--cameras", a->cameras,
+                "render: with --scene, a transforms.json; its first camera is rendered (its size, not --width/--height)")
       ->check(CLI::ExistingFile)->needs(scene);
   scene->needs("--cameras");
   c->add_option("--rays-out", a->raysOut, "render: also write the replayed rays here (float32 records of 8: origin, "
                 "direction, tmax, shadow) for another tracer");
+  c->add_option("--width", a->width)->capture_default_str()->check(inRange(8, kMaxSide));
   c->add_option("--height", a->height)->capture_default_str()->check(inRange(8, kMaxSide));
   c->add_option("--spp", a->spp)->capture_default_str()->check(inRange(1, kMaxSpp));
   c->add_option("--max-depth", a->maxDepth, kMaxDepthHelp)->capture_default_str()->check(inRange(0, kMaxDepthLimit));

@@ -30,8 +30,10 @@ Gradients::Gradients(const Appearance& shape, bool withAlbedoCurvature)
 }
 
 void Gradients::clear() {
-  std::fill(albedo.begin(), albedo.end(), 0.0f);
-  std::fill(albedoCurvature.begin(), albedoCurvature.end(), 0.0f);
+  for (std::vector<float>* v : {&albedo, &albedoCurvature})  // tens of MiB at 4K: both cores zero them
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, v->size(), 1 << 18), [v](const tbb::blocked_range<size_t>& r) {
+      std::fill(v->begin() + static_cast<ptrdiff_t>(r.begin()), v->begin() + static_cast<ptrdiff_t>(r.end()), 0.0f);
+    });
   for (auto& t : emissionTexture) std::fill(t.begin(), t.end(), 0.0f);
   std::fill(objects.begin(), objects.end(), 0.0f);
 }

@@ -579,8 +579,10 @@ class Fit {
   void maskGradients(ParamGroup& g, const TexelSpace& space) const {
     switch (g.kind) {
       case ParamKind::Albedo:
-        for (size_t t = 0; t < space.updatable.size(); ++t)
-          if (!space.updatable[t]) g.grads[3 * t] = g.grads[3 * t + 1] = g.grads[3 * t + 2] = 0.0f;
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, space.updatable.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
+          for (size_t t = r.begin(); t < r.end(); ++t)
+            if (!space.updatable[t]) g.grads[3 * t] = g.grads[3 * t + 1] = g.grads[3 * t + 2] = 0.0f;
+        });
         break;
       case ParamKind::Roughness:
       case ParamKind::Specular:

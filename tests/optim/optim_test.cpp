@@ -152,6 +152,34 @@ TEST(GaussNewton, IsTheLeastSquaresFitOfEveryVisit) {
   EXPECT_NEAR(x[0], num / den, 1e-5);
 }
 
+// A texture-sized state is stepped by both cores in chunks: every entry must come out as if it
+// were stepped alone, and the count of updated entries must add up across the chunks.
+TEST(GaussNewton, ATextureSizedStepIsEachEntryStepAlone) {
+  const size_t n = 3 * 300000;  // many chunks
+  std::vector<float> x(n), g(n, 0.0f), h(n, 0.0f);
+  size_t eligible = 0;
+  for (size_t i = 0; i < n; ++i) {
+    x[i] = 0.1f + 0.8f * static_cast<float>((i * 2654435761u) % 1000) / 1000.0f;
+    if (i % 7 == 0) continue;  // untouched
+    h[i] = 0.01f + static_cast<float>(i % 13);
+    g[i] = (x[i] - 0.5f) * h[i] * (i % 3 == 0 ? -3.0f : 1.0f);
+    if (i % 11 == 0) h[i] = -1.0f;  // rejected
+    else ++eligible;
+  }
+  GaussNewtonSettings settings;
+  GaussNewtonState whole(n);
+  std::vector<float> stepped = x;
+  EXPECT_EQ(whole.step(stepped, g, h, 0.0f, 1.0f, settings), eligible);
+  for (size_t i = 0; i < n; i += 997) {
+    GaussNewtonState one(1);
+    std::vector<float> xi = {x[i]};
+    one.step(xi, std::span<const float>(&g[i], 1), std::span<const float>(&h[i], 1), 0.0f, 1.0f, settings);
+    ASSERT_EQ(stepped[i], xi[0]) << i;
+    ASSERT_EQ(whole.numerator[i], one.numerator[0]) << i;
+    ASSERT_EQ(whole.steps[i], one.steps[0]) << i;
+  }
+}
+
 TEST(Polyak, IsTheRunningMean) {
   PolyakAverage p;
   for (float v : {1.0f, 2.0f, 6.0f}) p.add(std::vector<float>{v, 2 * v});

@@ -55,6 +55,18 @@ std::vector<RecordedRay> recordPathRays(const Scene& scene, const LightSampler& 
   return rays;
 }
 
+// The rays one pass of computeGradients traces on `rays` at `iteration`: the primal's, or the
+// adjoint pass's (its seeds and directions).
+std::vector<RecordedRay> gradientPassRays(const Scene& scene, const LightSampler& lights, const Appearance& appearance,
+                                          const AdjointSettings& s, const std::vector<BatchRay>& rays,
+                                          uint64_t iteration, bool adjointPass) {
+  return recordPathRays(scene, lights, AppearanceScope::uniform(appearance), s.path, rays.size(), [&](size_t j) {
+    const BatchRay& ray = rays[j];
+    return std::optional<PathStart>({ray.origin, adjointPass ? ray.adjointDirection() : ray.dir,
+                                     Pcg32(adjointPass ? adjointSeed(s, iteration, j) : primalSeed(s, iteration, j))});
+  });
+}
+
 // Embree alone on the recorded rays, best of `repeats`.
 double traceOnlySeconds(const Scene& scene, const std::vector<RecordedRay>& rays, int repeats) {
   double best = INFINITY;
@@ -159,14 +171,8 @@ AdjointProfile profileAdjoint(const SceneDescription& desc, const Appearance& cu
   }
   p.peakRssMiB = peakRssMiB();
   s.pairing = Pairing::Decorrelated;
-  const auto passRays = [&](bool adjoint) {
-    return recordPathRays(scene, lights, AppearanceScope::uniform(current), s.path, rays.size(), [&](size_t j) {
-      const BatchRay& ray = rays[j];
-      return std::optional<PathStart>({ray.origin, adjoint ? ray.adjointDirection() : ray.dir,
-                                       Pcg32(adjoint ? adjointSeed(s, 0, j) : primalSeed(s, 0, j))});
-    });
-  };
-  const std::vector<RecordedRay> primalRays = passRays(false), adjointRays = passRays(true);
+  const std::vector<RecordedRay> primalRays = gradientPassRays(scene, lights, current, s, rays, 0, false),
+                                 adjointRays = gradientPassRays(scene, lights, current, s, rays, 0, true);
   p.primalRaysTraced = primalRays.size();
   p.adjointRaysTraced = adjointRays.size();
   p.primalTraceOnly = traceOnlySeconds(scene, primalRays, repeats);
@@ -329,10 +335,7 @@ FitProfile profileFit(const std::filesystem::path& work, const FitConfig& config
     for (const BatchRay& r : it.rays) connections.push_back({r.origin, r.dir, INFINITY, false});
     p.connectionTraceOnly = traceOnlySeconds(it.scene, connections, 3);
     const std::vector<RecordedRay> primalRays =
-        recordPathRays(it.scene, it.lights, AppearanceScope::uniform(it.appearance), it.settings.path, it.rays.size(),
-                       [&](size_t j) {
-                         return std::optional<PathStart>({it.rays[j].origin, it.rays[j].dir, Pcg32(primalSeed(it.settings, iteration, j))});
-                       });
+        gradientPassRays(it.scene, it.lights, it.appearance, it.settings, it.rays, iteration, false);
     for (const RecordedRay& r : primalRays) (r.shadow ? p.primalShadowRays : p.primalClosestRays)++;
     p.primalTraceOnly = traceOnlySeconds(it.scene, primalRays, 3);
     AdjointSettings none = it.settings;

@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstring>
 #include <fstream>
 
@@ -163,6 +164,22 @@ std::optional<FrameStore::StoredPixel> FrameStore::pixelAt(size_t frame, const V
   const Color c = pixel(frame, x, y);
   if (c.minCoeff() < 0) return std::nullopt;
   return StoredPixel{c, Vec2(static_cast<float>(x * ds), static_cast<float>(y * ds)), static_cast<float>(ds)};
+}
+
+void FrameStore::prefetch(size_t frame, const Vec2& px) const {
+  const Entry& e = index_[frame];
+  const float inv = 1.0f / static_cast<float>(e.stats.downscale);
+  // The 2 x 2 block from bilinear's first pixel holds pixelAt's pixel too.
+  const float xf = std::floor(px.x() * inv - 0.5f), yf = std::floor(px.y() * inv - 0.5f);
+  const float maxX = static_cast<float>(e.stats.width) - 2, maxY = static_cast<float>(e.stats.height) - 2;
+  if (!(maxX >= 0 && maxY >= 0)) return;
+  const auto x = static_cast<size_t>(std::clamp(xf, 0.0f, maxX)), y = static_cast<size_t>(std::clamp(yf, 0.0f, maxY));
+  constexpr size_t kPixelBytes = 3 * sizeof(Imath::half);
+  for (size_t row = y; row < y + 2; ++row) {
+    const uint8_t* first = data_ + e.offset + (row * e.stats.width + x) * kPixelBytes;
+    __builtin_prefetch(first);
+    __builtin_prefetch(first + 2 * kPixelBytes - 1);  // the two pixels may straddle a line
+  }
 }
 
 std::optional<Color> FrameStore::bilinear(size_t frame, const Vec2& px) const {

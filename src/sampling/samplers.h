@@ -67,8 +67,9 @@ struct TextureSamplerSettings {
 
 class TextureSpaceSampler {
  public:
-  // `texels` are the sampleable texels of `map` (covered and observed).
-  TextureSpaceSampler(const Scene& scene, const TexelMap& map, std::vector<uint32_t> texels, const VisibilityIndex& vis,
+  // `texels` are the sampleable texels of `map` (covered and observed); the sampler keeps a view
+  // of them (as of the scene, map and index), not a copy.
+  TextureSpaceSampler(const Scene& scene, const TexelMap& map, std::span<const uint32_t> texels, const VisibilityIndex& vis,
                       const TrainingFrames& frames);
   Batch sample(uint64_t seed, uint64_t iteration, const TextureSamplerSettings& settings) const;
   size_t texelCount() const { return texels_.size(); }
@@ -76,7 +77,7 @@ class TextureSpaceSampler {
  private:
   const Scene& scene_;
   const TexelMap& map_;
-  std::vector<uint32_t> texels_;
+  std::span<const uint32_t> texels_;
   const VisibilityIndex& vis_;
   TrainingFrames frames_;
   std::vector<uint8_t> usable_;  // per frame index

@@ -31,10 +31,19 @@ class GaussNewtonState {
   // Returns the entries updated.
   size_t step(std::span<float> x, std::span<const float> g, std::span<const float> h, float lo, float hi,
               const GaussNewtonSettings& s);
+  // The same step on the entries of `texels` alone (3 consecutive entries each, RGB), each texel
+  // listed at most once: when every other entry has no gradient this is step() at the cost of
+  // the batch rather than the texture.
+  size_t stepTexels(std::span<float> x, std::span<const float> g, std::span<const float> h, float lo, float hi,
+                    const GaussNewtonSettings& s, std::span<const uint32_t> texels);
 
   std::vector<float> numerator;  // running average of x h - g
   std::vector<float> curvature;  // running average of h
   std::vector<uint16_t> steps;   // visits, saturating
+
+ private:
+  bool stepEntry(size_t i, std::span<float> x, std::span<const float> g, std::span<const float> h, float lo, float hi,
+                 const GaussNewtonSettings& s);
 };
 
 }  // namespace relume

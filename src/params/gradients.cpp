@@ -27,19 +27,39 @@ Gradients::Gradients(const Appearance& shape, bool withAlbedoCurvature)
   const uint64_t perBucket = std::max<uint64_t>(1, (texels + kBuckets - 1) / kBuckets);
   bucketShift_ = std::bit_width(perBucket - 1);
   bucketCount_ = texels == 0 ? 1 : ((texels - 1) >> bucketShift_) + 1;
+  splatted_.assign(texels, 0);
+  splattedEntries_.resize(bucketCount_);
 }
 
 void Gradients::clear() {
-  // The texture buffers hold tens of MiB at 4K: both cores zero them.
-  const auto zero = [](std::vector<float>& v) {
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, v.size(), 1 << 18), [&v](const tbb::blocked_range<size_t>& r) {
-      std::fill(v.begin() + static_cast<ptrdiff_t>(r.begin()), v.begin() + static_cast<ptrdiff_t>(r.end()), 0.0f);
-    });
-  };
-  zero(albedo);
-  zero(albedoCurvature);
-  for (auto& t : emissionTexture) zero(t);
+  // Only the entries splats reached can be non-zero: clearing them costs the batch, not the
+  // texture (tens of MiB at 4K).
+  tbb::parallel_for(size_t{0}, bucketCount_, [&](size_t b) {
+    for (uint32_t entry : splattedEntries_[b]) {
+      std::fill_n(texelData(entry), 3, 0.0f);
+      splatted_[entry] = 0;
+    }
+    splattedEntries_[b].clear();
+  });
   std::fill(objects.begin(), objects.end(), 0.0f);
+}
+
+std::vector<uint32_t> Gradients::splattedAlbedoTexels() const {
+  std::vector<uint32_t> texels;
+  for (const auto& entries : splattedEntries_)
+    for (uint32_t e : entries) {
+      if (e < curvatureBase_) texels.push_back(e);
+      // A curvature entry adds its texel unless the texel's gradient entry already did.
+      else if (e - curvatureBase_ < albedoCurvature.size() / 3 && !splatted_[e - curvatureBase_])
+        texels.push_back(e - curvatureBase_);
+    }
+  return texels;
+}
+
+size_t Gradients::bookkeepingBytes() const {
+  size_t bytes = splatted_.capacity();
+  for (const auto& entries : splattedEntries_) bytes += entries.capacity() * sizeof(uint32_t);
+  return bytes;
 }
 
 float* Gradients::texelData(uint32_t entry) {
@@ -84,6 +104,7 @@ void Gradients::apply(size_t chunks) {
       for (const Chunk::Splat& s : splats) {
         float* d = texelData(s.entry);
         for (int k = 0; k < 3; ++k) d[k] += s.value[k];
+        if (!splatted_[s.entry]) splatted_[s.entry] = 1, splattedEntries_[b].push_back(s.entry);  // bucket b's alone
       }
       splats.clear();
     }

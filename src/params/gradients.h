@@ -18,7 +18,14 @@ class Gradients {
  public:
   // withAlbedoCurvature: also allocate albedoCurvature (the Gauss-Newton albedo step needs it).
   explicit Gradients(const Appearance& shape, bool withAlbedoCurvature = false);
+  // Zeroes every buffer. The texture buffers are written through accumulate alone (a caller may
+  // zero entries): clear() zeroes the entries splats reached since the last clear, no others.
   void clear();
+  // The albedo texels whose gradient or curvature a splat reached since the last clear, each
+  // once, in no particular order: every non-zero albedo gradient is at one of them, so a step or
+  // mask over them costs the batch, not the texture.
+  std::vector<uint32_t> splattedAlbedoTexels() const;
+  size_t bookkeepingBytes() const;  // what tracking the splatted entries holds
 
   // What one chunk of a pass's rays writes; a chunk is traced by one thread at a time.
   class Chunk {
@@ -86,6 +93,8 @@ class Gradients {
   int bucketShift_ = 0;
   size_t bucketCount_ = 1;
   std::vector<Chunk> chunks_;  // one sub-batch's, reused
+  std::vector<uint8_t> splatted_;                       // per entry: reached since the last clear
+  std::vector<std::vector<uint32_t>> splattedEntries_;  // per bucket: those entries
 };
 
 }  // namespace relume

@@ -576,13 +576,11 @@ class Fit {
 
   // Zeroes the gradient of entries that must not move: unobserved texels, pruned emitters,
   // objects whose highlights were never seen.
-  void maskGradients(ParamGroup& g, const TexelSpace& space) const {
+  void maskGradients(ParamGroup& g, const TexelSpace& space, std::span<const uint32_t> splattedAlbedo) const {
     switch (g.kind) {
       case ParamKind::Albedo:
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, space.updatable.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
-          for (size_t t = r.begin(); t < r.end(); ++t)
-            if (!space.updatable[t]) g.grads[3 * t] = g.grads[3 * t + 1] = g.grads[3 * t + 2] = 0.0f;
-        });
+        for (uint32_t t : splattedAlbedo)
+          if (!space.updatable[t]) g.grads[3 * t] = g.grads[3 * t + 1] = g.grads[3 * t + 2] = 0.0f;
         break;
       case ParamKind::Roughness:
       case ParamKind::Specular:
@@ -702,14 +700,15 @@ class Fit {
       Timer tl;
       const LightSampler lights(*w_.scene, appearance_);
       now.lights = tl.seconds();
-      grads.clear();
       const GradientResult gr = computeGradients(*w_.scene, appearance_, lights, batch.rays, settings, iteration, grads);
       now.primal = gr.times.primal, now.loss = gr.times.loss, now.adjoint = gr.times.adjoint;
       Timer to;
       bool averagesStart = false;
+      // Every non-zero albedo gradient is at one of these: the mask and the step cost the batch.
+      const std::vector<uint32_t> splatted = grads.splattedAlbedoTexels();
       for (ParamGroup& g : paramGroups(appearance_, &grads)) {
         if (!st.active.active(g.kind)) continue;
-        maskGradients(g, space);
+        maskGradients(g, space, splatted);
         const float lrScale = st.settles.active(g.kind) ? settleScale : 1.0f;
         if (g.kind == ParamKind::Albedo && newtonAlbedo()) {
           // No gradient clamp: the step is bounded by maxStep, and a bright outlier in the adjoint
@@ -717,7 +716,7 @@ class Fit {
           if (newton_.size() != g.values.size()) newton_ = GaussNewtonState(g.values.size());
           GaussNewtonSettings gn;
           gn.damping = c_.albedoDamping * lrScale;
-          newton_.step(g.values, g.grads, grads.albedoCurvature, g.lo, g.hi, gn);
+          newton_.stepTexels(g.values, g.grads, grads.albedoCurvature, g.lo, g.hi, gn, splatted);
         } else {
           clampGradients(g.grads, c_.gradientClamp);
           auto [state, inserted] = adam_.try_emplace(g.name(), g.values.size());
@@ -728,6 +727,7 @@ class Fit {
         if (it >= from) polyak_[g.name()].add(g.values);
         averagesStart |= it == from;
       }
+      grads.clear();  // for the next iteration (the buffers start zero)
       now.optimiser = to.seconds();
       times += now;
       lastLoss_ = gr.loss;
@@ -885,7 +885,7 @@ class Fit {
   // mapping of frames.bin: only the pages the sampler touches become resident.
   Json memoryBreakdown(const TexelSpace& space, Gradients& grads, const Batch& batch, const AdjointSettings& settings) {
     auto floats = [](size_t n) { return static_cast<double>(n * sizeof(float)); };
-    double parameters = 0, gradients = floats(grads.albedoCurvature.size()), optimiser = 0, averages = 0;
+    double parameters = 0, gradients = floats(grads.albedoCurvature.size()) + grads.bookkeepingBytes(), optimiser = 0, averages = 0;
     for (ParamGroup& g : paramGroups(appearance_, &grads))
       parameters += floats(g.values.size()), gradients += floats(g.grads.size());
     for (const auto& [name, a] : adam_) optimiser += floats(a.m.size() + a.v.size()) + a.steps.size() * sizeof(uint16_t);

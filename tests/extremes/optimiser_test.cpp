@@ -10,7 +10,8 @@ using namespace relume::extremes;
 
 namespace {
 
-// The fit's optimisers over the Cornell experiment's groups, stepped with the solver's gradients.
+// The fit's optimisers over the Cornell experiment's groups, stepped with the solver's gradients
+// (the albedo's over the texels the splats reached, as the fit does).
 struct Optimisers {
   std::map<std::string, AdamState> adam;
   GaussNewtonState newton;
@@ -19,7 +20,7 @@ struct Optimisers {
     for (ParamGroup& group : paramGroups(a, &g)) {
       if (group.kind == ParamKind::Albedo) {
         if (newton.size() == 0) newton = GaussNewtonState(group.values.size());
-        newton.step(group.values, group.grads, g.albedoCurvature, group.lo, group.hi, {});
+        newton.stepTexels(group.values, group.grads, g.albedoCurvature, group.lo, group.hi, {}, g.splattedAlbedoTexels());
       } else {
         AdamSettings s;
         s.learningRate = 0.01f;

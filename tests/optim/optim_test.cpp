@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 
 #include "core/error.h"
@@ -178,6 +179,42 @@ TEST(GaussNewton, ATextureSizedStepIsEachEntryStepAlone) {
     ASSERT_EQ(whole.numerator[i], one.numerator[0]) << i;
     ASSERT_EQ(whole.steps[i], one.steps[0]) << i;
   }
+}
+
+// The fit steps only the texels its splats reached: over a list holding every texel with a
+// gradient, in any order, that is the whole texture's step bit for bit; a texel left off stays.
+TEST(GaussNewton, AStepOverTheSplattedTexelsIsTheWholeTexturesStep) {
+  const size_t texels = 100000;
+  std::vector<float> x(3 * texels), g(3 * texels, 0.0f), h(3 * texels, 0.0f);
+  std::vector<uint32_t> splatted;
+  for (uint32_t t = 0; t < texels; ++t) {
+    for (size_t i = 3 * t; i < 3 * t + 3; ++i) x[i] = 0.1f + 0.8f * static_cast<float>((i * 2654435761u) % 1000) / 1000.0f;
+    if (t % 5 != 0) continue;
+    splatted.push_back(t);
+    for (size_t i = 3 * t; i < 3 * t + 3; ++i) {
+      h[i] = t % 3 == 0 ? 0.0f : 0.05f + static_cast<float>(i % 7);  // some: a gradient without curvature
+      g[i] = (x[i] - 0.4f) * (h[i] + 0.1f);
+    }
+  }
+  std::reverse(splatted.begin(), splatted.end());
+  GaussNewtonSettings settings;
+  GaussNewtonState whole(x.size()), sparse(x.size());
+  std::vector<float> xw = x, xs = x;
+  for (int visit = 0; visit < 3; ++visit) {  // later visits read the running sums
+    const size_t updated = whole.step(xw, g, h, 0.0f, 1.0f, settings);
+    EXPECT_GT(updated, 0u);
+    EXPECT_EQ(sparse.stepTexels(xs, g, h, 0.0f, 1.0f, settings, splatted), updated);
+  }
+  EXPECT_TRUE(xs == xw);
+  EXPECT_TRUE(sparse.numerator == whole.numerator && sparse.curvature == whole.curvature && sparse.steps == whole.steps);
+  // Left off the list: a gradient there is not stepped.
+  GaussNewtonState partial(x.size());
+  std::vector<float> xp = x;
+  partial.stepTexels(xp, g, h, 0.0f, 1.0f, settings, std::span<const uint32_t>(splatted).subspan(1));
+  const size_t leftOff = 3 * size_t{splatted[0]};
+  EXPECT_EQ(xp[leftOff + 1], x[leftOff + 1]);
+  EXPECT_EQ(partial.steps[leftOff + 1], 0);
+  EXPECT_NE(xs[leftOff + 1], x[leftOff + 1]);
 }
 
 TEST(Polyak, IsTheRunningMean) {

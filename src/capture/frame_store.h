@@ -51,7 +51,7 @@ class FrameStore {
     float size = 1;
   };
   std::optional<StoredPixel> pixelAt(size_t frame, const Vec2& pixel) const;
-  // Starts loading the stored pixels bilinear or pixelAt at `pixel` would read (a hint: nothing
+  // Starts loading the stored pixels bilinear or pixelAt at `pixel` would read (a hint: no pixel
   // is read, nothing faults), so a caller can overlap that miss with other work.
   void prefetch(size_t frame, const Vec2& pixel) const;
 

@@ -28,7 +28,7 @@ class GaussNewtonState {
   explicit GaussNewtonState(size_t entries) : numerator(entries, 0.0f), curvature(entries, 0.0f), steps(entries, 0) {}
   size_t size() const { return curvature.size(); }
   // One step on x with gradient g and curvature sample h, then projection onto [lo, hi].
-  // Returns the entries updated.
+  // Returns the entries updated. (The fit steps through stepTexels; this is its reference.)
   size_t step(std::span<float> x, std::span<const float> g, std::span<const float> h, float lo, float hi,
               const GaussNewtonSettings& s);
   // The same step on the entries of `texels` alone (3 consecutive entries each, RGB), each texel

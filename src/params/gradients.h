@@ -18,8 +18,9 @@ class Gradients {
  public:
   // withAlbedoCurvature: also allocate albedoCurvature (the Gauss-Newton albedo step needs it).
   explicit Gradients(const Appearance& shape, bool withAlbedoCurvature = false);
-  // Zeroes every buffer. The texture buffers are written through accumulate alone (a caller may
-  // zero entries): clear() zeroes the entries splats reached since the last clear, no others.
+  // Zeroes the per-object sums and the texture entries splats reached since the last clear, no
+  // others: every buffer is zero afterwards provided the texture buffers were written only by
+  // accumulate, or set to zero (the fit's mask), never to another value by a caller.
   void clear();
   // The albedo texels whose gradient or curvature a splat reached since the last clear, each
   // once, in no particular order: every non-zero albedo gradient is at one of them, so a step or

@@ -580,7 +580,7 @@ class Fit {
     switch (g.kind) {
       case ParamKind::Albedo:
         for (uint32_t t : splattedAlbedo)
-          if (!space.updatable[t]) g.grads[3 * t] = g.grads[3 * t + 1] = g.grads[3 * t + 2] = 0.0f;
+          if (!space.updatable[t]) std::fill_n(g.grads.begin() + 3 * static_cast<ptrdiff_t>(t), 3, 0.0f);
         break;
       case ParamKind::Roughness:
       case ParamKind::Specular:

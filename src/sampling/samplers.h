@@ -71,6 +71,8 @@ class TextureSpaceSampler {
   // of them (as of the scene, map and index), not a copy.
   TextureSpaceSampler(const Scene& scene, const TexelMap& map, std::span<const uint32_t> texels, const VisibilityIndex& vis,
                       const TrainingFrames& frames);
+  // A temporary list would be gone before the first sample.
+  TextureSpaceSampler(const Scene&, const TexelMap&, std::vector<uint32_t>&&, const VisibilityIndex&, const TrainingFrames&) = delete;
   Batch sample(uint64_t seed, uint64_t iteration, const TextureSamplerSettings& settings) const;
   size_t texelCount() const { return texels_.size(); }
 

@@ -68,7 +68,7 @@ TEST(Gradients, ListsEverySplattedAlbedoTexelOnceAndClearZeroesEveryBuffer) {
       for (size_t ray = begin; ray < end; ++ray) {
         const auto texel = static_cast<uint32_t>((ray * 7 + round) % 4096);
         if (ray % 3 != 2) chunk.addAlbedo(texel, Color::Constant(0.25f));
-        if (ray % 3 != 0) chunk.addAlbedoCurvature(texel + 1, Color::Constant(1.0f));  // some texels: curvature alone
+        if (ray % 3 != 0) chunk.addAlbedoCurvature((texel + 1) % 4096, Color::Constant(1.0f));  // some texels: curvature alone
         if (ray % 5 == 0) chunk.addEmissionTexel(0, static_cast<uint32_t>(ray % (g.emissionTexture[0].size() / 3)), Color::Ones());
         chunk.addRoughness(1, 0.5);
       }

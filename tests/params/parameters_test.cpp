@@ -24,13 +24,20 @@ TEST(Parameters, ProjectionKeepsEveryGroupInItsDomain) {
   EXPECT_GT(kRoughnessMin * kRoughnessMin, 1e-3f);  // r_min keeps alpha out of its clamp
 }
 
-TEST(Parameters, EmissionTexturesOnlyForEmitters) {
+namespace {
+// Two triangles, objects 0 and 1, in separate uv windows.
+TriangleMesh twoObjectMesh() {
   MeshData d;
   d.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {2, 0, 0}, {3, 0, 0}, {2, 1, 0}};
   d.uvs = {{0.1f, 0.1f}, {0.3f, 0.1f}, {0.1f, 0.3f}, {0.6f, 0.6f}, {0.9f, 0.6f}, {0.6f, 0.9f}};
   d.triangles = {{0, 1, 2}, {3, 4, 5}};
   d.faceObject = {0, 1};
-  const TriangleMesh mesh = buildMesh(d, "t");
+  return buildMesh(d, "t");
+}
+}  // namespace
+
+TEST(Parameters, EmissionTexturesOnlyForEmitters) {
+  const TriangleMesh mesh = twoObjectMesh();
   Appearance a(2);
   a.emission[1] = Color(4, 5, 6);
   allocateEmissionTextures(a, mesh, 64, [](float, float) { return 1.0f; });
@@ -48,12 +55,7 @@ TEST(Parameters, EmissionTexturesOnlyForEmitters) {
 TEST(Gradients, ListsEverySplattedAlbedoTexelOnceAndClearZeroesEveryBuffer) {
   // The fit's mask, step and reset visit only the splatted texels: a texel missing from the list
   // would keep a stale gradient into the next iteration, or miss its step.
-  MeshData d;
-  d.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {2, 0, 0}, {3, 0, 0}, {2, 1, 0}};
-  d.uvs = {{0.1f, 0.1f}, {0.3f, 0.1f}, {0.1f, 0.3f}, {0.6f, 0.6f}, {0.9f, 0.6f}, {0.6f, 0.9f}};
-  d.triangles = {{0, 1, 2}, {3, 4, 5}};
-  d.faceObject = {0, 1};
-  const TriangleMesh mesh = buildMesh(d, "t");
+  const TriangleMesh mesh = twoObjectMesh();
   Appearance a(2);
   a.albedo = Texture(64, 64, Color::Constant(0.5f));
   a.emission[1] = Color(4, 5, 6);

@@ -166,6 +166,7 @@ void printFitProfile(const ProfileArgs& a) {
     fmt::print("  {:<26} {:9.2f} {:9.2f} {:9.2f}\n", label, ph["mean_ms"].get<double>(), ph["min_ms"].get<double>(),
                ph["max_ms"].get<double>());
   }
+  fmt::print("  whole iteration / primal    {:8.2f}x (means)\n", j["iteration_over_primal"].get<double>());
   const double primalRays = static_cast<double>(p.primalClosestRays + p.primalShadowRays);
   fmt::print("  last batch, replayed (best of 3):\n");
   fmt::print("    connection rays, Embree alone   {:8.2f} ms ({} rays)\n", 1e3 * p.connectionTraceOnly, p.raysPerIteration);
@@ -173,7 +174,7 @@ void printFitProfile(const ProfileArgs& a) {
              p.raysPerIteration / p.primal * 1e-6, primalRays / p.primal * 1e-6, primalRays / p.raysPerIteration);
   fmt::print("    primal's rays, Embree alone     {:8.2f} ms  efficiency {:.2f} (trace-only / primal)\n", 1e3 * p.primalTraceOnly,
              p.primalTraceOnly / p.primal);
-  fmt::print("    adjoint                         {:8.2f} ms  iteration / primal = {:.2f}x\n", 1e3 * p.adjoint,
+  fmt::print("    adjoint                         {:8.2f} ms  (primal + adjoint) / primal = {:.2f}x\n", 1e3 * p.adjoint,
              (p.primal + p.adjoint) / p.primal);
   fmt::print("    adjoint, no parameter active    {:8.2f} ms  (derivatives + scatter: {:.2f} ms)\n", 1e3 * p.adjointNoScatter,
              1e3 * (p.adjoint - p.adjointNoScatter));

@@ -378,6 +378,7 @@ Json FitProfile::toJson() const {
   }
   return {{"stage", stage}, {"iterations", iterations}, {"threads", threads}, {"max_depth", maxDepth},
           {"rays_per_iteration", raysPerIteration}, {"phases", phases},
+          {"iteration_over_primal", phases["total"]["mean_ms"].get<double>() / phases["primal"]["mean_ms"].get<double>()},
           {"connection_trace_only_ms", 1e3 * connectionTraceOnly}, {"primal_ms", 1e3 * primal},
           {"primal_trace_only_ms", 1e3 * primalTraceOnly}, {"primal_closest_rays", primalClosestRays},
           {"primal_shadow_rays", primalShadowRays}, {"adjoint_ms", 1e3 * adjoint}, {"adjoint_no_scatter_ms", 1e3 * adjointNoScatter},

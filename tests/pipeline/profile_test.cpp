@@ -35,6 +35,11 @@ TEST(ProfileFit, TimesTheAskedStageAndWritesNothing) {
   EXPECT_GE(p.memory["parameters"].get<double>(), 128.0 * 128 * 3 * 4);
   EXPECT_GE(p.memory["optimiser_state"].get<double>(), 128.0 * 128 * 3 * 4);
   EXPECT_GT(p.memory["total"].get<double>(), p.memory["parameters"].get<double>());
+  // The whole iteration over the primal, means of the timed iterations (what the bound is on).
+  double total = 0, primal = 0;
+  for (const FitPhaseTimes& t : p.perIteration) total += t.total(), primal += t.primal;
+  EXPECT_NEAR(p.toJson()["iteration_over_primal"].get<double>(), total / primal, 1e-9 * total / primal);
+  EXPECT_GT(total, primal);
   for (const char* f : {"metrics.jsonl", "checkpoint.bin", "result"}) EXPECT_FALSE(fs::exists(work / f)) << f;
   EXPECT_THROW(profileFit(work, c, "no-such-stage", 1), Error);
 }

@@ -704,8 +704,9 @@ class Fit {
       now.primal = gr.times.primal, now.loss = gr.times.loss, now.adjoint = gr.times.adjoint;
       Timer to;
       bool averagesStart = false;
-      // Every non-zero albedo gradient is at one of these: the mask and the step cost the batch.
-      const std::vector<uint32_t> splatted = grads.splattedAlbedoTexels();
+      // Every non-zero albedo gradient is at one of these: the mask and the step cost the batch
+      // (listed only in the stages that step the albedo).
+      const std::vector<uint32_t> splatted = st.active.active(ParamKind::Albedo) ? grads.splattedAlbedoTexels() : std::vector<uint32_t>{};
       for (ParamGroup& g : paramGroups(appearance_, &grads)) {
         if (!st.active.active(g.kind)) continue;
         maskGradients(g, space, splatted);

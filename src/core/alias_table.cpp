@@ -43,9 +43,8 @@ AliasTable::AliasTable(const std::vector<double>& weights) {
 }
 
 uint32_t AliasTable::sample(float u) const {
-  const float x = u * static_cast<float>(prob_.size());
-  const uint32_t i = std::min(static_cast<uint32_t>(x), static_cast<uint32_t>(prob_.size() - 1));
-  const float frac = x - static_cast<float>(i);
+  const uint32_t i = bin(u);
+  const float frac = u * static_cast<float>(prob_.size()) - static_cast<float>(i);
   return frac < prob_[i] ? i : alias_[i];
 }
 

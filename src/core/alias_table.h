@@ -1,5 +1,6 @@
 // Walker/Vose alias table: O(1) sampling of a discrete distribution.
 #pragma once
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -15,6 +16,15 @@ class AliasTable {
   size_t size() const { return prob_.size(); }
   // u in [0,1): returns an index; pmf(i) its probability.
   uint32_t sample(float u) const;
+  // The bin sample(u) reads: the index it returns or that bin's alias.
+  uint32_t bin(float u) const {
+    return std::min(static_cast<uint32_t>(u * static_cast<float>(prob_.size())), static_cast<uint32_t>(prob_.size() - 1));
+  }
+  // Starts loading bin i. always_inline, as Texture::prefetch: else GCC deletes the call.
+  [[gnu::always_inline]] void prefetch(uint32_t i) const {
+    __builtin_prefetch(&prob_[i]);
+    __builtin_prefetch(&alias_[i]);
+  }
   float pmf(uint32_t i) const { return pmf_[i]; }
 
  private:

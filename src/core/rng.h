@@ -4,6 +4,8 @@
 #include <cstdint>
 #include <initializer_list>
 
+#include "core/math.h"
+
 namespace relume {
 
 inline uint64_t mix64(uint64_t z) {  // splitmix64 finaliser
@@ -40,6 +42,13 @@ class Pcg32 {
   }
   // Uniform in [0,1): 24 random mantissa bits, never returns 1.
   float next1D() { return static_cast<float>(nextU32() >> 8) * 0x1p-24f; }
+  // Two draws as a point; the first draw is y. That is the order GCC gave `Vec2(next1D(),
+  // next1D())` (C++ leaves argument order unspecified), kept so results stay those of the streams
+  // written that way.
+  Vec2 next2D() {
+    const float y = next1D();
+    return {next1D(), y};
+  }
 
  private:
   uint64_t state_ = 0, inc_ = 1;

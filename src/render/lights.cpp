@@ -19,10 +19,13 @@ LightSampler::LightSampler(const Scene& scene, const Appearance& appearance) : s
     if (trisOf[o].empty() || !appearance.isEmissive(o)) continue;
     EmitterObject e;
     e.object = o;
-    e.triangles = std::move(trisOf[o]);
     std::vector<double> areas;
     double area = 0;
-    for (uint32_t f : e.triangles) areas.push_back(mesh.faceArea[f]), area += mesh.faceArea[f];
+    for (uint32_t f : trisOf[o]) {
+      const auto& v = mesh.triangles[f];
+      e.triangles.push_back({f, {mesh.positions[v[0]], mesh.positions[v[1]], mesh.positions[v[2]]}});
+      areas.push_back(mesh.faceArea[f]), area += mesh.faceArea[f];
+    }
     e.byArea = AliasTable(areas);
     const double p = area * kPi * luminance(appearance.meanEmission(o)) + 1e-12;
     if (!std::isfinite(p)) fail("light sampling: object {} ('{}') emits a non-finite power {}", o, appearance.names[o], p);
@@ -37,11 +40,24 @@ LightSampler::LightSampler(const Scene& scene, const Appearance& appearance) : s
 
 std::optional<LightSample> LightSampler::sample(float uObject, float uTriangle, const Vec2& uPoint) const {
   if (objects_.empty()) return std::nullopt;
-  const EmitterObject& e = objects_[byPower_.sample(uObject)];
-  const uint32_t prim = e.triangles[e.byArea.sample(uTriangle)];
+  return sampleAt(pick(uObject, uTriangle), uPoint);
+}
+
+LightPick LightSampler::pick(float uObject, float uTriangle) const {
+  const uint32_t emitter = byPower_.sample(uObject);
+  const EmitterObject& e = objects_[emitter];
+  const uint32_t triangle = e.byArea.sample(uTriangle);
+  scene_->prefetchFace(e.triangles[triangle].prim);
+  return {emitter, triangle};
+}
+
+LightSample LightSampler::sampleAt(const LightPick& pick, const Vec2& uPoint) const {
+  const EmitterObject& e = objects_[pick.emitter];
+  const EmitterTriangle& t = e.triangles[pick.triangle];
   const Vec2 b = squareToTriangle(uPoint);
   LightSample s;
-  s.hit = scene_->surfacePoint(prim, b.x(), b.y());
+  s.hit = scene_->hitFromFace(t.prim, b.x(), b.y());
+  s.hit.p = barycentricPoint(t.corner[0], t.corner[1], t.corner[2], b.x(), b.y());
   s.pdfArea = pdfArea_[e.object];
   return s;
 }

@@ -83,14 +83,20 @@ struct PathSlot {
   bool alive = true;
   RayHit next;     // the closest hit of the current ray, before its attributes are read
   SurfaceHit hit;  // ... and after
+  // Next-event estimation's random numbers (light object, triangle, point) and its light point,
+  // drawn and fetched in earlier phases of the bounce (tracePaths).
+  float uLightObject = 0, uLightTriangle = 0;
+  Vec2 uLightPoint = Vec2::Zero();
+  LightPick lightPick;
+  std::optional<LightSample> light;
 
   PathSlot() = default;
   PathSlot(const Vec3& o, const Vec3& d, const Pcg32& r, SurfaceHit* first = nullptr)
       : origin(o), dir(d), rng(r), firstHit(first) {}
 };
 
-// Everything a path does at vertex `depth` once its hit is known: emission, next-event estimation
-// and the BSDF sample that sets its next ray (or ends it).
+// Everything a path does at vertex `depth` once its hit and its light point (tracePaths) are
+// known: emission, next-event estimation and the BSDF sample that sets its next ray (or ends it).
 template <class Observer>
 void shadeVertex(const Scene& scene, const LightSampler& lights, const AppearanceScope& scope,
                  const PathSettings& settings, int depth, PathSlot& path, Observer& obs) {
@@ -124,9 +130,7 @@ void shadeVertex(const Scene& scene, const LightSampler& lights, const Appearanc
   const BsdfParams evalParams = frozen ? bsdfParamsAt(scope.bsdf(depth), hit) : sampleParams;
   const VertexBsdf bsdf(sampleParams, wo);
   // Next-event estimation.
-  const float uObject = rng.next1D(), uTri = rng.next1D();
-  const Vec2 uPoint(rng.next1D(), rng.next1D());
-  if (const auto ls = lights.sample(uObject, uTri, uPoint)) {
+  if (const auto& ls = path.light) {
     Vec3 toLight = ls->hit.p - hit.p;
     const float dist2 = toLight.squaredNorm();
     const float dist = std::sqrt(dist2);
@@ -164,7 +168,7 @@ void shadeVertex(const Scene& scene, const LightSampler& lights, const Appearanc
   // BSDF sampling.
   path.alive = false;
   const float uLobe = rng.next1D();
-  const Vec2 uDir(rng.next1D(), rng.next1D());
+  const Vec2 uDir = rng.next2D();
   const auto bs = bsdf.sample(uLobe, uDir);
   if (!bs) return;
   const Color f = frozen ? evalBsdf(evalParams, wo, bs->wi).f : bs->f;
@@ -204,11 +208,31 @@ void tracePaths(const Scene& scene, const LightSampler& lights, const Appearance
       any |= p.alive;
     }
     if (!any) return;
+    // A vertex below the maximum depth samples a light: its numbers are drawn here, before the
+    // vertex's other draws, and the light point's chain of loads (alias bin and triangle, face
+    // record, emission texels) is started one phase ahead of each use.
+    const bool nee = depth < settings.maxDepth;
     for (PathSlot& p : paths) {
       if (!p.alive) continue;
       p.hit = scene.surfaceAt(p.next, p.origin, p.dir);
       if (depth == 0 && p.firstHit) *p.firstHit = p.hit;
       scope.sampling->prefetchAlbedo(p.hit.object, p.hit.uv);
+      scope.emission(depth - 1).prefetchEmission(p.hit.object, p.hit.uv);
+      if (!nee) continue;
+      p.uLightObject = p.rng.next1D();
+      p.uLightTriangle = p.rng.next1D();
+      p.uLightPoint = p.rng.next2D();
+      if (!lights.empty()) lights.prefetchPick(p.uLightObject, p.uLightTriangle);
+    }
+    if (nee && !lights.empty()) {
+      for (PathSlot& p : paths)
+        if (p.alive) p.lightPick = lights.pick(p.uLightObject, p.uLightTriangle);
+      const Appearance& emission = scope.emission(depth);
+      for (PathSlot& p : paths) {
+        if (!p.alive) continue;
+        p.light = lights.sampleAt(p.lightPick, p.uLightPoint);
+        emission.prefetchEmission(p.light->hit.object, p.light->hit.uv);
+      }
     }
     for (size_t i = 0; i < paths.size(); ++i)
       if (paths[i].alive) shadeVertex(scene, lights, scope, settings, depth, paths[i], observerOf(i));

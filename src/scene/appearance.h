@@ -44,6 +44,10 @@ struct Appearance {
   const Texture* emissionTexture(int object) const {
     return emissionTextureOf[object] >= 0 ? &emissionTextures[emissionTextureOf[object]] : nullptr;
   }
+  // always_inline, as Texture::prefetch: else GCC deletes the call.
+  [[gnu::always_inline]] void prefetchEmission(int object, const Vec2& uv) const {
+    if (const Texture* t = emissionTexture(object)) t->prefetch(uv);
+  }
   Color emissionAt(int object, const Vec2& uv) const {
     const Texture* t = emissionTexture(object);
     return t ? t->lookup(uv) : emission[object];

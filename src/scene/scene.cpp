@@ -68,7 +68,7 @@ SurfaceHit Scene::hitFromFace(uint32_t prim, float b1, float b2) const {
 SurfaceHit Scene::surfacePoint(uint32_t prim, float b1, float b2) const {
   SurfaceHit h = hitFromFace(prim, b1, b2);
   const auto& tri = mesh_.triangles[prim];
-  h.p = (1.0f - b1 - b2) * mesh_.positions[tri[0]] + b1 * mesh_.positions[tri[1]] + b2 * mesh_.positions[tri[2]];
+  h.p = barycentricPoint(mesh_.positions[tri[0]], mesh_.positions[tri[1]], mesh_.positions[tri[2]], b1, b2);
   return h;
 }
 
@@ -108,8 +108,7 @@ RayHit Scene::traverse(const Vec3& o, const Vec3& d, float tmax) const {
   if (!traceable(o, d, tmax)) return {};
   const RTCRayHit rh = traceClosest(scene_, o, d, tmax);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return {};
-  __builtin_prefetch(&faces_[rh.hit.primID]);
-  __builtin_prefetch(reinterpret_cast<const char*>(&faces_[rh.hit.primID] + 1) - 1);  // a record spans two lines
+  prefetchFace(rh.hit.primID);
   return {rh.hit.primID, rh.hit.u, rh.hit.v, rh.ray.tfar};
 }
 

@@ -53,6 +53,14 @@ class Scene {
   // Closest-hit distance only (no surface attributes): Embree's cost alone, for profiling.
   float hitDistance(const Vec3& origin, const Vec3& dir, float tmax = INFINITY) const;
   SurfaceHit surfacePoint(uint32_t prim, float b1, float b2) const;  // barycentrics of vertices 1 and 2
+  // surfacePoint without the position (p) and distance (t): the face record's attributes alone.
+  SurfaceHit hitFromFace(uint32_t prim, float b1, float b2) const;
+  // Starts loading the face record hitFromFace reads. always_inline, as Texture::prefetch: else
+  // GCC deletes the call.
+  [[gnu::always_inline]] void prefetchFace(uint32_t prim) const {
+    __builtin_prefetch(&faces_[prim]);
+    __builtin_prefetch(reinterpret_cast<const char*>(&faces_[prim] + 1) - 1);  // a record spans two lines
+  }
   // Origin nudged off the surface towards `dir`, scaled to the coordinate magnitude.
   static Vec3 offsetOrigin(const SurfaceHit& hit, const Vec3& dir);
   size_t skippedRays() const { return skippedRays_.load(std::memory_order_relaxed); }
@@ -68,7 +76,6 @@ class Scene {
     Vec2 uv[3];
     Vec3 n[3];  // vertex normals (zero when the mesh has none)
   };
-  SurfaceHit hitFromFace(uint32_t prim, float b1, float b2) const;
   bool traceable(const Vec3& origin, const Vec3& dir, float tmax) const;
   std::vector<float> vertexBuffer_;  // xyz + padding so Embree can read 16 bytes at the end
   std::vector<FaceRecord> faces_;
@@ -76,6 +83,11 @@ class Scene {
   RTCScene scene_ = nullptr;
   mutable std::atomic<size_t> skippedRays_{0};
 };
+
+// The point with barycentrics (1 - b1 - b2, b1, b2) of a triangle's corners.
+inline Vec3 barycentricPoint(const Vec3& p0, const Vec3& p1, const Vec3& p2, float b1, float b2) {
+  return (1.0f - b1 - b2) * p0 + b1 * p1 + b2 * p2;
+}
 
 inline float rayEpsilon(const Vec3& p) { return 1e-4f * (1.0f + p.cwiseAbs().maxCoeff()); }
 

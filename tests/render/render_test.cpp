@@ -269,3 +269,58 @@ TEST(Render, LightSamplerRejectsNonFiniteEmissionAndAcceptsNone) {
   a.emissionTextureOf.assign(a.objectCount(), -1);
   EXPECT_TRUE(LightSampler(scene, a).empty());
 }
+
+// Light points: an emitter by power, a triangle by area (triangles of unequal areas, so the alias
+// table's aliases are taken), a uniform point whose attributes are the mesh's at that point.
+TEST(Render, LightPointsFollowPowerThenAreaAndLieOnTheMesh) {
+  MeshData d;
+  constexpr int kFan = 60;  // object 0: a fan of triangles of 7 different sizes around the origin
+  d.positions.push_back(Vec3::Zero());
+  for (int k = 0; k <= kFan; ++k) {
+    const float phi = 2.0f * kPi * static_cast<float>(k) / kFan, r = 0.5f + 0.3f * static_cast<float>(k % 7);
+    d.positions.emplace_back(r * std::cos(phi), r * std::sin(phi), 0.0f);
+  }
+  for (int k = 0; k < kFan; ++k) d.triangles.emplace_back(0, k + 1, k + 2), d.faceObject.push_back(0);
+  const int n = static_cast<int>(d.positions.size());
+  d.positions.insert(d.positions.end(), {{0, 0, 2}, {1, 0, 2}, {0, 1, 2}, {5, 5, 0}, {6, 5, 0}, {5, 6, 0}});
+  d.triangles.emplace_back(n, n + 2, n + 1), d.faceObject.push_back(1);      // object 1: one triangle
+  d.triangles.emplace_back(n + 3, n + 4, n + 5), d.faceObject.push_back(2);  // object 2: not a light
+  const Scene scene(buildMesh(d, "fan"));
+  const TriangleMesh& mesh = scene.mesh();
+  Appearance a(3);
+  a.emission[0] = Color::Constant(1.0f);
+  a.emission[1] = Color(2.0f, 3.0f, 4.0f);
+  const LightSampler lights(scene, a);
+
+  std::vector<double> objectArea(3, 0.0), objectPower(3, 0.0);
+  for (size_t f = 0; f < mesh.triangles.size(); ++f) objectArea[mesh.faceObject[f]] += mesh.faceArea[f];
+  for (int o = 0; o < 3; ++o) objectPower[o] = objectArea[o] * luminance(a.emission[o]);
+  const double power = objectPower[0] + objectPower[1];
+  EXPECT_NEAR(lights.pdfArea(0) * objectArea[0] + lights.pdfArea(1) * objectArea[1], 1.0, 1e-5);
+  EXPECT_EQ(lights.pdfArea(2), 0.0f);
+
+  constexpr int kSamples = 400000;
+  std::vector<int> count(mesh.triangles.size(), 0);
+  Pcg32 rng(7);
+  for (int i = 0; i < kSamples; ++i) {
+    const float uObject = rng.next1D(), uTriangle = rng.next1D();
+    const Vec2 uPoint = rng.next2D();
+    const auto s = lights.sample(uObject, uTriangle, uPoint);
+    ASSERT_TRUE(s);
+    const uint32_t f = s->hit.prim;
+    ++count[f];
+    const Vec2 b = squareToTriangle(uPoint);
+    const SurfaceHit expected = scene.surfacePoint(f, b.x(), b.y());
+    ASSERT_EQ(0, std::memcmp(s->hit.p.data(), expected.p.data(), sizeof(Vec3))) << "triangle " << f;
+    ASSERT_EQ(s->hit.ng, expected.ng);
+    ASSERT_EQ(s->hit.uv, expected.uv);
+    ASSERT_EQ(s->hit.object, mesh.faceObject[f]);
+    ASSERT_EQ(s->pdfArea, lights.pdfArea(s->hit.object));
+  }
+  for (size_t f = 0; f < count.size(); ++f) {
+    const int o = mesh.faceObject[f];
+    const double p = objectPower[o] / power * mesh.faceArea[f] / objectArea[o];
+    const double expected = kSamples * p;
+    EXPECT_LE(std::abs(count[f] - expected), 5.0 * std::sqrt(expected * (1 - p)) + 1e-9) << "triangle " << f << " of object " << o;
+  }
+}

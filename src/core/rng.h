@@ -42,12 +42,16 @@ class Pcg32 {
   }
   // Uniform in [0,1): 24 random mantissa bits, never returns 1.
   float next1D() { return static_cast<float>(nextU32() >> 8) * 0x1p-24f; }
-  // Two draws as a point; the first draw is y. That is the order GCC gave `Vec2(next1D(),
-  // next1D())` (C++ leaves argument order unspecified), kept so results stay those of the streams
-  // written that way.
+  // Two or three draws as a point, the last coordinate drawn first: the order GCC gave
+  // `Vec2(next1D(), next1D())` (C++ leaves the order of arguments unspecified), kept so that every
+  // stream stays what it was, now whatever the compiler.
   Vec2 next2D() {
     const float y = next1D();
     return {next1D(), y};
+  }
+  Vec3 next3D() {
+    const float z = next1D(), y = next1D();
+    return {next1D(), y, z};
   }
 
  private:

@@ -241,7 +241,7 @@ std::vector<ScatterStat> studyScatter(int resolution, size_t splats) {
   std::vector<float> target(tex.rgb.size(), 0.0f);
   auto footprintOf = [&](size_t i) {
     Pcg32 rng(i);
-    return tex.footprint(Vec2(rng.next1D(), rng.next1D()));
+    return tex.footprint(rng.next2D());
   };
   std::vector<ScatterStat> out;
   {
@@ -304,8 +304,8 @@ std::vector<LeakStat> studyLeaks(const TriangleMesh& mesh, const Eigen::AlignedB
     tbb::parallel_for(tbb::blocked_range<size_t>(0, rays, 8192), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i < r.end(); ++i) {
         Pcg32 rng(hashTuple({i, 0x6c65}));
-        const Vec3 o = interior.min() + interior.sizes().cwiseProduct(Vec3(rng.next1D(), rng.next1D(), rng.next1D()));
-        misses.local() += !std::isfinite(scene.hitDistance(o, squareToUniformSphere(Vec2(rng.next1D(), rng.next1D()))));
+        const Vec3 o = interior.min() + interior.sizes().cwiseProduct(rng.next3D());
+        misses.local() += !std::isfinite(scene.hitDistance(o, squareToUniformSphere(rng.next2D())));
       }
     });
     out.push_back({robust, rays, misses.combine(std::plus<>()), rays / t.seconds() * 1e-6});

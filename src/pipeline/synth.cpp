@@ -299,7 +299,8 @@ TriangleMesh makeScanLikeRoom(size_t targetTriangles, float noiseMetres) {
     const Eigen::Vector3i q = (p / 1e-4f).array().round().cast<int>();  // coincident vertices move together
     const uint64_t h = hashTuple({static_cast<uint64_t>(q.x()), static_cast<uint64_t>(q.y()), static_cast<uint64_t>(q.z())});
     Pcg32 rng(h);
-    p += noiseMetres * Vec3(2 * rng.next1D() - 1, 2 * rng.next1D() - 1, 2 * rng.next1D() - 1);
+    const Vec3 u = rng.next3D();
+    p += noiseMetres * Vec3(2 * u.x() - 1, 2 * u.y() - 1, 2 * u.z() - 1);
   }
   m.uvs.clear();
   return buildMesh(m.toData(), "scan-like room");

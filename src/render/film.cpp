@@ -45,7 +45,8 @@ struct RayCounter : NullPathObserver {
 
 CameraSample cameraSample(const Camera& camera, int x, int y, int s, uint64_t seed) {
   CameraSample cs{Pcg32(hashTuple({static_cast<uint64_t>(y) * camera.width + x, static_cast<uint64_t>(s), seed, 0x7265})), {}};
-  const Vec2 pixel(x + camera.filter.sample(cs.rng.next1D()), y + camera.filter.sample(cs.rng.next1D()));
+  const Vec2 u = cs.rng.next2D();
+  const Vec2 pixel(x + camera.filter.sample(u.x()), y + camera.filter.sample(u.y()));
   cs.dir = camera.rayDirection(pixel);
   return cs;
 }

@@ -69,8 +69,11 @@ ClipThresholds clipOf(const Frame& f) { return {f.clipLow, f.clipHigh}; }
 // A ray whose expectation is the stored pixel: that pixel averages size x size frame pixels, each
 // formed with the camera's filter, so a uniformly chosen one of them, then the filter around it.
 std::optional<Vec3> randomDirectionIn(const Camera& cam, const FrameStore::StoredPixel& pixel, Pcg32& rng) {
-  if (cam.filter.isUnitBox()) return cam.rayDirection(pixel.corner + pixel.size * Vec2(rng.next1D(), rng.next1D()));
-  const auto offset = [&] { return std::floor(rng.next1D() * pixel.size) + cam.filter.sample(rng.next1D()); };
+  if (cam.filter.isUnitBox()) return cam.rayDirection(pixel.corner + pixel.size * rng.next2D());
+  const auto offset = [&] {
+    const float cell = std::floor(rng.next1D() * pixel.size);
+    return cell + cam.filter.sample(rng.next1D());
+  };
   const float dx = offset(), dy = offset();
   return cam.rayDirection(pixel.corner + Vec2(dx, dy));
 }
@@ -198,7 +201,8 @@ Batch TextureSpaceSampler::sample(uint64_t seed, uint64_t iteration, const Textu
 }
 
 std::optional<std::pair<Vec2, Vec3>> randomPixelRay(const Camera& cam, Pcg32& rng) {
-  const Vec2 px(rng.next1D() * cam.width, rng.next1D() * cam.height);
+  const Vec2 u = rng.next2D();
+  const Vec2 px(u.x() * cam.width, u.y() * cam.height);
   const auto dir = cam.rayDirection(px);
   if (!dir) return std::nullopt;
   return std::pair{px, *dir};

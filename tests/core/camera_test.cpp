@@ -75,3 +75,14 @@ TEST(Rng, SeedsAreIndependentOfOrder) {
   for (int i = 0; i < 100000; ++i) mx = std::max(mx, a.next1D());
   EXPECT_LT(mx, 1.0f);
 }
+
+// Every stream relume has written (captures, fits, README figures) drew a point's coordinates last
+// first; the order is now explicit and must not change.
+TEST(Rng, PointsDrawTheirLastCoordinateFirst) {
+  Pcg32 a(5), b(5);
+  const float y = b.next1D(), x = b.next1D();
+  EXPECT_EQ(a.next2D(), Vec2(x, y));
+  const float z3 = b.next1D(), y3 = b.next1D(), x3 = b.next1D();
+  EXPECT_EQ(a.next3D(), Vec3(x3, y3, z3));
+  EXPECT_EQ(a.nextU32(), b.nextU32());
+}

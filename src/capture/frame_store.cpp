@@ -11,6 +11,7 @@
 #include <fstream>
 
 #include "core/error.h"
+#include "core/prefetch.h"
 #include "io/atomic_file.h"
 #include "io/input_file.h"
 
@@ -175,11 +176,7 @@ void FrameStore::prefetch(size_t frame, const Vec2& px) const {
   if (!(maxX >= 0 && maxY >= 0)) return;
   const auto x = static_cast<size_t>(std::clamp(xf, 0.0f, maxX)), y = static_cast<size_t>(std::clamp(yf, 0.0f, maxY));
   constexpr size_t kPixelBytes = 3 * sizeof(Imath::half);
-  for (size_t row = y; row < y + 2; ++row) {
-    const uint8_t* first = data_ + e.offset + (row * e.stats.width + x) * kPixelBytes;
-    __builtin_prefetch(first);
-    __builtin_prefetch(first + 2 * kPixelBytes - 1);  // the two pixels may straddle a line
-  }
+  for (size_t row = y; row < y + 2; ++row) prefetchBytes(data_ + e.offset + (row * e.stats.width + x) * kPixelBytes, 2 * kPixelBytes);
 }
 
 std::optional<Color> FrameStore::bilinear(size_t frame, const Vec2& px) const {

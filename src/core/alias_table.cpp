@@ -43,8 +43,9 @@ AliasTable::AliasTable(const std::vector<double>& weights) {
 }
 
 uint32_t AliasTable::sample(float u) const {
-  const uint32_t i = bin(u);
-  const float frac = u * static_cast<float>(prob_.size()) - static_cast<float>(i);
+  const float x = u * static_cast<float>(prob_.size());
+  const uint32_t i = binAt(x);
+  const float frac = x - static_cast<float>(i);
   return frac < prob_[i] ? i : alias_[i];
 }
 

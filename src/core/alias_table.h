@@ -5,6 +5,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/prefetch.h"
+
 namespace relume {
 
 class AliasTable {
@@ -16,18 +18,18 @@ class AliasTable {
   size_t size() const { return prob_.size(); }
   // u in [0,1): returns an index; pmf(i) its probability.
   uint32_t sample(float u) const;
-  // The bin sample(u) reads: the index it returns or that bin's alias.
-  uint32_t bin(float u) const {
-    return std::min(static_cast<uint32_t>(u * static_cast<float>(prob_.size())), static_cast<uint32_t>(prob_.size() - 1));
-  }
-  // Starts loading bin i. always_inline, as Texture::prefetch: else GCC deletes the call.
+  // The bin sample(u) reads (the index it returns, or that bin's alias), and a prefetch of it
+  // (always_inline: see core/prefetch.h). Both need a table that is not empty.
+  uint32_t bin(float u) const { return binAt(u * static_cast<float>(prob_.size())); }
   [[gnu::always_inline]] void prefetch(uint32_t i) const {
-    __builtin_prefetch(&prob_[i]);
-    __builtin_prefetch(&alias_[i]);
+    prefetchObject(&prob_[i]);
+    prefetchObject(&alias_[i]);
   }
   float pmf(uint32_t i) const { return pmf_[i]; }
 
  private:
+  // x = u * size, formed once by each caller (so that no compiler fuses it differently in one).
+  uint32_t binAt(float x) const { return std::min(static_cast<uint32_t>(x), static_cast<uint32_t>(prob_.size() - 1)); }
   std::vector<float> prob_, pmf_;
   std::vector<uint32_t> alias_;
 };

@@ -1,5 +1,6 @@
 #include "render/lights.h"
 
+#include <cassert>
 #include <cmath>
 
 #include "core/error.h"
@@ -20,6 +21,8 @@ LightSampler::LightSampler(const Scene& scene, const Appearance& appearance) : s
     EmitterObject e;
     e.object = o;
     std::vector<double> areas;
+    areas.reserve(trisOf[o].size());
+    e.triangles.reserve(trisOf[o].size());
     double area = 0;
     for (uint32_t f : trisOf[o]) {
       const auto& v = mesh.triangles[f];
@@ -38,12 +41,8 @@ LightSampler::LightSampler(const Scene& scene, const Appearance& appearance) : s
     pdfArea_[objects_[i].object] = static_cast<float>(byPower_.pmf(static_cast<uint32_t>(i)) / objectArea[i]);
 }
 
-std::optional<LightSample> LightSampler::sample(float uObject, float uTriangle, const Vec2& uPoint) const {
-  if (objects_.empty()) return std::nullopt;
-  return sampleAt(pick(uObject, uTriangle), uPoint);
-}
-
 LightPick LightSampler::pick(float uObject, float uTriangle) const {
+  assert(!empty());
   const uint32_t emitter = byPower_.sample(uObject);
   const EmitterObject& e = objects_[emitter];
   const uint32_t triangle = e.byArea.sample(uTriangle);

@@ -84,7 +84,8 @@ struct PathSlot {
   RayHit next;     // the closest hit of the current ray, before its attributes are read
   SurfaceHit hit;  // ... and after
   // Next-event estimation's random numbers (light object, triangle, point) and its light point,
-  // drawn and fetched in earlier phases of the bounce (tracePaths).
+  // drawn and fetched in earlier phases of the bounce (tracePaths); no light point when the scene
+  // has no emitter.
   float uLightObject = 0, uLightTriangle = 0;
   Vec2 uLightPoint = Vec2::Zero();
   LightPick lightPick;
@@ -188,9 +189,11 @@ void shadeVertex(const Scene& scene, const LightSampler& lights, const Appearanc
   path.alive = true;
 }
 
-// Traces a wavefront of paths one bounce at a time: every live path's ray traverses the BVH (each
-// traversal prefetching its face record), then every hit's attributes are read and its albedo
-// texels prefetched, then every vertex is shaded. Between issuing a load and using it lies the
+// Traces a wavefront of paths one bounce at a time, in phases over every live path: its ray
+// traverses the BVH (prefetching the hit's face record); the hit's attributes are read (its albedo
+// and emission texels prefetched) and its light numbers drawn (the light's alias bin prefetched);
+// the light triangle is picked (its face record prefetched); the light point is formed (its
+// emission texels prefetched); the vertex is shaded. Between issuing a load and using it lies the
 // work of the other paths, so the dependent cache misses of one path overlap (a path at a time,
 // each miss stalls it). Each path's arithmetic and random numbers are exactly those of tracing it
 // alone, so results do not depend on the wavefront's width. observerOf(i) is path i's observer.
@@ -218,6 +221,7 @@ void tracePaths(const Scene& scene, const LightSampler& lights, const Appearance
       if (depth == 0 && p.firstHit) *p.firstHit = p.hit;
       scope.sampling->prefetchAlbedo(p.hit.object, p.hit.uv);
       scope.emission(depth - 1).prefetchEmission(p.hit.object, p.hit.uv);
+      p.light.reset();
       if (!nee) continue;
       p.uLightObject = p.rng.next1D();
       p.uLightTriangle = p.rng.next1D();

@@ -65,13 +65,6 @@ SurfaceHit Scene::hitFromFace(uint32_t prim, float b1, float b2) const {
   return h;
 }
 
-SurfaceHit Scene::surfacePoint(uint32_t prim, float b1, float b2) const {
-  SurfaceHit h = hitFromFace(prim, b1, b2);
-  const auto& tri = mesh_.triangles[prim];
-  h.p = barycentricPoint(mesh_.positions[tri[0]], mesh_.positions[tri[1]], mesh_.positions[tri[2]], b1, b2);
-  return h;
-}
-
 namespace {
 RTCRayHit traceClosest(RTCScene scene, const Vec3& o, const Vec3& d, float tmax) {
   RTCIntersectContext ctx;

@@ -6,6 +6,7 @@
 #include <memory>
 #include <optional>
 
+#include "core/prefetch.h"
 #include "scene/mesh.h"
 
 namespace relume {
@@ -52,15 +53,11 @@ class Scene {
   bool occluded(const Vec3& origin, const Vec3& dir, float tmax) const;
   // Closest-hit distance only (no surface attributes): Embree's cost alone, for profiling.
   float hitDistance(const Vec3& origin, const Vec3& dir, float tmax = INFINITY) const;
-  SurfaceHit surfacePoint(uint32_t prim, float b1, float b2) const;  // barycentrics of vertices 1 and 2
-  // surfacePoint without the position (p) and distance (t): the face record's attributes alone.
+  // The surface attributes of face `prim` at barycentrics (1 - b1 - b2, b1, b2) from its face record
+  // alone: everything but the position p and the distance t.
   SurfaceHit hitFromFace(uint32_t prim, float b1, float b2) const;
-  // Starts loading the face record hitFromFace reads. always_inline, as Texture::prefetch: else
-  // GCC deletes the call.
-  [[gnu::always_inline]] void prefetchFace(uint32_t prim) const {
-    __builtin_prefetch(&faces_[prim]);
-    __builtin_prefetch(reinterpret_cast<const char*>(&faces_[prim] + 1) - 1);  // a record spans two lines
-  }
+  // Starts loading the face record hitFromFace reads (76 bytes: two or three cache lines).
+  [[gnu::always_inline]] void prefetchFace(uint32_t prim) const { prefetchObject(&faces_[prim]); }
   // Origin nudged off the surface towards `dir`, scaled to the coordinate magnitude.
   static Vec3 offsetOrigin(const SurfaceHit& hit, const Vec3& dir);
   size_t skippedRays() const { return skippedRays_.load(std::memory_order_relaxed); }

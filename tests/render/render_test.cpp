@@ -271,7 +271,8 @@ TEST(Render, LightSamplerRejectsNonFiniteEmissionAndAcceptsNone) {
 }
 
 // Light points: an emitter by power, a triangle by area (triangles of unequal areas, so the alias
-// table's aliases are taken), a uniform point whose attributes are the mesh's at that point.
+// table's aliases are taken), a uniform point whose position and attributes (shading normal from
+// tilted vertex normals included) are the mesh's at that point.
 TEST(Render, LightPointsFollowPowerThenAreaAndLieOnTheMesh) {
   MeshData d;
   constexpr int kFan = 60;  // object 0: a fan of triangles of 7 different sizes around the origin
@@ -285,6 +286,7 @@ TEST(Render, LightPointsFollowPowerThenAreaAndLieOnTheMesh) {
   d.positions.insert(d.positions.end(), {{0, 0, 2}, {1, 0, 2}, {0, 1, 2}, {5, 5, 0}, {6, 5, 0}, {5, 6, 0}});
   d.triangles.emplace_back(n, n + 2, n + 1), d.faceObject.push_back(1);      // object 1: one triangle
   d.triangles.emplace_back(n + 3, n + 4, n + 5), d.faceObject.push_back(2);  // object 2: not a light
+  for (size_t v = 0; v < d.positions.size(); ++v) d.normals.push_back(Vec3(0.1f * static_cast<float>(v % 5), 0.2f, 1.0f).normalized());
   const Scene scene(buildMesh(d, "fan"));
   const TriangleMesh& mesh = scene.mesh();
   Appearance a(3);
@@ -305,17 +307,20 @@ TEST(Render, LightPointsFollowPowerThenAreaAndLieOnTheMesh) {
   for (int i = 0; i < kSamples; ++i) {
     const float uObject = rng.next1D(), uTriangle = rng.next1D();
     const Vec2 uPoint = rng.next2D();
-    const auto s = lights.sample(uObject, uTriangle, uPoint);
-    ASSERT_TRUE(s);
-    const uint32_t f = s->hit.prim;
+    lights.prefetchPick(uObject, uTriangle);
+    const LightSample s = lights.sampleAt(lights.pick(uObject, uTriangle), uPoint);
+    const uint32_t f = s.hit.prim;
     ++count[f];
     const Vec2 b = squareToTriangle(uPoint);
-    const SurfaceHit expected = scene.surfacePoint(f, b.x(), b.y());
-    ASSERT_EQ(0, std::memcmp(s->hit.p.data(), expected.p.data(), sizeof(Vec3))) << "triangle " << f;
-    ASSERT_EQ(s->hit.ng, expected.ng);
-    ASSERT_EQ(s->hit.uv, expected.uv);
-    ASSERT_EQ(s->hit.object, mesh.faceObject[f]);
-    ASSERT_EQ(s->pdfArea, lights.pdfArea(s->hit.object));
+    const auto& v = mesh.triangles[f];
+    const Vec3 p = barycentricPoint(mesh.positions[v[0]], mesh.positions[v[1]], mesh.positions[v[2]], b.x(), b.y());
+    ASSERT_EQ(0, std::memcmp(s.hit.p.data(), p.data(), sizeof(Vec3))) << "triangle " << f;
+    const SurfaceHit expected = scene.hitFromFace(f, b.x(), b.y());
+    ASSERT_EQ(s.hit.ng, expected.ng);
+    ASSERT_EQ(s.hit.ns, expected.ns);
+    ASSERT_EQ(s.hit.uv, expected.uv);
+    ASSERT_EQ(s.hit.object, mesh.faceObject[f]);
+    ASSERT_EQ(s.pdfArea, lights.pdfArea(s.hit.object));
   }
   for (size_t f = 0; f < count.size(); ++f) {
     const int o = mesh.faceObject[f];

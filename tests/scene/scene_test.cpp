@@ -29,7 +29,7 @@ TEST(Scene, ShadingNormalThatVanishesFallsBackToTheGeometricNormal) {
   }
   ASSERT_TRUE(mesh.shadingNormal(0, Vec3(0.9f, 0.05f, 0.05f)));
   const Scene scene(mesh);
-  const SurfaceHit h = scene.surfacePoint(0, 0.5f, 0.25f);  // b0 = 0.25, b1 = 0.5, b2 = 0.25
+  const SurfaceHit h = scene.hitFromFace(0, 0.5f, 0.25f);  // b0 = 0.25, b1 = 0.5, b2 = 0.25
   ASSERT_TRUE(h.ns.allFinite());
   EXPECT_TRUE(h.ns.isApprox(h.ng)) << h.ns.transpose();
   // All three normals facing away: a reliable normal on the other side; the renderer's frame is
@@ -37,7 +37,7 @@ TEST(Scene, ShadingNormalThatVanishesFallsBackToTheGeometricNormal) {
   const auto away = mesh.shadingNormal(1, Vec3::Constant(1.0f / 3));
   ASSERT_TRUE(away);
   EXPECT_LT(away->z(), -0.99f);
-  EXPECT_GT(scene.surfacePoint(1, 0.3f, 0.3f).ns.z(), 0.99f);
+  EXPECT_GT(scene.hitFromFace(1, 0.3f, 0.3f).ns.z(), 0.99f);
 }
 
 // The renderer keeps each face's vertex normals in its face record: a hit's shading normal must be
@@ -63,7 +63,7 @@ TEST(Scene, HitShadingNormalIsTheMeshInterpolation) {
   size_t smooth = 0;
   for (uint32_t f = 0; f < mesh.triangles.size(); ++f) {
     const float b1 = 0.8f * rng.next1D(), b2 = (0.95f - b1) * rng.next1D();
-    const SurfaceHit h = scene.surfacePoint(f, b1, b2);
+    const SurfaceHit h = scene.hitFromFace(f, b1, b2);
     const auto expected = mesh.shadingNormal(f, Vec3(1.0f - b1 - b2, b1, b2));
     if (!expected) {
       EXPECT_EQ(h.ns, h.ng);

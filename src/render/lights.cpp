@@ -41,13 +41,12 @@ LightSampler::LightSampler(const Scene& scene, const Appearance& appearance) : s
     pdfArea_[objects_[i].object] = static_cast<float>(byPower_.pmf(static_cast<uint32_t>(i)) / objectArea[i]);
 }
 
-LightPick LightSampler::pick(float uObject, float uTriangle) const {
-  assert(!empty());
-  const uint32_t emitter = byPower_.sample(uObject);
-  const EmitterObject& e = objects_[emitter];
-  const uint32_t triangle = e.byArea.sample(uTriangle);
-  scene_->prefetchFace(e.triangles[triangle].prim);
-  return {emitter, triangle};
+LightPick LightSampler::pickTriangle(LightPick pick, float uTriangle) const {
+  assert(pick.emitter < objects_.size());
+  const EmitterObject& e = objects_[pick.emitter];
+  pick.triangle = e.byArea.sample(uTriangle);
+  scene_->prefetchFace(e.triangles[pick.triangle].prim);
+  return pick;
 }
 
 LightSample LightSampler::sampleAt(const LightPick& pick, const Vec2& uPoint) const {

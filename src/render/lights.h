@@ -13,7 +13,7 @@ struct LightSample {
   float pdfArea = 0;
 };
 
-// A light triangle chosen by LightSampler::pick.
+// A light triangle chosen by LightSampler::pickEmitter, then pickTriangle.
 struct LightPick {
   uint32_t emitter = 0, triangle = 0;  // indices into the sampler's emitters and their triangles
 };
@@ -25,15 +25,18 @@ class LightSampler {
   // A light point in steps, each loading what the next one reads, so that a wavefront of paths
   // (tracePaths) overlaps the chain of cache misses behind a light point on a many-triangle
   // emitter (its alias bin, its triangle, the triangle's face record) with other paths' work:
-  // prefetchPick(uObject, uTriangle), then pick(uObject, uTriangle) (which also starts loading the
-  // face record), then sampleAt(pick, uPoint). All three need a sampler that is not empty().
-  [[gnu::always_inline]] void prefetchPick(float uObject, float uTriangle) const {  // see core/prefetch.h
-    const EmitterObject& e = objects_[byPower_.sample(uObject)];
+  // pickEmitter(uObject, uTriangle) chooses the emitter and starts loading its triangle's alias bin,
+  // pickTriangle(pick, uTriangle) completes the pick and starts loading the face record, then
+  // sampleAt(pick, uPoint). All three need a sampler that is not empty().
+  [[gnu::always_inline]] LightPick pickEmitter(float uObject, float uTriangle) const {  // see core/prefetch.h
+    const uint32_t emitter = byPower_.sample(uObject);
+    const EmitterObject& e = objects_[emitter];
     const uint32_t bin = e.byArea.bin(uTriangle);
     e.byArea.prefetch(bin);
     prefetchObject(&e.triangles[bin]);  // the bin's own triangle, the likelier pick
+    return {emitter, 0};
   }
-  LightPick pick(float uObject, float uTriangle) const;
+  LightPick pickTriangle(LightPick pick, float uTriangle) const;
   LightSample sampleAt(const LightPick& pick, const Vec2& uPoint) const;
   // Area density of sampling a point on `object` (0 if it is not an emitter here).
   float pdfArea(int object) const { return object < static_cast<int>(pdfArea_.size()) ? pdfArea_[object] : 0.0f; }

@@ -83,10 +83,10 @@ struct PathSlot {
   bool alive = true;
   RayHit next;     // the closest hit of the current ray, before its attributes are read
   SurfaceHit hit;  // ... and after
-  // Next-event estimation's random numbers (light object, triangle, point) and its light point,
-  // drawn and fetched in earlier phases of the bounce (tracePaths); no light point when the scene
-  // has no emitter.
-  float uLightObject = 0, uLightTriangle = 0;
+  // Next-event estimation's random numbers (triangle, point), its pick (the emitter, then the
+  // triangle) and its light point, drawn and fetched in earlier phases of the bounce (tracePaths);
+  // no light point when the scene has no emitter.
+  float uLightTriangle = 0;
   Vec2 uLightPoint = Vec2::Zero();
   LightPick lightPick;
   std::optional<LightSample> light;
@@ -191,8 +191,8 @@ void shadeVertex(const Scene& scene, const LightSampler& lights, const Appearanc
 
 // Traces a wavefront of paths one bounce at a time, in phases over every live path: its ray
 // traverses the BVH (prefetching the hit's face record); the hit's attributes are read (its albedo
-// and emission texels prefetched) and its light numbers drawn (the light's alias bin prefetched);
-// the light triangle is picked (its face record prefetched); the light point is formed (its
+// and emission texels prefetched), its light numbers drawn and its emitter chosen (the emitter's
+// alias bin for the triangle prefetched); the light triangle is picked (its face record prefetched); the light point is formed (its
 // emission texels prefetched); the vertex is shaded. Between issuing a load and using it lies the
 // work of the other paths, so the dependent cache misses of one path overlap (a path at a time,
 // each miss stalls it). Each path's arithmetic and random numbers are exactly those of tracing it
@@ -223,14 +223,14 @@ void tracePaths(const Scene& scene, const LightSampler& lights, const Appearance
       scope.emission(depth - 1).prefetchEmission(p.hit.object, p.hit.uv);
       p.light.reset();
       if (!nee) continue;
-      p.uLightObject = p.rng.next1D();
+      const float uLightObject = p.rng.next1D();
       p.uLightTriangle = p.rng.next1D();
       p.uLightPoint = p.rng.next2D();
-      if (!lights.empty()) lights.prefetchPick(p.uLightObject, p.uLightTriangle);
+      if (!lights.empty()) p.lightPick = lights.pickEmitter(uLightObject, p.uLightTriangle);
     }
     if (nee && !lights.empty()) {
       for (PathSlot& p : paths)
-        if (p.alive) p.lightPick = lights.pick(p.uLightObject, p.uLightTriangle);
+        if (p.alive) p.lightPick = lights.pickTriangle(p.lightPick, p.uLightTriangle);
       const Appearance& emission = scope.emission(depth);
       for (PathSlot& p : paths) {
         if (!p.alive) continue;

@@ -307,8 +307,7 @@ TEST(Render, LightPointsFollowPowerThenAreaAndLieOnTheMesh) {
   for (int i = 0; i < kSamples; ++i) {
     const float uObject = rng.next1D(), uTriangle = rng.next1D();
     const Vec2 uPoint = rng.next2D();
-    lights.prefetchPick(uObject, uTriangle);
-    const LightSample s = lights.sampleAt(lights.pick(uObject, uTriangle), uPoint);
+    const LightSample s = lights.sampleAt(lights.pickTriangle(lights.pickEmitter(uObject, uTriangle), uTriangle), uPoint);
     const uint32_t f = s.hit.prim;
     ++count[f];
     const Vec2 b = squareToTriangle(uPoint);

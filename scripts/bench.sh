@@ -9,7 +9,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 R="$ROOT/build/relume"
 OUT="${1:-$ROOT/out/perf}"
 mkdir -p "$OUT"
-run() { echo "\$ relume $*"; "$R" --log warn "$@" | tee -a "$OUT/bench.log"; echo; }
+run() { echo "\$ relume $*"; "$R" --log warn "$@" 2>&1 | tee -a "$OUT/bench.log"; echo; }
 run profile --what render,leaks,scatter,visibility --max-depth 8
 run profile --what adjoint --max-depth 8
 run profile --what adjoint --max-depth 2 --repeats 1

@@ -1,5 +1,6 @@
 // The relume executable: parses subcommands and calls the pipeline; holds no algorithm.
 #include <CLI/CLI.hpp>
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <csignal>
@@ -26,6 +27,9 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
+  // Logs go to stderr, results (tables, reports) to stdout: `relume profile ... > table.txt` holds
+  // the table alone, and a script reading a command's output never parses log lines.
+  spdlog::set_default_logger(spdlog::stderr_color_mt("relume"));
   spdlog::set_level(spdlog::level::from_str(logLevel));
   spdlog::set_pattern("[%T] %^%l%$ %v");
   auto pool = relume::initThreads(threads);

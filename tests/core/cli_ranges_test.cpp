@@ -50,8 +50,9 @@ TEST(Cli, NumericOptionsAreRangeChecked) {
   }
 }
 
-// A command whose stdout is a pipe nobody reads any more (`relume eval ... | head -1` once head has
-// exited) still finishes and writes its results: the first log line must not kill it with SIGPIPE.
+// A command whose output is a pipe nobody reads any more (`relume synth ... 2>&1 | head -1` once
+// head has exited) still finishes and writes its results: the first log line must not kill it with
+// SIGPIPE.
 TEST(Cli, ResultsOutliveAClosedStdout) {
   const fs::path relume = relumeBinary();
   const fs::path out = fs::temp_directory_path() / ("relume_cli_closed_stdout_" + std::to_string(getpid()));
@@ -62,6 +63,7 @@ TEST(Cli, ResultsOutliveAClosedStdout) {
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
+  posix_spawn_file_actions_adddup2(&actions, fds[1], STDERR_FILENO);  // the log lines' stream
   // The child starts with SIGPIPE's default action whatever this test inherited, so only relume's
   // own handling can keep it alive.
   posix_spawnattr_t attr;
@@ -89,4 +91,27 @@ TEST(Cli, ResultsOutliveAClosedStdout) {
   EXPECT_TRUE(fs::exists(out / "transforms.json"));
   EXPECT_TRUE(fs::exists(out / "gt" / "scene.json"));
   fs::remove_all(out);
+}
+
+// Results go to stdout, logs to stderr: `relume profile ... > table.txt` holds the table alone.
+TEST(Cli, LogsGoToStderrAndResultsToStdout) {
+  const fs::path relume = relumeBinary();
+  const fs::path dir = fs::temp_directory_path() / ("relume_cli_streams_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  const int rc = std::system((relume.string() +
+                              " --log info profile --what render --synth cornell --width 16 --height 16 --spp 1"
+                              " --max-depth 2 --repeats 1 > " + (dir / "out").string() + " 2> " + (dir / "err").string())
+                                 .c_str());
+  auto read = [&](const char* name) {
+    std::stringstream s;
+    s << std::ifstream(dir / name).rdbuf();
+    return s.str();
+  };
+  const std::string out = read("out"), err = read("err");
+  fs::remove_all(dir);
+  EXPECT_EQ(rc, 0) << err;
+  EXPECT_NE(out.find("efficiency"), std::string::npos) << out;  // the profile's table
+  EXPECT_EQ(out.find("] info "), std::string::npos) << out;
+  EXPECT_NE(err.find("] info peak RSS"), std::string::npos) << err;
+  EXPECT_EQ(err.find("efficiency"), std::string::npos) << err;
 }

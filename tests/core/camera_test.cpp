@@ -19,7 +19,8 @@ TEST(Camera, ProjectUnprojectRoundTripWithDistortion) {
   c.position = Vec3(1, 2, 3);
   Pcg32 rng(1);
   for (int i = 0; i < 1000; ++i) {
-    const Vec2 pixel(rng.next1D() * c.width, rng.next1D() * c.height);
+    const Vec2 u = rng.next2D();
+    const Vec2 pixel(u.x() * c.width, u.y() * c.height);
     const auto dir = c.rayDirection(pixel);
     ASSERT_TRUE(dir);
     const auto back = c.project(c.position + 3.7f * *dir);

@@ -31,8 +31,9 @@ TEST(Synth, RoomIsClosedNoRayEscapes) {
   Pcg32 rng(3);
   int misses = 0;
   for (int i = 0; i < 20000; ++i) {
-    const Vec3 o(0.3f + 4.4f * rng.next1D(), 0.2f + 2.3f * rng.next1D(), 0.3f + 3.4f * rng.next1D());
-    misses += !scene.intersect(o, squareToUniformSphere(Vec2(rng.next1D(), rng.next1D())));
+    const Vec3 at = rng.next3D();
+    const Vec3 o(0.3f + 4.4f * at.x(), 0.2f + 2.3f * at.y(), 0.3f + 3.4f * at.z());
+    misses += !scene.intersect(o, squareToUniformSphere(rng.next2D()));
   }
   EXPECT_EQ(misses, 0);
 }

@@ -44,7 +44,7 @@ Chi2Result chi2Test(const BsdfParams& p, const Vec3& wo, int samples, uint64_t s
   Pcg32 rng(seed);
   for (int i = 0; i < samples; ++i) {
     const float uL = rng.next1D();
-    const Vec2 u(rng.next1D(), rng.next1D());
+    const Vec2 u = rng.next2D();
     const auto s = sampleBsdf(p, wo, uL, u);
     if (!s) continue;
     const float phi = std::atan2(s->wi.y(), s->wi.x()) + kPi;
@@ -110,7 +110,8 @@ TEST(Bsdf, ChiSquareDetectsAWrongPdf) {
   Pcg32 rng(9);
   const int n = 200000;
   for (int i = 0; i < n; ++i) {
-    const auto s = sampleBsdf(p, wo, rng.next1D(), Vec2(rng.next1D(), rng.next1D()));
+    const Vec2 u = rng.next2D();
+    const auto s = sampleBsdf(p, wo, rng.next1D(), u);
     if (s) obs[std::min(nz - 1, static_cast<int>(s->wi.z() * nz))] += 1;
   }
   double chi2 = 0;
@@ -134,10 +135,11 @@ TEST(Bsdf, PdfMassMatchesSamplingSuccess) {
       double sum = 0, sum2 = 0;
       int success = 0;
       for (int i = 0; i < n; ++i) {
-        const Vec3 w = squareToUniformSphere(Vec2(rng.next1D(), rng.next1D()));
+        const Vec3 w = squareToUniformSphere(rng.next2D());
         const double v = pdfBsdf(p, wo, w) * 4 * kPi;
         sum += v, sum2 += v * v;
-        if (sampleBsdf(p, wo, rng.next1D(), Vec2(rng.next1D(), rng.next1D()))) ++success;
+        const Vec2 u = rng.next2D();
+        if (sampleBsdf(p, wo, rng.next1D(), u)) ++success;
       }
       const double integral = sum / n, se = std::sqrt((sum2 / n - integral * integral) / n);
       const double rate = double(success) / n, seRate = std::sqrt(rate * (1 - rate) / n);
@@ -149,17 +151,18 @@ TEST(Bsdf, PdfMassMatchesSamplingSuccess) {
   double integral = 0;
   const int n = 400000;
   for (int i = 0; i < n; ++i)
-    integral += cosineHemispherePdf(squareToUniformSphere(Vec2(rng.next1D(), rng.next1D())).z()) * 4 * kPi;
+    integral += cosineHemispherePdf(squareToUniformSphere(rng.next2D()).z()) * 4 * kPi;
   EXPECT_NEAR(integral / n, 1.0, 0.01);
 }
 
 TEST(Bsdf, Reciprocity) {
   Pcg32 rng(5);
   for (int i = 0; i < 2000; ++i) {
-    const Vec3 a = squareToCosineHemisphere(Vec2(rng.next1D(), rng.next1D()));
-    const Vec3 b = squareToCosineHemisphere(Vec2(rng.next1D(), rng.next1D()));
+    const Vec3 a = squareToCosineHemisphere(rng.next2D());
+    const Vec3 b = squareToCosineHemisphere(rng.next2D());
     for (BsdfModel m : kModels) {
-      const BsdfParams p = params(0.3f + 0.6f * rng.next1D(), 0.05f + 0.95f * rng.next1D(), rng.next1D(), m);
+      const Vec3 r = rng.next3D();
+      const BsdfParams p = params(0.3f + 0.6f * r.x(), 0.05f + 0.95f * r.y(), r.z(), m);
       const Color fab = evalBsdf(p, a, b).f, fba = evalBsdf(p, b, a).f;
       for (int c = 0; c < 3; ++c) EXPECT_NEAR(fab[c], fba[c], 1e-4f * std::max(1.0f, fab[c]));
     }
@@ -170,8 +173,10 @@ double directionalAlbedo(const BsdfParams& p, const Vec3& wo) {
   Pcg32 rng(6);
   double sum = 0;
   const int n = 200000;
-  for (int i = 0; i < n; ++i)
-    if (const auto s = sampleBsdf(p, wo, rng.next1D(), Vec2(rng.next1D(), rng.next1D()))) sum += s->weight.maxCoeff();
+  for (int i = 0; i < n; ++i) {
+    const Vec2 u = rng.next2D();
+    if (const auto s = sampleBsdf(p, wo, rng.next1D(), u)) sum += s->weight.maxCoeff();
+  }
   return sum / n;
 }
 
@@ -268,10 +273,11 @@ TEST(Bsdf, VertexSetUpEvaluatesAsTheOneShotFunctions) {
   int compared = 0;
   for (BsdfModel m : kModels)
     for (int i = 0; i < 2000; ++i) {
-      const BsdfParams p{Color(rng.next1D(), rng.next1D(), rng.next1D()), std::max(kRoughnessMin, rng.next1D()),
+      const BsdfParams p{rng.next3D().array(), std::max(kRoughnessMin, rng.next1D()),
                          rng.next1D(), m};
-      const Vec3 wo = dirFromAngle(90 * rng.next1D(), 360 * rng.next1D());
-      const Vec3 wi = dirFromAngle(100 * rng.next1D(), 360 * rng.next1D());  // a tenth below the surface
+      const Vec2 anglesO = rng.next2D(), anglesI = rng.next2D();
+      const Vec3 wo = dirFromAngle(90 * anglesO.x(), 360 * anglesO.y());
+      const Vec3 wi = dirFromAngle(100 * anglesI.x(), 360 * anglesI.y());  // a tenth below the surface
       const VertexBsdf vertex(p, wo);
       for (unsigned q : {unsigned{kBsdfValue}, unsigned{kBsdfPdf}, kBsdfValue | kBsdfPdf | kBsdfDerivatives}) {
         const BsdfEval a = vertex.eval(wi, q), b = evalBsdf(p, wo, wi, q);
@@ -280,7 +286,7 @@ TEST(Bsdf, VertexSetUpEvaluatesAsTheOneShotFunctions) {
         compared += a.pdf > 0 || (a.f > 0).any();
       }
       const float uLobe = rng.next1D();
-      const Vec2 u(rng.next1D(), rng.next1D());
+      const Vec2 u = rng.next2D();
       const auto s = vertex.sample(uLobe, u);
       if (!s) continue;
       // The sample's value and pdf are the one-shot evaluation's at the sampled direction.

@@ -154,7 +154,8 @@ TEST(Atlas, FurnishedLikeMeshPacksAtLeast60Percent) {
   MeshData d = mesh.toData();
   Pcg32 rng(3);
   for (int b = 0; b < 2000; ++b) {
-    const Vec3 c(0.5f + 4 * rng.next1D(), 0.1f + 2 * rng.next1D(), 0.5f + 3 * rng.next1D());
+    const Vec3 at = rng.next3D();
+    const Vec3 c(0.5f + 4 * at.x(), 0.1f + 2 * at.y(), 0.5f + 3 * at.z());
     const float s = 0.01f + 0.02f * rng.next1D();
     const int base = static_cast<int>(d.positions.size());
     for (int k = 0; k < 8; ++k) d.positions.push_back(c + s * Vec3(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1));

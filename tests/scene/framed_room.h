@@ -20,7 +20,8 @@ inline TriangleMesh makeFramedRoom() {
     d.faceObject.push_back(object);
   };
   for (int i = 0; i < 200; ++i) {
-    const Vec3 c(0.5f + 4 * rng.next1D(), 0.5f + 1.5f * rng.next1D(), 0.1f + 3 * rng.next1D());
+    const Vec3 at = rng.next3D();
+    const Vec3 c(0.5f + 4 * at.x(), 0.5f + 1.5f * at.y(), 0.1f + 3 * at.z());
     const float w = 0.2f, h = 0.15f, bar = 0.02f;
     const Vec3 outer[4] = {c + Vec3(-w, -h, 0), c + Vec3(w, -h, 0), c + Vec3(w, h, 0), c + Vec3(-w, h, 0)};
     const Vec3 inner[4] = {c + Vec3(bar - w, bar - h, 0), c + Vec3(w - bar, bar - h, 0), c + Vec3(w - bar, h - bar, 0), c + Vec3(bar - w, h - bar, 0)};
@@ -34,7 +35,8 @@ inline TriangleMesh makeFramedRoom() {
     }
   }
   for (int i = 0; i < 20000; ++i) {
-    const Vec3 p(0.5f + 4 * rng.next1D(), 0.1f + 2 * rng.next1D(), 0.5f + 3 * rng.next1D());
+    const Vec3 at = rng.next3D();
+    const Vec3 p(0.5f + 4 * at.x(), 0.1f + 2 * at.y(), 0.5f + 3 * at.z());
     const float s = 0.002f + 0.003f * rng.next1D();
     add(p, p + Vec3(s, 0, 0), p + Vec3(0, s, 0.3f * s), 7);
   }

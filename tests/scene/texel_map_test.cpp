@@ -91,7 +91,7 @@ void expectFootprintsInsideTheirChart(const TriangleMesh& mesh, int samples) {
     Pcg32 rng(5);
     for (int i = 0; i < samples; ++i) {
       const uint32_t f = rng.nextU32() % mesh.triangles.size();
-      const Vec2 b = squareToTriangle(Vec2(rng.next1D(), rng.next1D()));
+      const Vec2 b = squareToTriangle(rng.next2D());
       const auto& t = mesh.triangles[f];
       const Vec2 uv = (1 - b.x() - b.y()) * mesh.uvs[t[0]] + b.x() * mesh.uvs[t[1]] + b.y() * mesh.uvs[t[2]];
       const float x = uv.x() * res - 0.5f, y = uv.y() * res - 0.5f;

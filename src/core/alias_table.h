@@ -26,6 +26,7 @@ class AliasTable {
     prefetchObject(&alias_[i]);
   }
   float pmf(uint32_t i) const { return pmf_[i]; }
+  size_t bytes() const { return size() * (2 * sizeof(float) + sizeof(uint32_t)); }
 
  private:
   // x = u * size, formed once by each caller (so that no compiler fuses it differently in one).

@@ -698,9 +698,9 @@ class Fit {
         for (size_t j = 0; j < batch.rays.size(); ++j)
           observedSum_[batch.object[j]] += luminance(batch.rays[j].reference), ++observedCount_[batch.object[j]];
       Timer tl;
-      const LightSampler lights(*w_.scene, appearance_);
+      lights_ = lights_ ? LightSampler(appearance_, *lights_) : LightSampler(*w_.scene, appearance_);
       now.lights = tl.seconds();
-      const GradientResult gr = computeGradients(*w_.scene, appearance_, lights, batch.rays, settings, iteration, grads);
+      const GradientResult gr = computeGradients(*w_.scene, appearance_, *lights_, batch.rays, settings, iteration, grads);
       now.primal = gr.times.primal, now.loss = gr.times.loss, now.adjoint = gr.times.adjoint;
       Timer to;
       bool averagesStart = false;
@@ -733,7 +733,12 @@ class Fit {
       times += now;
       lastLoss_ = gr.loss;
       ++globalIteration_;
-      if (it == firstIteration || averagesStart) {  // the stage's buffers are allocated now
+      // The stage's buffers are allocated now, or the light sampler took in new emitters (on a scan,
+      // the emission stage's candidates hold tens of MiB from its second iteration).
+      const size_t lightBytes = lights_->bytes();
+      const bool lightsGrew = lightBytes > lightBytes_;
+      lightBytes_ = lightBytes;
+      if (it == firstIteration || averagesStart || lightsGrew) {
         const Json memory = memoryBreakdown(space, grads, batch, settings);
         spdlog::info("fit: stage {} holds {:.1f} MiB", st.name, memory["total"].get<double>() / (1 << 20));
         spdlog::debug("fit: bytes by part: {}", memory.dump());
@@ -742,7 +747,7 @@ class Fit {
       if (hooks_.afterIteration) {
         Timer th;
         const bool go = hooks_.afterIteration(FitIteration{st.name, globalIteration_, fitSeconds(), now, batch.rays, batch.object, *w_.scene,
-                                                          lights, settings, !grads.albedoCurvature.empty(), appearance_,
+                                                          *lights_, settings, !grads.albedoCurvature.empty(), appearance_,
                                                           w_.mesh, peakMemory_});
         hookSeconds_ += th.seconds();
         if (!go) {
@@ -901,7 +906,8 @@ class Fit {
     Json j = {{"parameters", parameters}, {"gradients", gradients}, {"optimiser_state", optimiser}, {"averages", averages},
               {"texel_map", texels}, {"mesh", mesh}, {"visibility_index", static_cast<double>(w_.vis.bytes())},
               {"frame_cache_mapped", static_cast<double>(w_.store->mappedBytes())}, {"batch", batchBytes},
-              {"path_records", records}, {"gradient_logs", static_cast<double>(grads.logBytes())}};
+              {"path_records", records}, {"gradient_logs", static_cast<double>(grads.logBytes())},
+              {"light_sampler", lights_ ? static_cast<double>(lights_->bytes()) : 0.0}};
     double total = 0;
     for (const auto& [k, v] : j.items())
       if (k != "frame_cache_mapped") total += v.get<double>();
@@ -1038,6 +1044,8 @@ class Fit {
   GaussNewtonState newton_;  // the albedo's, with albedo_step gauss-newton
   std::map<std::string, PolyakAverage> polyak_;
   SamplerStats stats_;
+  std::optional<LightSampler> lights_;  // by the current emission; each iteration's shares the last's tables
+  size_t lightBytes_ = 0;  // the last iteration's light sampler
   float radianceScale_ = 1e-6f;
   int finalRes_ = 0;
   int globalIteration_ = 0;

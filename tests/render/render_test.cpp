@@ -2,6 +2,8 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <array>
+
 #include "core/error.h"
 #include "pipeline/synth.h"
 #include "render/film.h"
@@ -270,10 +272,9 @@ TEST(Render, LightSamplerRejectsNonFiniteEmissionAndAcceptsNone) {
   EXPECT_TRUE(LightSampler(scene, a).empty());
 }
 
-// Light points: an emitter by power, a triangle by area (triangles of unequal areas, so the alias
-// table's aliases are taken), a uniform point whose position and attributes (shading normal from
-// tilted vertex normals included) are the mesh's at that point.
-TEST(Render, LightPointsFollowPowerThenAreaAndLieOnTheMesh) {
+// Object 0: a fan of triangles of 7 different sizes around the origin (so an alias table over them
+// takes its aliases); object 1: one triangle; object 2: one more; tilted vertex normals.
+MeshData lightFan() {
   MeshData d;
   constexpr int kFan = 60;  // object 0: a fan of triangles of 7 different sizes around the origin
   d.positions.push_back(Vec3::Zero());
@@ -287,7 +288,13 @@ TEST(Render, LightPointsFollowPowerThenAreaAndLieOnTheMesh) {
   d.triangles.emplace_back(n, n + 2, n + 1), d.faceObject.push_back(1);      // object 1: one triangle
   d.triangles.emplace_back(n + 3, n + 4, n + 5), d.faceObject.push_back(2);  // object 2: not a light
   for (size_t v = 0; v < d.positions.size(); ++v) d.normals.push_back(Vec3(0.1f * static_cast<float>(v % 5), 0.2f, 1.0f).normalized());
-  const Scene scene(buildMesh(d, "fan"));
+  return d;
+}
+
+// Light points: an emitter by power, a triangle by area, a uniform point whose position and
+// attributes (shading normal from tilted vertex normals included) are the mesh's at that point.
+TEST(Render, LightPointsFollowPowerThenAreaAndLieOnTheMesh) {
+  const Scene scene(buildMesh(lightFan(), "fan"));
   const TriangleMesh& mesh = scene.mesh();
   Appearance a(3);
   a.emission[0] = Color::Constant(1.0f);
@@ -326,5 +333,37 @@ TEST(Render, LightPointsFollowPowerThenAreaAndLieOnTheMesh) {
     const double p = objectPower[o] / power * mesh.faceArea[f] / objectArea[o];
     const double expected = kSamples * p;
     EXPECT_LE(std::abs(count[f] - expected), 5.0 * std::sqrt(expected * (1 - p)) + 1e-9) << "triangle " << f << " of object " << o;
+  }
+}
+
+// A sampler built from the previous one (a fit's, every iteration) samples exactly as one built
+// afresh, as emitters change power, go dark and come back.
+TEST(Render, LightSamplerFromThePreviousOneSamplesAsAFreshOne) {
+  const Scene scene(buildMesh(lightFan(), "fan"));
+  Appearance a(3);
+  a.emission[0] = Color::Constant(1.0f);
+  a.emission[1] = Color(2.0f, 3.0f, 4.0f);
+  LightSampler previous(scene, a);
+  const std::vector<std::array<Color, 3>> emissions = {
+      {Color::Constant(3.0f), Color::Zero(), Color(0.5f, 1.0f, 2.0f)},  // 0 brighter, 1 dark, 2 lit
+      {Color::Zero(), Color(1.0f, 1.0f, 1.0f), Color(0.5f, 1.0f, 2.0f)},  // 0 dark, 1 back
+      {Color::Constant(0.2f), Color(1.0f, 1.0f, 1.0f), Color::Zero()},
+  };
+  for (const auto& emission : emissions) {
+    for (int o = 0; o < 3; ++o) a.emission[o] = emission[o];
+    LightSampler reused(a, previous);
+    const LightSampler fresh(scene, a);
+    for (int o = 0; o < 3; ++o) ASSERT_EQ(reused.pdfArea(o), fresh.pdfArea(o)) << "object " << o;
+    Pcg32 rng(11);
+    for (int i = 0; i < 20000; ++i) {
+      const float uObject = rng.next1D(), uTriangle = rng.next1D();
+      const Vec2 uPoint = rng.next2D();
+      auto point = [&](const LightSampler& l) { return l.sampleAt(l.pickTriangle(l.pickEmitter(uObject, uTriangle), uTriangle), uPoint); };
+      const LightSample r = point(reused), f = point(fresh);
+      ASSERT_EQ(r.hit.prim, f.hit.prim);
+      ASSERT_EQ(r.hit.p, f.hit.p);
+      ASSERT_EQ(r.pdfArea, f.pdfArea);
+    }
+    previous = std::move(reused);
   }
 }

@@ -464,6 +464,7 @@ class Fit {
       }
       startIteration = 0;
     }
+    lights_.reset();
     if (hooks_.finished) hooks_.finished(appearance_, w_.mesh);
     if (hooks_.writeFiles) {
       summary.resultDir = writeResult(*space);
@@ -698,8 +699,9 @@ class Fit {
         for (size_t j = 0; j < batch.rays.size(); ++j)
           observedSum_[batch.object[j]] += luminance(batch.rays[j].reference), ++observedCount_[batch.object[j]];
       Timer tl;
-      lights_ = lights_ ? LightSampler(appearance_, *lights_) : LightSampler(*w_.scene, appearance_);
+      lights_ = LightSampler(*w_.scene, appearance_, lights_ ? &*lights_ : nullptr);
       now.lights = tl.seconds();
+      if (lights_->builtTables() > 0) spdlog::debug("fit: light sampler built the tables of {} objects", lights_->builtTables());
       const GradientResult gr = computeGradients(*w_.scene, appearance_, *lights_, batch.rays, settings, iteration, grads);
       now.primal = gr.times.primal, now.loss = gr.times.loss, now.adjoint = gr.times.adjoint;
       Timer to;
@@ -733,11 +735,11 @@ class Fit {
       times += now;
       lastLoss_ = gr.loss;
       ++globalIteration_;
-      // The stage's buffers are allocated now, or the light sampler took in new emitters (on a scan,
-      // the emission stage's candidates hold tens of MiB from its second iteration).
+      // The stage's buffers are allocated now, or the light sampler holds more than ever before (on
+      // a scan, the emission stage's candidates' tables are tens of MiB from its second iteration).
       const size_t lightBytes = lights_->bytes();
-      const bool lightsGrew = lightBytes > lightBytes_;
-      lightBytes_ = lightBytes;
+      const bool lightsGrew = lightBytes > lightSamplerBytesPeak_;
+      lightSamplerBytesPeak_ = std::max(lightSamplerBytesPeak_, lightBytes);
       if (it == firstIteration || averagesStart || lightsGrew) {
         const Json memory = memoryBreakdown(space, grads, batch, settings);
         spdlog::info("fit: stage {} holds {:.1f} MiB", st.name, memory["total"].get<double>() / (1 << 20));
@@ -782,7 +784,10 @@ class Fit {
         if (auto p = polyak_.find(g.name()); p != polyak_.end() && p->second.mean.size() == g.values.size())
           std::copy(p->second.mean.begin(), p->second.mean.end(), g.values.begin());
     // Before the boundary checkpoint: a run resumed from it starts the next stage pruned.
-    if (st.pruneAfter) prune();
+    if (st.pruneAfter) {
+      prune();
+      lights_.reset();  // no table for the candidates that stopped being lights
+    }
     if (hooks_.writeFiles) writeCheckpoint(checkpointPath, stageIndex + 1, 0, space);
     spdlog::info("fit: stage {} done: {} iterations, loss {:.4e}; per iteration: sample {:.1f} ms, primal {:.1f} ms, adjoint {:.1f} ms, optimiser {:.1f} ms",
                  st.name, st.iterations - firstIteration, lastLoss_, 1e3 * times.sample / std::max(1, st.iterations - firstIteration),
@@ -1045,7 +1050,7 @@ class Fit {
   std::map<std::string, PolyakAverage> polyak_;
   SamplerStats stats_;
   std::optional<LightSampler> lights_;  // by the current emission; each iteration's shares the last's tables
-  size_t lightBytes_ = 0;  // the last iteration's light sampler
+  size_t lightSamplerBytesPeak_ = 0;  // the most lights_->bytes() has been
   float radianceScale_ = 1e-6f;
   int finalRes_ = 0;
   int globalIteration_ = 0;

@@ -14,13 +14,17 @@ LightSampler::LightSampler(const Scene& scene, const Appearance& appearance, con
   assert(!previous || previous->scene_ == &scene);
   const TriangleMesh& mesh = scene.mesh();
   const int objectCount = appearance.objectCount();
-  std::vector<std::shared_ptr<const EmitterShape>> shapeOf(objectCount);
+  shapes_.resize(objectCount);
   if (previous)
-    for (const EmitterObject& e : previous->objects_)
-      if (e.object < objectCount) shapeOf[e.object] = e.shape;
+    for (size_t o = 0; o < std::min(shapes_.size(), previous->shapes_.size()); ++o) shapes_[o] = previous->shapes_[o];
   // Objects that emit now and have no table yet: their triangles, in face order.
+  std::vector<Color> mean(objectCount);
   std::vector<uint8_t> emits(objectCount), toBuild(objectCount);
-  for (int o = 0; o < objectCount; ++o) emits[o] = appearance.isEmissive(o), toBuild[o] = emits[o] && !shapeOf[o];
+  for (int o = 0; o < objectCount; ++o) {
+    mean[o] = appearance.meanEmission(o);  // an emission texture is averaged once
+    emits[o] = mean[o].maxCoeff() > 0.0f;  // Appearance::isEmissive
+    toBuild[o] = emits[o] && !shapes_[o];
+  }
   std::vector<std::vector<uint32_t>> trisOf(objectCount);
   if (std::find(toBuild.begin(), toBuild.end(), 1) != toBuild.end())
     for (uint32_t f = 0; f < mesh.triangles.size(); ++f) {
@@ -31,8 +35,7 @@ LightSampler::LightSampler(const Scene& scene, const Appearance& appearance, con
   pdfArea_.assign(objectCount, 0.0f);
   for (int o = 0; o < objectCount; ++o) {
     if (!emits[o]) continue;
-    if (!shapeOf[o]) {
-      if (trisOf[o].empty()) continue;
+    if (toBuild[o]) {  // an object without faces gets an empty table, not a search every time
       auto shape = std::make_shared<EmitterShape>();
       std::vector<double> areas;
       areas.reserve(trisOf[o].size());
@@ -42,35 +45,39 @@ LightSampler::LightSampler(const Scene& scene, const Appearance& appearance, con
         shape->triangles.push_back({f, {mesh.positions[v[0]], mesh.positions[v[1]], mesh.positions[v[2]]}});
         areas.push_back(mesh.faceArea[f]), shape->area += mesh.faceArea[f];
       }
-      shape->byArea = AliasTable(areas);
-      shapeOf[o] = std::move(shape);
+      if (!areas.empty()) shape->byArea = AliasTable(areas);
+      shapes_[o] = std::move(shape);
+      ++builtTables_;
     }
-    const double p = shapeOf[o]->area * kPi * luminance(appearance.meanEmission(o)) + 1e-12;
+    if (shapes_[o]->triangles.empty()) continue;
+    const double p = shapes_[o]->area * kPi * luminance(mean[o]) + 1e-12;
     if (!std::isfinite(p)) fail("light sampling: object {} ('{}') emits a non-finite power {}", o, appearance.names[o], p);
     power.push_back(p);
-    objects_.push_back({o, shapeOf[o]});
+    emitters_.push_back({o, shapes_[o].get()});
   }
-  if (!objects_.empty()) byPower_ = AliasTable(power);
-  for (size_t i = 0; i < objects_.size(); ++i)
-    pdfArea_[objects_[i].object] = static_cast<float>(byPower_.pmf(static_cast<uint32_t>(i)) / objects_[i].shape->area);
+  if (!emitters_.empty()) byPower_ = AliasTable(power);
+  for (size_t i = 0; i < emitters_.size(); ++i)
+    pdfArea_[emitters_[i].object] = static_cast<float>(byPower_.pmf(static_cast<uint32_t>(i)) / emitters_[i].shape->area);
 }
 
 size_t LightSampler::bytes() const {
-  size_t n = byPower_.bytes() + pdfArea_.size() * sizeof(float) + objects_.size() * sizeof(EmitterObject);
-  for (const EmitterObject& e : objects_) n += e.shape->triangles.size() * sizeof(EmitterTriangle) + e.shape->byArea.bytes();
+  size_t n = byPower_.bytes() + pdfArea_.size() * sizeof(float) + emitters_.size() * sizeof(Emitter) +
+             shapes_.size() * sizeof(shapes_[0]);
+  for (const auto& shape : shapes_)
+    if (shape) n += shape->triangles.size() * sizeof(EmitterTriangle) + shape->byArea.bytes();
   return n;
 }
 
 LightPick LightSampler::pickTriangle(LightPick pick, float uTriangle) const {
-  assert(pick.emitter < objects_.size());
-  const EmitterShape& e = *objects_[pick.emitter].shape;
+  assert(pick.emitter < emitters_.size());
+  const EmitterShape& e = *emitters_[pick.emitter].shape;
   pick.triangle = e.byArea.sample(uTriangle);
   scene_->prefetchFace(e.triangles[pick.triangle].prim);
   return pick;
 }
 
 LightSample LightSampler::sampleAt(const LightPick& pick, const Vec2& uPoint) const {
-  const EmitterObject& e = objects_[pick.emitter];
+  const Emitter& e = emitters_[pick.emitter];
   const EmitterTriangle& t = e.shape->triangles[pick.triangle];
   const Vec2 b = squareToTriangle(uPoint);
   LightSample s;

@@ -191,12 +191,13 @@ void shadeVertex(const Scene& scene, const LightSampler& lights, const Appearanc
 
 // Traces a wavefront of paths one bounce at a time, in phases over every live path: its ray
 // traverses the BVH (prefetching the hit's face record); the hit's attributes are read (its albedo
-// and emission texels prefetched), its light numbers drawn and its emitter chosen (the emitter's
-// alias bin for the triangle prefetched); the light triangle is picked (its face record prefetched); the light point is formed (its
-// emission texels prefetched); the vertex is shaded. Between issuing a load and using it lies the
-// work of the other paths, so the dependent cache misses of one path overlap (a path at a time,
-// each miss stalls it). Each path's arithmetic and random numbers are exactly those of tracing it
-// alone, so results do not depend on the wavefront's width. observerOf(i) is path i's observer.
+// and emission texels prefetched), its light numbers drawn and its emitter chosen (the alias bin
+// of the emitter's triangles prefetched); the light triangle is picked (its face record
+// prefetched); the light point is formed (its emission texels prefetched); the vertex is shaded.
+// Between issuing a load and using it lies the work of the other paths, so the dependent cache
+// misses of one path overlap (a path at a time, each miss stalls it). Each path's arithmetic and
+// random numbers are exactly those of tracing it alone, so results do not depend on the
+// wavefront's width. observerOf(i) is path i's observer.
 template <class ObserverOf>
 void tracePaths(const Scene& scene, const LightSampler& lights, const AppearanceScope& scope,
                 const PathSettings& settings, std::span<PathSlot> paths, ObserverOf&& observerOf) {

@@ -53,7 +53,7 @@ TEST(Cli, NumericOptionsAreRangeChecked) {
 // A command whose output is a pipe nobody reads any more (`relume synth ... 2>&1 | head -1` once
 // head has exited) still finishes and writes its results: the first log line must not kill it with
 // SIGPIPE.
-TEST(Cli, ResultsOutliveAClosedStdout) {
+TEST(Cli, ResultsOutliveClosedOutputStreams) {
   const fs::path relume = relumeBinary();
   const fs::path out = fs::temp_directory_path() / ("relume_cli_closed_stdout_" + std::to_string(getpid()));
   fs::remove_all(out);
@@ -96,11 +96,12 @@ TEST(Cli, ResultsOutliveAClosedStdout) {
 // Results go to stdout, logs to stderr: `relume profile ... > table.txt` holds the table alone.
 TEST(Cli, LogsGoToStderrAndResultsToStdout) {
   const fs::path relume = relumeBinary();
+  ASSERT_TRUE(fs::exists(relume)) << relume;
   const fs::path dir = fs::temp_directory_path() / ("relume_cli_streams_" + std::to_string(getpid()));
   fs::create_directories(dir);
-  const int rc = std::system((relume.string() +
+  const int rc = std::system(("'" + relume.string() + "'" +
                               " --log info profile --what render --synth cornell --width 16 --height 16 --spp 1"
-                              " --max-depth 2 --repeats 1 > " + (dir / "out").string() + " 2> " + (dir / "err").string())
+                              " --max-depth 2 --repeats 1 > '" + (dir / "out").string() + "' 2> '" + (dir / "err").string() + "'")
                                  .c_str());
   auto read = [&](const char* name) {
     std::stringstream s;

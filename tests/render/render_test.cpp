@@ -272,11 +272,12 @@ TEST(Render, LightSamplerRejectsNonFiniteEmissionAndAcceptsNone) {
   EXPECT_TRUE(LightSampler(scene, a).empty());
 }
 
+namespace {
 // Object 0: a fan of triangles of 7 different sizes around the origin (so an alias table over them
-// takes its aliases); object 1: one triangle; object 2: one more; tilted vertex normals.
+// takes its aliases); objects 1 and 2: one triangle each; tilted vertex normals.
 MeshData lightFan() {
   MeshData d;
-  constexpr int kFan = 60;  // object 0: a fan of triangles of 7 different sizes around the origin
+  constexpr int kFan = 60;
   d.positions.push_back(Vec3::Zero());
   for (int k = 0; k <= kFan; ++k) {
     const float phi = 2.0f * kPi * static_cast<float>(k) / kFan, r = 0.5f + 0.3f * static_cast<float>(k % 7);
@@ -285,11 +286,12 @@ MeshData lightFan() {
   for (int k = 0; k < kFan; ++k) d.triangles.emplace_back(0, k + 1, k + 2), d.faceObject.push_back(0);
   const int n = static_cast<int>(d.positions.size());
   d.positions.insert(d.positions.end(), {{0, 0, 2}, {1, 0, 2}, {0, 1, 2}, {5, 5, 0}, {6, 5, 0}, {5, 6, 0}});
-  d.triangles.emplace_back(n, n + 2, n + 1), d.faceObject.push_back(1);      // object 1: one triangle
-  d.triangles.emplace_back(n + 3, n + 4, n + 5), d.faceObject.push_back(2);  // object 2: not a light
+  d.triangles.emplace_back(n, n + 2, n + 1), d.faceObject.push_back(1);
+  d.triangles.emplace_back(n + 3, n + 4, n + 5), d.faceObject.push_back(2);
   for (size_t v = 0; v < d.positions.size(); ++v) d.normals.push_back(Vec3(0.1f * static_cast<float>(v % 5), 0.2f, 1.0f).normalized());
   return d;
 }
+}  // namespace
 
 // Light points: an emitter by power, a triangle by area, a uniform point whose position and
 // attributes (shading normal from tilted vertex normals included) are the mesh's at that point.
@@ -298,7 +300,7 @@ TEST(Render, LightPointsFollowPowerThenAreaAndLieOnTheMesh) {
   const TriangleMesh& mesh = scene.mesh();
   Appearance a(3);
   a.emission[0] = Color::Constant(1.0f);
-  a.emission[1] = Color(2.0f, 3.0f, 4.0f);
+  a.emission[1] = Color(2.0f, 3.0f, 4.0f);  // object 2: not a light
   const LightSampler lights(scene, a);
 
   std::vector<double> objectArea(3, 0.0), objectPower(3, 0.0);
@@ -337,22 +339,29 @@ TEST(Render, LightPointsFollowPowerThenAreaAndLieOnTheMesh) {
 }
 
 // A sampler built from the previous one (a fit's, every iteration) samples exactly as one built
-// afresh, as emitters change power, go dark and come back.
+// afresh, as emitters change power, go dark and come back, and builds only the tables of objects
+// that never emitted before.
 TEST(Render, LightSamplerFromThePreviousOneSamplesAsAFreshOne) {
   const Scene scene(buildMesh(lightFan(), "fan"));
   Appearance a(3);
   a.emission[0] = Color::Constant(1.0f);
   a.emission[1] = Color(2.0f, 3.0f, 4.0f);
   LightSampler previous(scene, a);
-  const std::vector<std::array<Color, 3>> emissions = {
-      {Color::Constant(3.0f), Color::Zero(), Color(0.5f, 1.0f, 2.0f)},  // 0 brighter, 1 dark, 2 lit
-      {Color::Zero(), Color(1.0f, 1.0f, 1.0f), Color(0.5f, 1.0f, 2.0f)},  // 0 dark, 1 back
-      {Color::Constant(0.2f), Color(1.0f, 1.0f, 1.0f), Color::Zero()},
+  EXPECT_EQ(previous.builtTables(), 2u);
+  struct Step {
+    std::array<Color, 3> emission;
+    size_t built;  // tables the step builds
   };
-  for (const auto& emission : emissions) {
-    for (int o = 0; o < 3; ++o) a.emission[o] = emission[o];
-    LightSampler reused(a, previous);
+  const std::vector<Step> steps = {
+      {{Color::Constant(3.0f), Color::Zero(), Color(0.5f, 1.0f, 2.0f)}, 1},  // 0 brighter, 1 dark, 2 lit: 2 is new
+      {{Color::Zero(), Color(1.0f, 1.0f, 1.0f), Color(0.5f, 1.0f, 2.0f)}, 0},  // 0 dark, 1 back: kept while dark
+      {{Color::Constant(0.2f), Color(1.0f, 1.0f, 1.0f), Color::Zero()}, 0},
+  };
+  for (const Step& step : steps) {
+    for (int o = 0; o < 3; ++o) a.emission[o] = step.emission[o];
+    LightSampler reused(scene, a, &previous);
     const LightSampler fresh(scene, a);
+    EXPECT_EQ(reused.builtTables(), step.built);
     for (int o = 0; o < 3; ++o) ASSERT_EQ(reused.pdfArea(o), fresh.pdfArea(o)) << "object " << o;
     Pcg32 rng(11);
     for (int i = 0; i < 20000; ++i) {

@@ -50,8 +50,8 @@ TEST(Scene, HitShadingNormalIsTheMeshInterpolation) {
   for (int y = 0; y <= n; ++y)
     for (int x = 0; x <= n; ++x) {
       d.positions.push_back({float(x), float(y), 0.1f * rng.next1D()});
-      const Vec3 n = rng.next3D();
-      d.normals.push_back(Vec3(n.x() - 0.5f, n.y() - 0.5f, n.z() < 0.2f ? -1.0f : 1.0f).normalized());
+      const Vec3 u = rng.next3D();
+      d.normals.push_back(Vec3(u.x() - 0.5f, u.y() - 0.5f, u.z() < 0.2f ? -1.0f : 1.0f).normalized());
     }
   for (int y = 0; y < n; ++y)
     for (int x = 0; x < n; ++x) {

@@ -742,7 +742,8 @@ class Fit {
       lightSamplerBytesPeak_ = std::max(lightSamplerBytesPeak_, lightBytes);
       if (it == firstIteration || averagesStart || lightsGrew) {
         const Json memory = memoryBreakdown(space, grads, batch, settings);
-        spdlog::info("fit: stage {} holds {:.1f} MiB", st.name, memory["total"].get<double>() / (1 << 20));
+        spdlog::log(lightsGrew && !(it == firstIteration || averagesStart) ? spdlog::level::debug : spdlog::level::info,
+                    "fit: stage {} holds {:.1f} MiB", st.name, memory["total"].get<double>() / (1 << 20));
         spdlog::debug("fit: bytes by part: {}", memory.dump());
         if (peakMemory_.empty() || memory["total"] > peakMemory_["total"]) peakMemory_ = memory;
       }

@@ -470,7 +470,7 @@ CommandTable registerCommands(CLI::App& app) {
   auto synthScene = std::make_shared<std::string>("room");
   auto outDir = std::make_shared<std::string>();
   CLI::App* synth = app.add_subcommand("synth", "write a synthetic capture with known ground truth");
-  synth->add_option("--scene", *synthScene, "room, cornell, furnace or scan")->capture_default_str();
+  synth->add_option("--scene", *synthScene, "room, cornell, furnace, scan or lounge")->capture_default_str();
   synth->add_option("--out", *outDir, "output capture folder")->required();
   synth->add_option("--frames", synthArgs->frames, "training frames")->capture_default_str()->check(inRange(1, 1 << 20));
   synth->add_option("--test-frames", synthArgs->testFrames, "held-out frames")->capture_default_str()->check(inRange(0, 1 << 20));

@@ -16,6 +16,7 @@
 #include "optim/checkpoint.h"
 #include "optim/gauss_newton.h"
 #include "optim/upsample.h"
+#include "pipeline/light_evidence.h"
 #include "pipeline/report.h"
 #include "sampling/highlight_evidence.h"
 #include "sampling/samplers.h"
@@ -31,7 +32,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-using ConfigField = std::variant<int*, float*, bool*, std::string*, uint64_t*>;
+using ConfigField = std::variant<int*, float*, bool*, std::string*, uint64_t*, std::vector<std::string>*>;
 
 template <typename Fn> void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("sampler", ConfigField(&c.sampler));
@@ -72,6 +73,13 @@ template <typename Fn> void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("albedo_passes", ConfigField(&c.albedoPasses));
   fn("max_stage_iterations", ConfigField(&c.maxStageIterations));
   fn("max_resolution", ConfigField(&c.maxResolution));
+  fn("light_test", ConfigField(&c.lightTest));
+  fn("light_min_unexplained", ConfigField(&c.lightMinUnexplained));
+  fn("light_significance", ConfigField(&c.lightSignificance));
+  fn("light_evidence_texels", ConfigField(&c.lightEvidenceTexels));
+  fn("light_redecide", ConfigField(&c.lightRedecide));
+  fn("emission_refit_iterations", ConfigField(&c.emissionRefitIterations));
+  fn("lights", ConfigField(&c.lights));
   fn("prune_fraction", ConfigField(&c.pruneFraction));
   fn("emitter_radiance_fraction", ConfigField(&c.emitterRadianceFraction));
   fn("highlight_min_pairs", ConfigField(&c.highlightMinPairs));
@@ -128,6 +136,12 @@ void validate(const FitConfig& c, const std::string& where) {
   need(c.maxResolution >= 0, "max_resolution must be >= 0");
   need(c.emissionTextureResolution >= 0, "emission_texture_resolution must be >= 0 (0 = the albedo's)");
   need(c.initWhitePoint >= 0 && c.initWhitePoint <= 1, "init_white_point must be in [0, 1] (0 = off)");
+  need(c.lightTest == "reflector" || c.lightTest == "radiance_fraction", "light_test must be reflector or radiance_fraction");
+  need(c.lightMinUnexplained >= 0 && c.lightMinUnexplained <= 1, "light_min_unexplained must be in [0, 1]");
+  need(std::isfinite(c.lightSignificance) && c.lightSignificance >= 0, "light_significance must be >= 0");
+  need(c.lightEvidenceTexels >= 1 && c.lightEvidenceTexels <= (1 << 20), "light_evidence_texels must be in [1, 2^20]");
+  need(c.emissionRefitIterations >= 0, "emission_refit_iterations must be >= 0");
+  need(std::set<std::string>(c.lights.begin(), c.lights.end()).size() == c.lights.size(), "lights names an object twice");
   need(c.pruneFraction >= 0 && c.pruneFraction < 1, "prune_fraction must be in [0, 1)");
   need(c.emitterRadianceFraction >= 0 && c.emitterRadianceFraction <= 1, "emitter_radiance_fraction must be in [0, 1]");
   need(c.highlightMinPairs >= 1, "highlight_min_pairs must be >= 1");
@@ -150,10 +164,14 @@ FitConfig FitConfig::fromJson(const Json& j, const std::string& where, FitConfig
     std::visit(
         [&](auto* p) {
           using T = std::remove_pointer_t<decltype(p)>;
-          const bool ok = std::is_same_v<T, bool>          ? v.is_boolean()
-                          : std::is_same_v<T, std::string> ? v.is_string()
-                          : std::is_same_v<T, float>       ? v.is_number()
-                                                           : v.is_number_integer();
+          bool ok = false;
+          if constexpr (std::is_same_v<T, std::vector<std::string>>)
+            ok = v.is_array() && std::all_of(v.begin(), v.end(), [](const Json& e) { return e.is_string(); });
+          else
+            ok = std::is_same_v<T, bool>          ? v.is_boolean()
+                 : std::is_same_v<T, std::string> ? v.is_string()
+                 : std::is_same_v<T, float>       ? v.is_number()
+                                                  : v.is_number_integer();
           if (!ok) fail("{}: '{}' has the wrong type ({})", where, key, v.type_name());
           *p = v.get<T>();
         },
@@ -177,7 +195,7 @@ Json FitConfig::toJson() const {
 
 namespace {
 
-constexpr int kCheckpointVersion = 2;  // 2: highlight contrast per object
+constexpr int kCheckpointVersion = 3;  // 3: light decisions, out-of-model objects
 constexpr uint64_t kHighlightProbeBatches = 16;
 
 // A checkpoint continues the run its config describes; where to stop is not part of the run.
@@ -253,9 +271,12 @@ struct TexelSpace {
   TexelMap map;
   std::vector<uint32_t> sampleable;
   std::vector<uint8_t> updatable;
-  TexelSpace(const Workspace& w, int res) : resolution(res), map(w.mesh, res), updatable(map.texelCount(), 0) {
+  // Texels of `excluded` objects (out of the model: light_evidence.h) are neither sampled nor updated.
+  TexelSpace(const Workspace& w, int res, const std::vector<uint8_t>& excluded = {})
+      : resolution(res), map(w.mesh, res), updatable(map.texelCount(), 0) {
     for (size_t t = 0; t < map.texelCount(); ++t) {
       if (!map.valid(t) || w.coverageOf(t, res) <= 0) continue;
+      if (!excluded.empty() && excluded[w.mesh.faceObject[map.triangle(t)]]) continue;
       updatable[t] = 1;
       if (map.covered(t)) sampleable.push_back(static_cast<uint32_t>(t));
     }
@@ -273,6 +294,9 @@ struct Stage {
   // average kept): each kind settles in the last stage that fits it.
   ParamMask settles{0};
   RayFootprint footprint = RayFootprint::Point;  // what the uniform batch's rays are compared with
+  bool redecideAfter = false;   // the light sources are decided again at its end
+  bool refit = false;           // emission only, run when the re-decision changed the light sources
+  bool focusEmitters = false;   // draws emission_batch_texels from the light-source candidates
 };
 
 // The resolution the frames resolve: the smallest stage resolution whose texel is no larger than
@@ -334,6 +358,13 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   // "brighter lights, darker albedo" (room: 3% after stage 1, 10% after the albedo stages).
   const ParamMask albedo = ParamMask::only({K::Albedo});
   s.push_back({fmt::format("albedo@{}", resolutions.front()), albedo, resolutions.front(), albedoIterations(resolutions.front())});
+  // The light sources decided again now that the albedo explains the lit surfaces; when that
+  // changed them, their emission is fitted again (the albedo held) before the materials.
+  const bool redecide = c.emitterParameterisation && c.lightTest == "reflector" && c.lightRedecide && c.lights.empty();
+  s.back().redecideAfter = redecide;
+  const size_t refitStage = s.size();
+  if (redecide && c.emissionRefitIterations > 0)
+    s.push_back({"emission_refit", emission, resolutions.front(), c.emissionRefitIterations});
   // With material_stage_settles, roughness and specular settle in their own stage and the finer
   // albedo stages fit the albedo alone: the material texels make the 1K room's albedo@1024
   // iterations 1.3x dearer, but without them its albedo came out worse (README).
@@ -353,6 +384,11 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
     s.push_back({"emission_texture", textures, finalRes, c.emissionTextureIterations, false, true, textures});
   }
   for (size_t i = 1; i < s.size(); ++i) s[i].footprint = rays;  // every stage after the emission stage
+  s[0].focusEmitters = c.emitterParameterisation;
+  if (refitStage < s.size() && s[refitStage].name == "emission_refit") {
+    s[refitStage].refit = s[refitStage].focusEmitters = true;
+    s[refitStage].footprint = s[0].footprint;
+  }
   return s;
 }
 
@@ -371,6 +407,7 @@ class Fit {
       if (id >= 0 && id < appearance_.objectCount()) appearance_.names[id] = name;
     std::fill(appearance_.albedoFromTexture.begin(), appearance_.albedoFromTexture.end(), 1);
     emitter_.assign(appearance_.objectCount(), 1);
+    outOfModel_.assign(appearance_.objectCount(), 0);
     observedSum_.assign(appearance_.objectCount(), 0.0);
     observedCount_.assign(appearance_.objectCount(), 0);
     highlight_.assign(appearance_.objectCount(), 0);
@@ -418,9 +455,9 @@ class Fit {
       const int res = static_cast<int>(ck.metaInteger("resolution", 1, kMaxTextureResolution));
       if (std::find(w_.resolutions.begin(), w_.resolutions.end(), res) == w_.resolutions.end())
         fail("{}: checkpoint resolution {} is not one prepare wrote", checkpointPath.string(), res);
-      space = std::make_unique<TexelSpace>(w_, res);
       appearance_.albedo = Texture(res, res);
       restore(ck);  // per-object emission first: it decides which objects get emission textures
+      space = std::make_unique<TexelSpace>(w_, res, outOfModel_);
       if (ck.meta.value("emission_textures", false)) {
         const int emissionRes = static_cast<int>(ck.metaInteger("emission_texture_resolution", 1, kMaxTextureResolution));
         allocateEmissionTextures(appearance_, w_.mesh, emissionRes,
@@ -439,20 +476,25 @@ class Fit {
       }
       initialiseAlbedo(*space);
       excludeUnseenEmitters(*space);
+      applyLightsHint();
     }
 
     FitSummary summary;
     for (size_t si = startStage; si < stages.size(); ++si) {
       const Stage& st = stages[si];
+      if (st.refit && !refitEmission_) continue;
       if (st.resolution != space->resolution) {
-        auto finer = std::make_unique<TexelSpace>(w_, st.resolution);
+        auto finer = std::make_unique<TexelSpace>(w_, st.resolution, outOfModel_);
         upsampleAlbedo(*space, *finer);
         space = std::move(finer);
       }
       if (st.emissionTexturesBefore && appearance_.emissionTextures.empty())
         allocateEmissionTextures(appearance_, w_.mesh, emissionTextureResolution(space->resolution), [](float, float) { return 1.0f; });
       if (st.name == "materials" && startIteration == 0) decideHighlights(*space);
+      const size_t excludedBefore = std::count(outOfModel_.begin(), outOfModel_.end(), 1);
       runStage(st, si, si == static_cast<size_t>(startStage) ? startIteration : 0, *space, checkpointPath);
+      if (static_cast<size_t>(std::count(outOfModel_.begin(), outOfModel_.end(), 1)) != excludedBefore)
+        space = std::make_unique<TexelSpace>(w_, space->resolution, outOfModel_);
       if (stopped_) {
         spdlog::info("fit: stopped after {} iterations as asked{}", globalIteration_,
                      hooks_.writeFiles ? "; continue with --resume" : "");
@@ -475,8 +517,10 @@ class Fit {
     summary.iterations = globalIteration_;
     summary.finalResolution = finalRes_;
     summary.finalLoss = lastLoss_;
-    for (int o = 0; o < appearance_.objectCount(); ++o)
+    for (int o = 0; o < appearance_.objectCount(); ++o) {
       if (appearance_.isEmissive(o)) summary.emitters.push_back(o);
+      if (outOfModel_[o]) summary.outOfModel.push_back(o);
+    }
     return summary;
   }
 
@@ -682,7 +726,7 @@ class Fit {
     // One buffer per stage, cleared every iteration; curvature only where the albedo steps by it.
     Gradients grads(appearance_, newtonAlbedo() && st.active.active(ParamKind::Albedo));
     const BatchFocus focus = st.active.active(ParamKind::Roughness) ? materialFocus(space)
-                             : st.pruneAfter                         ? emissionFocus(space)
+                             : st.focusEmitters                      ? emissionFocus(space)
                                                                      : BatchFocus{};
     for (int it = firstIteration; it < st.iterations; ++it) {
       const uint64_t iteration = static_cast<uint64_t>(globalIteration_);
@@ -785,8 +829,8 @@ class Fit {
         if (auto p = polyak_.find(g.name()); p != polyak_.end() && p->second.mean.size() == g.values.size())
           std::copy(p->second.mean.begin(), p->second.mean.end(), g.values.begin());
     // Before the boundary checkpoint: a run resumed from it starts the next stage pruned.
-    if (st.pruneAfter) {
-      prune();
+    if (st.pruneAfter || st.redecideAfter) {
+      decideLightSources(space, st.name, st.pruneAfter);
       lights_.reset();  // no table for the candidates that stopped being lights
     }
     if (hooks_.writeFiles) writeCheckpoint(checkpointPath, stageIndex + 1, 0, space);
@@ -811,7 +855,114 @@ class Fit {
       }
   }
 
-  // Light sources are the objects whose own emission explains most of how they look (at least
+  // light: exactly the objects named are light-source candidates (they are also kept: no decision).
+  void applyLightsHint() {
+    if (c_.lights.empty()) return;
+    std::vector<uint8_t> hinted(appearance_.objectCount(), 0);
+    for (const std::string& name : c_.lights) {
+      const auto it = std::find(appearance_.names.begin(), appearance_.names.end(), name);
+      if (it == appearance_.names.end()) fail("fit config: 'lights' names '{}', which is no object of {}", name, w_.dir.string());
+      hinted[it - appearance_.names.begin()] = 1;
+    }
+    for (int o = 0; o < appearance_.objectCount(); ++o) {
+      if (hinted[o] && !emitter_[o]) spdlog::warn("fit: object {} ({}) is named a light but no frame sees it: its emission stays 0", o, appearance_.names[o]);
+      emitter_[o] = emitter_[o] && hinted[o];
+    }
+  }
+
+  // The light sources, decided from the evidence of their own pixels (light_evidence.h). First
+  // (after the emission stage): among the emission stage's candidates, with the albedo still its
+  // init; again after the first albedo stage: among every object with texels, under the fitted
+  // albedo. An object that becomes a light starts from the emission its evidence implies, one that
+  // stops goes to 0, and either change makes the emission_refit stage run. Objects a mirror
+  // explains better than an emission (out of model) leave the emission and the albedo for good.
+  void decideLightSources(const TexelSpace& space, const std::string& after, bool first) {
+    if (!c_.lights.empty()) return;  // the user named them
+    if (c_.lightTest == "radiance_fraction") {
+      if (first) prune();
+      return;
+    }
+    const int objects = appearance_.objectCount();
+    std::vector<std::vector<uint32_t>> texels(objects);
+    for (uint32_t t : space.sampleable) texels[w_.mesh.faceObject[space.map.triangle(t)]].push_back(t);
+    std::vector<uint8_t> candidate(objects, 0);
+    for (int o = 0; o < objects; ++o) candidate[o] = !texels[o].empty() && !outOfModel_[o] && (first ? emitter_[o] != 0 : true);
+    // Each candidate's own texels, the same number for each, through their centres (point rays).
+    const uint64_t stream = hashTuple({c_.seed, 0x6c69676874ULL, lightDecisions_.size()});
+    Batch batch;
+    for (int o = 0; o < objects; ++o) {
+      if (!candidate[o]) continue;
+      const TextureSpaceSampler own(*w_.scene, space.map, texels[o], w_.vis, w_.trainingFrames());
+      batch.append(own.sample(hashTuple({stream, static_cast<uint64_t>(o)}), 0,
+                              {c_.lightEvidenceTexels, c_.framesPerTexel, RayFootprint::Point, 1}));
+    }
+    const LightSampler lights(*w_.scene, appearance_);
+    std::vector<LightEvidence> evidence =
+        gatherLightEvidence(*w_.scene, w_.mesh, appearance_, lights, batch.rays, batch.object, settings_.path, stream);
+    const std::vector<LightDecision> decisions =
+        decideLights(evidence, candidate, {c_.lightMinUnexplained, c_.lightSignificance, c_.pruneFraction});
+    std::vector<uint8_t> dropped(objects, 0);
+    bool changed = false;
+    for (int o = 0; o < objects; ++o) {
+      if (!candidate[o]) continue;
+      const LightDecision& d = decisions[o];
+      const bool light = d.verdict == LightVerdict::Light;
+      spdlog::info("fit: after {}: object {} ({}) is {}: {}", after, o, appearance_.names[o], lightVerdictName(d.verdict), d.why);
+      if (d.verdict == LightVerdict::OutOfModel) outOfModel_[o] = 1;
+      emitter_[o] = light;
+      if (!light) {
+        dropped[o] = !first && appearance_.isEmissive(o);
+        appearance_.emission[o] = Color::Zero();
+      } else if (!appearance_.isEmissive(o)) {
+        appearance_.emission[o] = evidence[o].emissionEstimate();
+        changed |= !first;
+      }
+    }
+    changed |= std::count(dropped.begin(), dropped.end(), 1) > 0;
+    if (changed) {
+      refitEmission_ = 1;
+      restartAlbedo(space, evidence, dropped);
+    }
+    lightDecisions_.push_back({{"after", after}, {"objects", lightDecisionsJson(evidence, decisions, appearance_.names)}});
+  }
+
+  // The lights changed, so every albedo was fitted under the wrong light: the running fits start
+  // over (their averages hold residuals of the old lights), and an object that stopped being a
+  // light, whose albedo had collapsed while its emission made up its radiance, is rescaled to the
+  // albedo its evidence implies (what it shows over what albedo 1 returns).
+  void restartAlbedo(const TexelSpace& space, const std::vector<LightEvidence>& evidence, const std::vector<uint8_t>& dropped) {
+    const int objects = appearance_.objectCount();
+    std::vector<Eigen::Array3d> sum(objects, Eigen::Array3d::Zero());
+    std::vector<size_t> count(objects, 0);
+    for (uint32_t t : space.sampleable) {
+      const int o = w_.mesh.faceObject[space.map.triangle(t)];
+      if (!dropped[o]) continue;
+      sum[o] += Eigen::Array3d(appearance_.albedo.rgb[3 * t], appearance_.albedo.rgb[3 * t + 1], appearance_.albedo.rgb[3 * t + 2]);
+      ++count[o];
+    }
+    std::vector<Color> scale(objects, Color::Constant(1.0f));
+    for (int o = 0; o < objects; ++o)
+      if (dropped[o] && count[o] > 0) {
+        const Color target = evidence[o].albedoEstimate();
+        for (int c = 0; c < 3; ++c) scale[o][c] = sum[o][c] > 1e-6 * count[o] ? static_cast<float>(target[c] * count[o] / sum[o][c]) : 1.0f;
+        spdlog::info("fit: object {} ({}) is no light: its albedo restarts at {:.3g} {:.3g} {:.3g}", o, appearance_.names[o], target[0],
+                     target[1], target[2]);
+      }
+    for (size_t t = 0; t < space.map.texelCount(); ++t) {
+      if (!space.map.valid(t)) continue;
+      const int o = w_.mesh.faceObject[space.map.triangle(t)];
+      if (!dropped[o]) continue;
+      for (int c = 0; c < 3; ++c) {
+        float& a = appearance_.albedo.rgb[3 * t + c];
+        a = std::clamp(a * scale[o][c], 0.0f, 1.0f);
+      }
+    }
+    newton_ = GaussNewtonState();
+    adam_.erase("albedo");
+    polyak_.erase("albedo");
+  }
+
+  // light_test radiance_fraction: light sources are the objects whose own emission explains most of how they look (at least
   // emitter_radiance_fraction of their mean observed radiance) and that carry at least
   // prune_fraction of the total emitted power. The rest go to 0 and stay frozen. The radiance test
   // matters because during this stage the albedo is the median radiance, darker than the true
@@ -847,17 +998,13 @@ class Fit {
     if (!(r.reference.minCoeff() >= 0)) return -1;
     const auto hit = w_.scene->intersect(r.origin, r.dir);
     if (!hit) return -1;
-    const Vec3 n = hit->ng.dot(r.dir) < 0 ? hit->ng : Vec3(-hit->ng);
-    const Vec3 mirror = r.dir - 2.0f * r.dir.dot(n) * n;
-    const ShadingFrame frame(mirror);
-    for (int k = 0; k < 5; ++k) {
-      const float phi = 0.5f * kPi * k, tilt = k == 0 ? 0.0f : std::sin(10.0f * kPi / 180.0f);
-      const Vec3 d = frame.toWorld(Vec3(tilt * std::cos(phi), tilt * std::sin(phi), std::sqrt(1 - tilt * tilt)));
-      if (d.dot(n) <= 0) continue;
+    int8_t seen = 0;
+    forEachMirrorDirection(*hit, r.dir, [&](const Vec3& d) {
       const auto light = w_.scene->intersect(Scene::offsetOrigin(*hit, d), d);
-      if (light && emitter_[light->object] && appearance_.isEmissive(light->object) && light->ng.dot(d) < 0) return 1;
-    }
-    return 0;
+      if (light && emitter_[light->object] && appearance_.isEmissive(light->object) && light->ng.dot(d) < 0) seen = 1;
+      return seen == 0;
+    });
+    return seen;
   }
 
   // Which objects the frames show a highlight on. Probe connections either see a light reflected
@@ -952,7 +1099,10 @@ class Fit {
       ck.put("albedo.curvature", newton_.curvature);
       ck.put("albedo.curvature_steps", newton_.steps);
     }
+    ck.meta["light_decisions"] = lightDecisions_;
     ck.put("emitter", emitter_);
+    ck.put("out_of_model", outOfModel_);
+    ck.put("refit_emission", std::vector<uint8_t>{refitEmission_});
     ck.put("highlight", highlight_);
     ck.put("highlight_pairs", highlightPairs_);
     ck.put("highlight_contrast", highlightContrast_);
@@ -987,7 +1137,12 @@ class Fit {
       ck.get("albedo.curvature", newton_.curvature);
       ck.get("albedo.curvature_steps", newton_.steps);
     }
+    lightDecisions_ = ck.meta.value("light_decisions", Json::array());
     ck.get("emitter", emitter_);
+    ck.get("out_of_model", outOfModel_);
+    std::vector<uint8_t> refit(1);
+    ck.get("refit_emission", refit);
+    refitEmission_ = refit[0];
     ck.get("highlight", highlight_);
     ck.get("highlight_pairs", highlightPairs_);
     ck.get("highlight_contrast", highlightContrast_);
@@ -1017,7 +1172,8 @@ class Fit {
       const Color e = appearance_.meanEmission(o);
       materials.push_back({{"id", o}, {"name", appearance_.names[o]}, {"roughness", appearance_.roughness[o]},
                            {"specular", appearance_.specular[o]}, {"emission", {e[0], e[1], e[2]}},
-                           {"is_emitter", appearance_.isEmissive(o)}, {"highlight_observed", highlight_[o] != 0},
+                           {"is_emitter", appearance_.isEmissive(o)}, {"out_of_model", outOfModel_[o] != 0},
+                           {"highlight_observed", highlight_[o] != 0},
                            {"highlight_texels", highlightPairs_[o]}, {"highlight_contrast", highlightContrast_[o]},
                            {"observed_texel_fraction", total[o] ? double(observed[o]) / total[o] : 0.0}});
     }
@@ -1025,6 +1181,7 @@ class Fit {
                     {"final_loss", lastLoss_}, {"sampler", statsJson(stats_)}, {"config", c_.toJson()},
                     {"peak_rss_mib", peakRssMiB()}, {"memory_bytes", peakMemory_}};
     writeJson(staging / "materials.json", summary);
+    writeJson(staging / "lights.json", {{"light_test", c_.lightTest}, {"hint", c_.lights}, {"decisions", lightDecisions_}});
     fs::remove_all(result);
     fs::rename(staging, result);
     spdlog::info("fit: result in {}", result.string());
@@ -1040,6 +1197,9 @@ class Fit {
   Appearance appearance_;
   AdjointSettings settings_;
   std::vector<uint8_t> emitter_, highlight_;
+  std::vector<uint8_t> outOfModel_;  // per object: excluded from emission and albedo (light_evidence.h)
+  uint8_t refitEmission_ = 0;        // the re-decision changed the light sources: run emission_refit
+  Json lightDecisions_ = Json::array();  // each decision's evidence (result/lights.json)
   const RayFootprint footprint_ = parseRayFootprint(c_.rayFootprint);
   const RayFootprint materialFootprint_ = parseRayFootprint(c_.materialFootprint);
   std::vector<uint64_t> highlightPairs_;  // per object: texels compared with and without a light reflected

@@ -101,9 +101,20 @@ struct FitConfig {
   int maxStageIterations = 2000;    // cap on any albedo stage
   int maxResolution = 0;            // cap on the final albedo resolution; 0 = what the frames resolve
   int emissionTextureResolution = 1024;  // cap on the emission textures' atlas resolution; 0 = the albedo's
-  float pruneFraction = 0.02f;      // emitters below this fraction of the total power go to 0
-  float emitterRadianceFraction = 0.75f;  // ... and those whose emission is below this fraction of
-                                          // their own observed radiance (lit, not emitting)
+  // Light sources (pipeline/light_evidence.h). "reflector": an object is a light when a reflector
+  // with albedo <= 1 and the model's specular lobe cannot return its observed radiance, decided
+  // after the emission stage and again after the first albedo stage; "radiance_fraction" (the
+  // ablation): emission >= emitter_radiance_fraction of its observed radiance, decided once.
+  std::string lightTest = "reflector";
+  float lightMinUnexplained = 0.5f; // share of its radiance no reflector returns
+  float lightSignificance = 3.0f;   // standard errors the unexplained radiance must clear
+  int lightEvidenceTexels = 256;    // texels per object drawn for each decision
+  bool lightRedecide = true;        // decide again after the first albedo stage
+  int emissionRefitIterations = 100;  // emission-only stage after a re-decision that changed the lights
+  std::vector<std::string> lights;  // hint: exactly these objects (by name) emit; no decision taken
+  float pruneFraction = 0.02f;      // light sources below this fraction of the total power go to 0
+  float emitterRadianceFraction = 0.75f;  // light_test radiance_fraction: emission below this fraction
+                                          // of the object's observed radiance is lit, not emitting
   // An object's roughness and specular are fitted only where the frames show a highlight: texels
   // seen both with a light in the mirror direction and without, at least `highlightMinPairs` of
   // them, brighter with it by at least `highlightMinContrast` (mean minus two standard errors).
@@ -127,6 +138,7 @@ struct FitSummary {
   int finalResolution = 0;
   double finalLoss = 0;
   std::vector<int> emitters;
+  std::vector<int> outOfModel;       // objects excluded from emission and albedo (light_evidence.h)
   std::filesystem::path resultDir;   // empty when stopped
   bool stopped = false;
   Json memory;                       // the largest stage's bytes by part

@@ -181,7 +181,7 @@ std::string materialsSection(const Json& materials, const SceneDescription* trut
     const int id = static_cast<int>(jsonInteger(o.at("id"), 0, INT32_MAX, "materials.json", "id"));  // indexes the truth
     s += fmt::format("<tr><td>{}</td><td>{}</td><td>{:.3f}</td><td>{:.3f}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.0f}%</td>", id,
                      html(o.at("name").get<std::string>()), o.at("roughness").get<double>(), o.at("specular").get<double>(),
-                     rgb(o.at("emission")), o.at("is_emitter").get<bool>() ? "yes" : "", o.at("highlight_observed").get<bool>() ? "yes" : "no",
+                     rgb(o.at("emission")), o.at("is_emitter").get<bool>() ? "yes" : o.value("out_of_model", false) ? "out of model" : "", o.at("highlight_observed").get<bool>() ? "yes" : "no",
                      100 * o.at("observed_texel_fraction").get<double>());
     if (truth && id < truth->appearance.objectCount()) {
       const Appearance& t = truth->appearance;
@@ -191,6 +191,33 @@ std::string materialsSection(const Json& materials, const SceneDescription* trut
     s += "</tr>";
   }
   return s + "</table>";
+}
+
+// Each light-source decision (result/lights.json): per object, the verdict and its evidence.
+std::string lightsSection(const fs::path& file) {
+  if (!fs::exists(file)) return "<p>No light-source decisions recorded.</p>";
+  const Json lights = readJson(file);
+  if (!lights.value("hint", Json::array()).empty())
+    return "<p>The light sources were given (<code>lights</code>): " + html(lights["hint"].dump()) + "; no decision taken.</p>";
+  std::string s = fmt::format("<p>Test <code>{}</code>: an object is a light source when a reflector with albedo &le; 1 and the "
+                              "model's specular lobe cannot return what its pixels show (docs: light sources).</p>",
+                              html(lights.value("light_test", std::string())));
+  for (const Json& d : lights.value("decisions", Json::array())) {
+    s += "<h3>After " + html(d.value("after", std::string())) + "</h3><table><tr><th>object</th><th>decision</th><th>rays</th>"
+         "<th>observed</th><th>reflector bound</th><th>unexplained</th><th>power share</th><th>why</th></tr>";
+    for (const Json& o : d.value("objects", Json::array())) {
+      if (o.value("decision", std::string()) == "not_a_candidate") continue;
+      s += fmt::format("<tr><td>{} {}</td><td>{}</td><td>{}</td><td>{:.3g}</td><td>{:.3g}</td><td>{:.0f}% &plusmn; {:.0f}%</td>"
+                       "<td>{:.1f}%</td><td>{}</td></tr>",
+                       o.value("id", 0), html(o.value("name", std::string())), html(o.value("decision", std::string())),
+                       o.value("rays", 0), o.value("observed", 0.0), o.value("reflector_bound", 0.0),
+                       100 * o.value("unexplained_share", 0.0),
+                       100 * std::max(0.0, o.value("unexplained_error", 0.0)) / std::max(1e-30, o.value("observed", 0.0)),
+                       100 * o.value("power_share", 0.0), html(o.value("why", std::string())));
+    }
+    s += "</table>";
+  }
+  return s;
 }
 
 // Per stage: a loss curve and the phase times of its last record (cumulative within the stage).
@@ -278,6 +305,7 @@ img.tex{width:256px;height:256px} figure{display:inline-block;margin:4px} figcap
   }
   page += "<h2>Textures</h2>" + textures;
   page += "<h2>Materials</h2>" + materialsSection(materials, truth ? &*truth : nullptr);
+  page += "<h2>Light sources</h2>" + lightsSection(work / "result" / "lights.json");
   page += "<h2>Loss and time per stage</h2>" + stagesSection(readJsonLines(work / "metrics.jsonl"));
   page += "<h2>Prepare and memory</h2>" + prepareSection(prepare, materials);
   page += "<h2>Config</h2><pre>" + html(materials.value("config", Json::object()).dump(2)) + "</pre></body></html>\n";

@@ -16,7 +16,8 @@ SynthSceneKind parseSynthScene(const std::string& name) {
   if (name == "cornell") return SynthSceneKind::Cornell;
   if (name == "furnace") return SynthSceneKind::Furnace;
   if (name == "scan") return SynthSceneKind::Scan;
-  fail("unknown synthetic scene '{}' (room, cornell, furnace, scan)", name);
+  if (name == "lounge") return SynthSceneKind::Lounge;
+  fail("unknown synthetic scene '{}' (room, cornell, furnace, scan, lounge)", name);
 }
 
 namespace {
@@ -237,6 +238,43 @@ SceneDescription buildRoom(int resolution, float cellSize = 0.085f) {  // ~35k t
   return b.build(resolution);
 }
 
+SceneDescription buildLounge(int resolution) {
+  SceneBuilder b(0.1f);
+  const int floor = b.addObject("floor", 0.4f, 0.5f);
+  const int ceiling = b.addObject("ceiling", 0.9f, 0.2f);
+  const int walls = b.addObject("walls", 0.85f, 0.3f);
+  const int windowA = b.addObject("window_a", 0.9f, 0.0f, Color(6.0f, 7.0f, 9.0f));
+  const int windowB = b.addObject("window_b", 0.9f, 0.0f, Color(5.0f, 6.0f, 8.0f));
+  const int lamp = b.addObject("pendant_lamp", 0.9f, 0.0f, Color(60.0f, 50.0f, 36.0f));
+  const int table = b.addObject("red_glossy_table", 0.08f, 1.0f);
+  const int sofa = b.addObject("white_sofa", 0.8f, 0.3f);
+  const int cabinet = b.addObject("white_cabinet", 0.6f, 0.5f);
+  const int rugId = b.addObject("rug", 0.95f, 0.1f);
+  const AlbedoPattern planks = [](float s, float t) -> Color {
+    const int plank = static_cast<int>(s / 0.2f);
+    return Color(0.42f, 0.30f, 0.20f) * (0.8f + 0.4f * hash01(plank, static_cast<uint64_t>(t / 1.5f)));
+  };
+  const Vec3 X(kRoomX, 0, 0), Y(0, kRoomY, 0), Z(0, 0, kRoomZ);
+  b.quad(floor, Vec3::Zero(), Z, X, planks);
+  b.quad(ceiling, Y, X, Z, constant({0.85f, 0.85f, 0.83f}));
+  b.quad(walls, Vec3::Zero(), X, Y, constant({0.78f, 0.76f, 0.72f}));
+  b.quad(walls, Z + X, -X, Y, constant({0.78f, 0.76f, 0.72f}));
+  b.quad(walls, Z, -Z, Y, constant({0.80f, 0.80f, 0.78f}));
+  b.quad(walls, X, Z, Y, constant({0.78f, 0.76f, 0.72f}));
+  // Window panes on the x = 0 wall, facing into the room.
+  b.quad(windowA, Vec3(0.01f, 0.9f, 0.5f), Vec3(0, 1.2f, 0), Vec3(0, 0, 1.0f), constant({0.9f, 0.9f, 0.9f}));
+  b.quad(windowB, Vec3(0.01f, 0.9f, 2.3f), Vec3(0, 1.2f, 0), Vec3(0, 0, 1.0f), constant({0.9f, 0.9f, 0.9f}));
+  b.box(lamp, Vec3(3.2f, 1.75f, 1.6f), Vec3(3.4f, 1.9f, 1.8f), constant({0.9f, 0.9f, 0.9f}), true);
+  b.box(table, Vec3(2.7f, 0.70f, 1.2f), Vec3(3.9f, 0.75f, 2.2f), constant({0.55f, 0.06f, 0.05f}), true);
+  for (const Vec3& leg : {Vec3(2.75f, 0, 1.25f), Vec3(3.8f, 0, 1.25f), Vec3(2.75f, 0, 2.1f), Vec3(3.8f, 0, 2.1f)})
+    b.box(table, leg, leg + Vec3(0.05f, 0.70f, 0.05f), constant({0.55f, 0.06f, 0.05f}));
+  b.box(sofa, Vec3(1.4f, 0, 3.3f), Vec3(3.6f, 0.45f, 3.95f), constant({0.95f, 0.95f, 0.95f}));
+  b.box(sofa, Vec3(1.4f, 0.45f, 3.75f), Vec3(3.6f, 0.9f, 3.95f), constant({0.95f, 0.95f, 0.95f}));
+  b.box(cabinet, Vec3(4.3f, 0, 0.3f), Vec3(4.95f, 1.1f, 1.3f), constant({0.92f, 0.92f, 0.92f}));
+  b.quad(rugId, Vec3(1.2f, 0.005f, 1.0f), Vec3(0, 0, 1.8f), Vec3(1.4f, 0, 0), constant({0.25f, 0.12f, 0.10f}));
+  return b.build(resolution);
+}
+
 SceneDescription buildCornell(int resolution) {
   SceneBuilder b;
   const int white = b.addObject("white", 0.8f, 0.2f), red = b.addObject("red", 0.8f, 0.2f),
@@ -287,6 +325,7 @@ SynthScene makeSynthScene(SynthSceneKind kind, int atlasResolution, size_t scanT
     }
     case SynthSceneKind::Cornell: return {kind, buildCornell(atlasResolution)};
     case SynthSceneKind::Furnace: return {kind, buildFurnace(atlasResolution)};
+    case SynthSceneKind::Lounge: return {kind, buildLounge(atlasResolution)};
   }
   fail("bad synthetic scene kind");
 }
@@ -319,7 +358,7 @@ std::vector<Camera> synthCameraPath(SynthSceneKind kind, int frames, int width, 
     } else if (kind == SynthSceneKind::Cornell) {
       pos = Vec3(1.0f + 0.3f * std::cos(a), 1.0f + 0.15f * std::sin(2 * a), 1.85f);
       look = Vec3(0.25f * std::sin(a), 0.15f * std::sin(3 * a + 0.5f), -1.0f);
-    } else {  // room and scan
+    } else {  // room, scan and lounge
       // Loop around the room centre looking across it at a target that sweeps the far walls,
       // from the floor up to the ceiling lights.
       pos = Vec3(2.5f + 1.3f * std::cos(a) + 0.03f * std::sin(7 * a), 1.45f + 0.08f * std::sin(5 * a),

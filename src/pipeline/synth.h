@@ -11,7 +11,10 @@ namespace relume {
 
 // Scan: the room as a noisy, densely tessellated mesh without uv (a stand-in for a real scan;
 // per-object albedo constants), for scale tests of `prepare`.
-enum class SynthSceneKind { Room, Cornell, Furnace, Scan };
+// Lounge: the room's shell furnished to test light-source decisions: two window panes (light
+// sources), a pendant lamp over a glossy red table, a white sofa (albedo 0.95) and a white cabinet
+// (0.92) that a dim albedo init would make look emissive.
+enum class SynthSceneKind { Room, Cornell, Furnace, Scan, Lounge };
 SynthSceneKind parseSynthScene(const std::string& name);  // throws relume::Error
 
 struct SynthScene {

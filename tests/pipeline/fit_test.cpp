@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
+#include <fstream>
 #include <map>
+#include <set>
 #include <tbb/task_arena.h>
 
 #include "core/error.h"
@@ -425,4 +427,102 @@ TEST(Fit, EmissionStageDrawsEveryCandidatesOwnTexels) {
   }
   EXPECT_LT(fewestOff, share / 3);  // some object was starved without it: otherwise this checks nothing
   EXPECT_EQ(on.at("albedo@256"), off.at("albedo@256"));
+}
+
+namespace {
+
+// The lounge (two windows and a pendant lamp; a white sofa and cabinet, a glossy red table),
+// 16 frames of 64x48 at 2 spp, prepared at 128^2.
+fs::path loungeWork(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("relume_fit_" + name);
+  fs::remove_all(dir);
+  SynthCaptureOptions so;
+  so.kind = SynthSceneKind::Lounge;
+  so.out = dir / "capture";
+  so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 2, so.testSpp = 2, so.atlasResolution = 128;
+  writeSynthCapture(so);
+  PrepareOptions po;
+  po.resolutions = {128};
+  po.atlas.gutterResolution = 128;
+  prepareCapture(so.out, dir / "work", po);
+  return dir;
+}
+
+std::map<std::string, std::string> decisionsOf(const Json& decision) {
+  std::map<std::string, std::string> out;
+  for (const Json& o : decision.at("objects")) out[o.at("name").get<std::string>()] = o.at("decision").get<std::string>();
+  return out;
+}
+
+std::set<std::string> emittersOf(const fs::path& work) {
+  std::set<std::string> out;
+  const Json materials = readJson(work / "result" / "materials.json");
+  for (const Json& o : materials.at("objects"))
+    if (o.at("is_emitter").get<bool>()) out.insert(o.at("name").get<std::string>());
+  return out;
+}
+
+const std::set<std::string> kLoungeLights = {"window_a", "window_b", "pendant_lamp"};
+
+}  // namespace
+
+TEST(Fit, ALightDroppedEarlyComesBackAndAFalseOneGoes) {
+  // No emission iterations: the first decision sees a room without light, where no reflector
+  // returns anything, so every object is a light and the power share (15% here) keeps only the
+  // largest: the walls and the ceiling, not the windows nor the lamp. The second decision, under
+  // the fitted albedo, must drop the walls and ceiling, bring the three true lights back, and
+  // refit their emission; a run stopped inside that refit must resume to the same end.
+  const fs::path dir = loungeWork("redecide");
+  FitConfig c;
+  c.batchTexels = 2048;
+  c.emissionIterations = 0, c.pruneFraction = 0.15f;
+  c.albedoPasses = 20, c.materialIterations = 20, c.emissionRefitIterations = 30, c.emissionTextureIterations = 0;
+  c.checkpointEvery = 1000;
+  const FitSummary s = runFit(dir / "work", c, false);
+  EXPECT_EQ(emittersOf(dir / "work"), kLoungeLights);
+  const Json lights = readJson(dir / "work" / "result" / "lights.json");
+  ASSERT_EQ(lights.at("decisions").size(), 2u);
+  const auto first = decisionsOf(lights["decisions"][0]), second = decisionsOf(lights["decisions"][1]);
+  EXPECT_EQ(first.at("walls"), "light");
+  EXPECT_EQ(first.at("window_a"), "weak");
+  EXPECT_EQ(second.at("walls"), "reflector");
+  EXPECT_EQ(second.at("white_sofa"), "reflector");
+  for (const std::string& light : kLoungeLights) EXPECT_EQ(second.at(light), "light") << light;
+  std::set<std::string> stages;
+  std::ifstream metrics(dir / "work" / "metrics.jsonl");
+  for (std::string line; std::getline(metrics, line);) stages.insert(Json::parse(line).at("stage").get<std::string>());
+  EXPECT_TRUE(stages.count("emission_refit"));
+  const TruthComparison fit = score(dir);
+  EXPECT_EQ(fit.emittersCorrect, 3);
+  EXPECT_LT(fit.emissionRelError, 0.25);
+
+  const Json whole = readJson(dir / "work" / "result" / "materials.json");
+  FitConfig stopped = c;
+  stopped.stopAfterIterations = s.iterations - 30;  // inside the refit (the materials' 20 follow it)
+  EXPECT_TRUE(runFit(dir / "work", stopped, false).stopped);
+  EXPECT_FALSE(runFit(dir / "work", c, true).stopped);
+  const Json resumed = readJson(dir / "work" / "result" / "materials.json");
+  for (size_t o = 0; o < whole["objects"].size(); ++o)
+    EXPECT_EQ(whole["objects"][o]["emission"], resumed["objects"][o]["emission"]) << o;
+}
+
+TEST(Fit, TheLightsHintNamesTheLightSources) {
+  const fs::path dir = loungeWork("hint");
+  FitConfig c;
+  c.batchTexels = 2048;
+  c.emissionIterations = 30, c.albedoPasses = 5, c.materialIterations = 5, c.emissionTextureIterations = 0;
+  c.lights = {"window_a", "pendant_lamp"};  // window_b left out on purpose: the hint is obeyed, not checked
+  runFit(dir / "work", c, false);
+  EXPECT_EQ(emittersOf(dir / "work"), (std::set<std::string>{"window_a", "pendant_lamp"}));
+  const Json lights = readJson(dir / "work" / "result" / "lights.json");
+  EXPECT_EQ(lights.at("hint").size(), 2u);
+  EXPECT_TRUE(lights.at("decisions").empty());
+  c.lights = {"window_a", "skylight"};
+  try {
+    runFit(dir / "work", c, false);
+    ADD_FAILURE() << "an unknown object in 'lights' must be refused";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("'lights' names 'skylight'"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(FitConfig::fromJson(Json::parse(R"({"lights": "window_a"})"), "cfg", FitConfig{}), Error);
 }

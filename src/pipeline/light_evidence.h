@@ -1,0 +1,103 @@
+// Which objects are light sources, decided from their own pixels. An object is a light source when
+// its observed radiance cannot be explained as reflection of the light the rest of the scene sends
+// to it, by any albedo in [0, 1] and the BSDF's specular lobe, beyond the noise of both estimates.
+//
+// For each ray aimed at a surface point of object o (reference I, luminance):
+//   B = the radiance the point returns with albedo 1 at that vertex (one path, the current scene:
+//       every other surface's albedo and emission as fitted, o's own emission seen directly
+//       removed), plus the brightest current light in the mirror direction (or 4 directions 10
+//       degrees around it) times the model's Fresnel at specular 1: the most a reflector could
+//       return there, since a path's radiance grows with the albedo of its first vertex;
+//   x = I - B, the radiance no reflector explains;
+//   P = the radiance arriving along the mirror direction (one path): what a perfect mirror returns.
+// Over o's rays: x's mean and standard error (the noise of the frames and of B's path together).
+// The test (decideLights):
+//   light       x_mean - z se > 0 and x_mean >= min_unexplained * I_mean, and the power it
+//               implies (area x x_mean) >= prune_fraction of the lights' total;
+//   out of model it passes the first test but a perfect mirror explains its pixels better than a
+//               constant emission does (sum (I - P)^2 < sum (I - I_mean)^2): metal, mirror or
+//               glass showing a light, which relume's BSDF cannot represent;
+//   reflector   otherwise (the reflector returns enough);
+//   weak        it passes but carries too little of the power to matter.
+#pragma once
+#include <cmath>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "io/json.h"
+#include "render/path_tracer.h"
+#include "sampling/batch.h"
+
+namespace relume {
+
+// The mirror direction of `dir` about the geometric normal on the viewer's side, then four
+// directions 10 degrees around it (a glossy lobe's width), those above the surface; fn(d) returns
+// false to stop.
+template <class Fn> void forEachMirrorDirection(const SurfaceHit& hit, const Vec3& dir, Fn&& fn) {
+  const Vec3 n = hit.ng.dot(dir) < 0 ? hit.ng : Vec3(-hit.ng);
+  const ShadingFrame frame(dir - 2.0f * dir.dot(n) * n);
+  for (int k = 0; k < 5; ++k) {
+    const float phi = 0.5f * kPi * k, tilt = k == 0 ? 0.0f : std::sin(10.0f * kPi / 180.0f);
+    const Vec3 d = frame.toWorld(Vec3(tilt * std::cos(phi), tilt * std::sin(phi), std::sqrt(1 - tilt * tilt)));
+    if (d.dot(n) > 0 && !fn(d)) return;
+  }
+}
+
+// Sums over one object's rays; means and errors derived below.
+struct LightEvidence {
+  uint64_t rays = 0;
+  double observed = 0;      // sum of I
+  Color observedColor = Color::Zero();
+  double reflector = 0;     // sum of B
+  Color reflectorColor = Color::Zero();  // sum of B per channel
+  Color excessColor = Color::Zero();  // sum of the colour excess I - B (per channel)
+  double excess = 0, excessSquares = 0;           // sum of x, x^2
+  double observedSquares = 0;                     // sum of I^2
+  double mirrorResidualSquares = 0;               // sum of (I - P)^2
+  double area = 0;          // of the object's surface, m^2
+
+  double meanObserved() const { return rays ? observed / rays : 0.0; }
+  double meanReflector() const { return rays ? reflector / rays : 0.0; }
+  double meanExcess() const { return rays ? excess / rays : 0.0; }
+  double excessError() const;       // standard error of the mean excess
+  double unexplainedShare() const;  // mean excess / mean observed
+  // The emission the excess implies (per channel, clamped at 0): the refit's starting point.
+  Color emissionEstimate() const;
+  // The albedo that makes a reflector return what it shows (per channel, in [0, 1]).
+  Color albedoEstimate() const;
+  // sum of (I - I_mean)^2: what a constant emission leaves.
+  double constantResidualSquares() const;
+  void add(const LightEvidence& o);
+};
+
+// Per ray: I, B and P as above (B and P from one path each, seeded from `seed`). Rays whose
+// reference is masked, that miss, or that reach another object than `objects[j]` are not counted.
+std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const TriangleMesh& mesh, const Appearance& appearance,
+                                               const LightSampler& lights, const std::vector<BatchRay>& rays,
+                                               const std::vector<int>& objects, const PathSettings& path, uint64_t seed);
+
+enum class LightVerdict { Light, Reflector, OutOfModel, Weak, NotACandidate };
+const char* lightVerdictName(LightVerdict v);
+
+struct LightTestSettings {
+  double minUnexplained = 0.5;  // share of its radiance that no reflector returns
+  double significance = 3.0;    // z: standard errors the excess must clear
+  double pruneFraction = 0.02;  // of the total power the lights imply
+};
+
+struct LightDecision {
+  LightVerdict verdict = LightVerdict::NotACandidate;
+  double powerShare = 0;  // of the total implied by the objects that pass the excess test
+  std::string why;        // one line, for the log and the report
+};
+
+// One decision per object; objects with candidate[o] == 0 are NotACandidate.
+std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& evidence, const std::vector<uint8_t>& candidate,
+                                        const LightTestSettings& settings);
+
+// The evidence and decisions as the report shows them: one entry per object with rays.
+Json lightDecisionsJson(const std::vector<LightEvidence>& evidence, const std::vector<LightDecision>& decisions,
+                        const std::vector<std::string>& names);
+
+}  // namespace relume

@@ -899,8 +899,8 @@ class Fit {
     const LightSampler lights(*w_.scene, appearance_);
     std::vector<LightEvidence> evidence =
         gatherLightEvidence(*w_.scene, w_.mesh, appearance_, lights, batch.rays, batch.object, settings_.path, stream);
-    const std::vector<LightDecision> decisions =
-        decideLights(evidence, candidate, {c_.lightMinUnexplained, c_.lightSignificance, c_.pruneFraction});
+    const LightTestSettings test{c_.lightMinUnexplained, c_.lightSignificance, c_.pruneFraction};
+    const std::vector<LightDecision> decisions = decideLights(evidence, candidate, test);
     std::vector<uint8_t> dropped(objects, 0);
     bool changed = false;
     for (int o = 0; o < objects; ++o) {
@@ -908,6 +908,11 @@ class Fit {
       const LightDecision& d = decisions[o];
       const bool light = d.verdict == LightVerdict::Light;
       spdlog::info("fit: after {}: object {} ({}) is {}: {}", after, o, appearance_.names[o], lightVerdictName(d.verdict), d.why);
+      if (const UnderLit u = underLit(evidence[o], test); u.underLit && d.verdict == LightVerdict::Reflector)
+        spdlog::warn("fit: after {}: object {} ({}) is under-lit: {:.3g} of its radiance no light in view explains; the missing light "
+                     "lands around ({:.2f}, {:.2f}, {:.2f}) and comes from direction ({:.2f}, {:.2f}, {:.2f}) (a light seen only from "
+                     "behind, outside the frames or under a shade?)",
+                     after, o, appearance_.names[o], u.missing, u.centre[0], u.centre[1], u.centre[2], u.from[0], u.from[1], u.from[2]);
       if (d.verdict == LightVerdict::OutOfModel) outOfModel_[o] = 1;
       emitter_[o] = light;
       if (!light) {
@@ -923,7 +928,7 @@ class Fit {
       refitEmission_ = 1;
       restartAlbedo(space, evidence, dropped);
     }
-    lightDecisions_.push_back({{"after", after}, {"objects", lightDecisionsJson(evidence, decisions, appearance_.names)}});
+    lightDecisions_.push_back({{"after", after}, {"objects", lightDecisionsJson(evidence, decisions, appearance_.names, test)}});
   }
 
   // The lights changed, so every albedo was fitted under the wrong light: the running fits start

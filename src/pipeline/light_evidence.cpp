@@ -40,6 +40,7 @@ void LightEvidence::add(const LightEvidence& o) {
   reflectorColor += o.reflectorColor;
   excessColor += o.excessColor, excess += o.excess, excessSquares += o.excessSquares;
   observedSquares += o.observedSquares, mirrorResidualSquares += o.mirrorResidualSquares;
+  deficit += o.deficit, deficitPoint += o.deficitPoint, deficitNormal += o.deficitNormal;
 }
 
 std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const TriangleMesh& mesh, const Appearance& appearance,
@@ -62,6 +63,7 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
   std::vector<Color> ownEmission(n, Color::Zero());
   std::vector<float> mirrorBound(n, 0.0f);
   std::vector<uint8_t> valid(n, 0);
+  std::vector<Vec3> point(n), normal(n);
   std::vector<BatchRay> mirrorRays(n);
   tbb::parallel_for(size_t{0}, n, [&](size_t j) {
     const BatchRay& r = rays[j];
@@ -72,6 +74,7 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
     valid[j] = 1;
     ownEmission[j] = emittedRadiance(appearance, *hit, r.dir);
     const Vec3 n0 = hit->ng.dot(r.dir) < 0 ? hit->ng : Vec3(-hit->ng);
+    point[j] = hit->p, normal[j] = n0;
     const float cosView = std::min(1.0f, -n0.dot(r.dir));
     const float fresnel = specularFresnel(appearance.model, cosView, 1.0f).value;
     bool first = true;
@@ -102,8 +105,23 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
     e.excess += I - B, e.excessSquares += (I - B) * (I - B);
     e.excessColor += rays[j].reference - reflectorColor - Color::Constant(mirrorBound[j]);
     e.mirrorResidualSquares += (I - P) * (I - P);
+    if (I > B) {
+      e.deficit += I - B;
+      e.deficitPoint += (I - B) * point[j].cast<double>();
+      e.deficitNormal += (I - B) * normal[j].cast<double>();
+    }
   }
   return out;
+}
+
+UnderLit underLit(const LightEvidence& e, const LightTestSettings& s) {
+  UnderLit u;
+  if (e.rays == 0 || !(e.meanExcess() - s.significance * e.excessError() > 0) || e.deficit <= 0) return u;
+  u.underLit = true;
+  u.missing = e.meanExcess();
+  u.centre = (e.deficitPoint / e.deficit).cast<float>();
+  if (e.deficitNormal.norm() > 0) u.from = e.deficitNormal.normalized().cast<float>();
+  return u;
 }
 
 const char* lightVerdictName(LightVerdict v) {
@@ -172,7 +190,7 @@ std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& eviden
 }
 
 Json lightDecisionsJson(const std::vector<LightEvidence>& evidence, const std::vector<LightDecision>& decisions,
-                        const std::vector<std::string>& names) {
+                        const std::vector<std::string>& names, const LightTestSettings& settings) {
   Json objects = Json::array();
   for (size_t o = 0; o < evidence.size(); ++o) {
     const LightEvidence& e = evidence[o];
@@ -187,6 +205,11 @@ Json lightDecisionsJson(const std::vector<LightEvidence>& evidence, const std::v
                        {"constant_residual", e.rays ? e.constantResidualSquares() / e.rays : 0.0},
                        {"emission_estimate", {est[0], est[1], est[2]}}, {"area_m2", e.area},
                        {"power_share", decisions[o].powerShare}});
+    const UnderLit u = underLit(e, settings);
+    if (decisions[o].verdict == LightVerdict::Reflector && u.underLit)
+      objects.back()["under_lit"] = {{"missing_radiance", u.missing},
+                                     {"centre", {u.centre[0], u.centre[1], u.centre[2]}},
+                                     {"light_from", {u.from[0], u.from[1], u.from[2]}}};
   }
   return objects;
 }

@@ -56,6 +56,10 @@ struct LightEvidence {
   double observedSquares = 0;                     // sum of I^2
   double mirrorResidualSquares = 0;               // sum of (I - P)^2
   double area = 0;          // of the object's surface, m^2
+  // Where the radiance is more than a reflector returns (x > 0): the sum of x, and of x times the
+  // point and its normal (on the viewer's side): where light is missing and which way it faces.
+  double deficit = 0;
+  Eigen::Vector3d deficitPoint = Eigen::Vector3d::Zero(), deficitNormal = Eigen::Vector3d::Zero();
 
   double meanObserved() const { return rays ? observed / rays : 0.0; }
   double meanReflector() const { return rays ? reflector / rays : 0.0; }
@@ -77,14 +81,25 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
                                                const LightSampler& lights, const std::vector<BatchRay>& rays,
                                                const std::vector<int>& objects, const PathSettings& path, uint64_t seed);
 
-enum class LightVerdict { Light, Reflector, OutOfModel, Weak, NotACandidate };
-const char* lightVerdictName(LightVerdict v);
-
 struct LightTestSettings {
   double minUnexplained = 0.5;  // share of its radiance that no reflector returns
   double significance = 3.0;    // z: standard errors the excess must clear
   double pruneFraction = 0.02;  // of the total power the lights imply
 };
+
+enum class LightVerdict { Light, Reflector, OutOfModel, Weak, NotACandidate };
+// A reflector that is brighter than albedo 1 makes it under the lights in view (x_mean - z se > 0):
+// light reaches it that no object in view supplies (a light seen only from behind, outside every
+// frame, under a shade). Reported with where that light lands and the direction it comes from.
+struct UnderLit {
+  bool underLit = false;
+  double missing = 0;          // mean radiance no reflector of the lights in view returns
+  Vec3 centre = Vec3::Zero();  // of the under-lit points, weighted by what they miss
+  Vec3 from = Vec3::Zero();    // unit: the mean normal of those points, so the light lies that way
+};
+UnderLit underLit(const LightEvidence& e, const LightTestSettings& settings);
+const char* lightVerdictName(LightVerdict v);
+
 
 struct LightDecision {
   LightVerdict verdict = LightVerdict::NotACandidate;
@@ -96,8 +111,9 @@ struct LightDecision {
 std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& evidence, const std::vector<uint8_t>& candidate,
                                         const LightTestSettings& settings);
 
-// The evidence and decisions as the report shows them: one entry per object with rays.
+// The evidence and decisions as the report shows them: one entry per object with rays (with
+// `under_lit` for the reflectors that are).
 Json lightDecisionsJson(const std::vector<LightEvidence>& evidence, const std::vector<LightDecision>& decisions,
-                        const std::vector<std::string>& names);
+                        const std::vector<std::string>& names, const LightTestSettings& settings);
 
 }  // namespace relume

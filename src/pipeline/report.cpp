@@ -204,16 +204,20 @@ std::string lightsSection(const fs::path& file) {
                               html(lights.value("light_test", std::string())));
   for (const Json& d : lights.value("decisions", Json::array())) {
     s += "<h3>After " + html(d.value("after", std::string())) + "</h3><table><tr><th>object</th><th>decision</th><th>rays</th>"
-         "<th>observed</th><th>reflector bound</th><th>unexplained</th><th>power share</th><th>why</th></tr>";
+         "<th>observed</th><th>reflector bound</th><th>unexplained</th><th>power share</th><th>why</th><th>under-lit</th></tr>";
     for (const Json& o : d.value("objects", Json::array())) {
       if (o.value("decision", std::string()) == "not_a_candidate") continue;
+      std::string under;
+      if (const Json u = o.value("under_lit", Json()); u.is_object())
+        under = fmt::format("{:.3g} missing; light from ({:.2f}, {:.2f}, {:.2f})", u.value("missing_radiance", 0.0),
+                            u["light_from"][0].get<double>(), u["light_from"][1].get<double>(), u["light_from"][2].get<double>());
       s += fmt::format("<tr><td>{} {}</td><td>{}</td><td>{}</td><td>{:.3g}</td><td>{:.3g}</td><td>{:.0f}% &plusmn; {:.0f}%</td>"
-                       "<td>{:.1f}%</td><td>{}</td></tr>",
+                       "<td>{:.1f}%</td><td>{}</td><td>{}</td></tr>",
                        o.value("id", 0), html(o.value("name", std::string())), html(o.value("decision", std::string())),
                        o.value("rays", 0), o.value("observed", 0.0), o.value("reflector_bound", 0.0),
                        100 * o.value("unexplained_share", 0.0),
                        100 * std::max(0.0, o.value("unexplained_error", 0.0)) / std::max(1e-30, o.value("observed", 0.0)),
-                       100 * o.value("power_share", 0.0), html(o.value("why", std::string())));
+                       100 * o.value("power_share", 0.0), html(o.value("why", std::string())), under);
     }
     s += "</table>";
   }

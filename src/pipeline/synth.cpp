@@ -177,6 +177,22 @@ float hash01(uint64_t a, uint64_t b) { return static_cast<float>(mix64(hashTuple
 
 constexpr float kRoomX = 5.0f, kRoomY = 2.7f, kRoomZ = 4.0f;
 
+// The kRoom box, walls facing in: each object and its albedo.
+struct Shell {
+  int floor, ceiling, wallZ0, walls;  // walls: the other three
+  AlbedoPattern floorAlbedo, ceilingAlbedo, wallZ0Albedo, wallZMaxAlbedo, wallX0Albedo, wallXMaxAlbedo;
+};
+
+void addShell(SceneBuilder& b, const Shell& s) {
+  const Vec3 X(kRoomX, 0, 0), Y(0, kRoomY, 0), Z(0, 0, kRoomZ);
+  b.quad(s.floor, Vec3::Zero(), Z, X, s.floorAlbedo);       // normal +y
+  b.quad(s.ceiling, Y, X, Z, s.ceilingAlbedo);              // normal -y
+  b.quad(s.wallZ0, Vec3::Zero(), X, Y, s.wallZ0Albedo);     // z=0, normal +z
+  b.quad(s.walls, Z + X, -X, Y, s.wallZMaxAlbedo);          // z=max, normal -z
+  b.quad(s.walls, Z, -Z, Y, s.wallX0Albedo);                // x=0, normal +x
+  b.quad(s.walls, X, Z, Y, s.wallXMaxAlbedo);               // x=max, normal -x
+}
+
 SceneDescription buildRoom(int resolution, float cellSize = 0.085f) {  // ~35k triangles, a coarse scan
   SceneBuilder b(cellSize);
   // Wooden planks: 0.2 m wide, random tone per plank, darker seams.
@@ -214,13 +230,8 @@ SceneDescription buildRoom(int resolution, float cellSize = 0.085f) {  // ~35k t
   const int cube = b.addObject("cube", 0.3f, 0.8f);
   const int frame = b.addObject("painting", 0.6f, 0.5f);
 
-  const Vec3 X(kRoomX, 0, 0), Y(0, kRoomY, 0), Z(0, 0, kRoomZ);
-  b.quad(floor, Vec3::Zero(), Z, X, planks);                                 // normal +y
-  b.quad(ceiling, Y, X, Z, constant({0.85f, 0.85f, 0.83f}));                 // normal -y
-  b.quad(wallPaper, Vec3::Zero(), X, Y, wallpaper);                          // z=0, normal +z
-  b.quad(walls, Z + X, -X, Y, constant({0.70f, 0.68f, 0.64f}));             // z=max, normal -z
-  b.quad(walls, Z, -Z, Y, constant({0.62f, 0.66f, 0.60f}));                 // x=0, normal +x
-  b.quad(walls, X, Z, Y, constant({0.70f, 0.68f, 0.64f}));                  // x=max, normal -x
+  addShell(b, {floor, ceiling, wallPaper, walls, planks, constant({0.85f, 0.85f, 0.83f}), wallpaper,
+               constant({0.70f, 0.68f, 0.64f}), constant({0.62f, 0.66f, 0.60f}), constant({0.70f, 0.68f, 0.64f})});
   const float ly = kRoomY - 0.01f;
   b.quad(lightA, Vec3(1.2f, ly, 1.6f), Vec3(0.9f, 0, 0), Vec3(0, 0, 0.45f), constant({0.9f, 0.9f, 0.9f}));
   b.quad(lightB, Vec3(3.0f, ly, 2.2f), Vec3(0.9f, 0, 0), Vec3(0, 0, 0.45f), constant({0.9f, 0.9f, 0.9f}));
@@ -254,13 +265,9 @@ SceneDescription buildLounge(int resolution) {
     const int plank = static_cast<int>(s / 0.2f);
     return Color(0.42f, 0.30f, 0.20f) * (0.8f + 0.4f * hash01(plank, static_cast<uint64_t>(t / 1.5f)));
   };
-  const Vec3 X(kRoomX, 0, 0), Y(0, kRoomY, 0), Z(0, 0, kRoomZ);
-  b.quad(floor, Vec3::Zero(), Z, X, planks);
-  b.quad(ceiling, Y, X, Z, constant({0.85f, 0.85f, 0.83f}));
-  b.quad(walls, Vec3::Zero(), X, Y, constant({0.78f, 0.76f, 0.72f}));
-  b.quad(walls, Z + X, -X, Y, constant({0.78f, 0.76f, 0.72f}));
-  b.quad(walls, Z, -Z, Y, constant({0.80f, 0.80f, 0.78f}));
-  b.quad(walls, X, Z, Y, constant({0.78f, 0.76f, 0.72f}));
+  const AlbedoPattern warmWhite = constant({0.78f, 0.76f, 0.72f});
+  addShell(b, {floor, ceiling, walls, walls, planks, constant({0.85f, 0.85f, 0.83f}), warmWhite, warmWhite,
+               constant({0.80f, 0.80f, 0.78f}), warmWhite});
   // Window panes on the x = 0 wall, facing into the room.
   b.quad(windowA, Vec3(0.01f, 0.9f, 0.5f), Vec3(0, 1.2f, 0), Vec3(0, 0, 1.0f), constant({0.9f, 0.9f, 0.9f}));
   b.quad(windowB, Vec3(0.01f, 0.9f, 2.3f), Vec3(0, 1.2f, 0), Vec3(0, 0, 1.0f), constant({0.9f, 0.9f, 0.9f}));

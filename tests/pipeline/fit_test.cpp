@@ -18,22 +18,28 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// A small capture of the synthetic room (textured albedo, two ceiling panels the frames see),
-// prepared at 256^2 (or at the resolutions given). Each test gets its own folder (CTest runs
-// tests in parallel processes).
-fs::path cornellWork(const std::string& name, const std::vector<int>& resolutions = {256}) {
+// A small capture of a synthetic scene: 16 frames of 64x48 at `spp`, prepared at the resolutions
+// given. Each test gets its own folder (CTest runs tests in parallel processes).
+fs::path smallWork(const std::string& name, SynthSceneKind kind, int spp, int atlasResolution, const std::vector<int>& resolutions) {
   const fs::path dir = fs::temp_directory_path() / ("relume_fit_" + name);
   fs::remove_all(dir);
   SynthCaptureOptions so;
-  so.kind = SynthSceneKind::Room;
+  so.kind = kind;
   so.out = dir / "capture";
-  so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 8, so.testSpp = 8, so.atlasResolution = 256;
+  so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = spp, so.testSpp = spp;
+  so.atlasResolution = atlasResolution;
   writeSynthCapture(so);
   PrepareOptions po;
   po.resolutions = resolutions;
   po.atlas.gutterResolution = resolutions.front();
   prepareCapture(so.out, dir / "work", po);
   return dir;
+}
+
+// The synthetic room (textured albedo, two ceiling panels the frames see), prepared at 256^2 (or
+// at the resolutions given).
+fs::path cornellWork(const std::string& name, const std::vector<int>& resolutions = {256}) {
+  return smallWork(name, SynthSceneKind::Room, 8, 256, resolutions);
 }
 
 FitConfig smallConfig() {
@@ -433,20 +439,7 @@ namespace {
 
 // The lounge (two windows and a pendant lamp; a white sofa and cabinet, a glossy red table),
 // 16 frames of 64x48 at 2 spp, prepared at 128^2.
-fs::path loungeWork(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("relume_fit_" + name);
-  fs::remove_all(dir);
-  SynthCaptureOptions so;
-  so.kind = SynthSceneKind::Lounge;
-  so.out = dir / "capture";
-  so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 2, so.testSpp = 2, so.atlasResolution = 128;
-  writeSynthCapture(so);
-  PrepareOptions po;
-  po.resolutions = {128};
-  po.atlas.gutterResolution = 128;
-  prepareCapture(so.out, dir / "work", po);
-  return dir;
-}
+fs::path loungeWork(const std::string& name) { return smallWork(name, SynthSceneKind::Lounge, 2, 128, {128}); }
 
 std::map<std::string, std::string> decisionsOf(const Json& decision) {
   std::map<std::string, std::string> out;

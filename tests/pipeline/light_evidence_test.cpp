@@ -178,6 +178,35 @@ TEST_F(LightEvidenceTest, AMirrorShowingTheLampIsOutOfModelNotALight) {
   for (const std::string& light : kLights) EXPECT_EQ(d.at(light).verdict, LightVerdict::Light) << light;
 }
 
+TEST_F(LightEvidenceTest, ALightNoFrameShowsLeavesItsSurfacesUnderLitFromItsDirection) {
+  // The lamp as if no frame showed it: its emission unknown (0) and no candidate. The table top
+  // beneath it (made white and matte here, so that its brightness is the lamp's) is then brighter
+  // than any albedo makes it: under-lit, from above, around the lamp.
+  Appearance truth = lounge_->scene.appearance;
+  const int lamp = objectNamed(truth, "pendant_lamp"), table = objectNamed(truth, "red_glossy_table");
+  truth.albedoConstant[table] = Color::Constant(0.9f), truth.albedoFromTexture[table] = 0;
+  truth.roughness[table] = 0.9f, truth.specular[table] = 0.2f;
+  const Observed seen = observe(*scene_, truth, 48, 36);
+  Appearance withoutLamp = truth;
+  withoutLamp.emission[lamp] = Color::Zero();
+  Observed o;
+  for (size_t j = 0; j < seen.rays.size(); ++j)
+    if (seen.objects[j] != lamp) o.rays.push_back(seen.rays[j]), o.objects.push_back(seen.objects[j]);
+  const LightSampler lights(*scene_, withoutLamp);
+  const std::vector<LightEvidence> evidence =
+      gatherLightEvidence(*scene_, lounge_->scene.mesh, withoutLamp, lights, o.rays, o.objects, PathSettings{}, 5);
+  const UnderLit u = underLit(evidence[table], LightTestSettings{});
+  ASSERT_TRUE(u.underLit);
+  EXPECT_GT(u.missing, 0.5 * evidence[table].meanObserved());
+  EXPECT_GT(u.from.y(), 0.9f) << u.from.transpose();
+  EXPECT_LT((Vec2(u.centre.x(), u.centre.z()) - Vec2(3.3f, 1.7f)).norm(), 0.5f) << u.centre.transpose();
+  // With the lamp in view, nothing is under-lit.
+  std::vector<LightEvidence> lit;
+  decide(lounge_->scene, *scene_, lounge_->scene.appearance, *observed_, &lit);
+  for (size_t k = 0; k < lit.size(); ++k)
+    if (!kLights.count(lounge_->scene.appearance.names[k])) EXPECT_FALSE(underLit(lit[k], LightTestSettings{}).underLit) << k;
+}
+
 TEST(LightDecisions, SignificanceShareAndPowerEachDecide) {
   auto evidence = [](double observed, double reflector, double spread, uint64_t n, double area) {
     LightEvidence e;

@@ -2,12 +2,14 @@
 
 #include <spdlog/spdlog.h>
 
+#include <array>
 #include <fstream>
 #include <numeric>
 #include <set>
 #include <variant>
 
 #include "capture/frame_store.h"
+#include "core/check.h"
 #include "core/error.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
@@ -297,6 +299,7 @@ struct Stage {
   bool redecideAfter = false;   // the light sources are decided again at its end
   bool refit = false;           // emission only, run when the re-decision changed the light sources
   bool focusEmitters = false;   // draws emission_batch_texels from the light-source candidates
+  bool fillUnobservedAfter = false;  // unobserved texels take their object's mean albedo at its end
 };
 
 // The resolution the frames resolve: the smallest stage resolution whose texel is no larger than
@@ -362,6 +365,7 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   // changed them, their emission is fitted again (the albedo held) before the materials.
   const bool redecide = c.emitterParameterisation && c.lightTest == "reflector" && c.lightRedecide && c.lights.empty();
   s.back().redecideAfter = redecide;
+  s.front().fillUnobservedAfter = s.back().fillUnobservedAfter = true;
   const size_t refitStage = s.size();
   if (redecide && c.emissionRefitIterations > 0)
     s.push_back({"emission_refit", emission, resolutions.front(), c.emissionRefitIterations});
@@ -829,6 +833,7 @@ class Fit {
         if (auto p = polyak_.find(g.name()); p != polyak_.end() && p->second.mean.size() == g.values.size())
           std::copy(p->second.mean.begin(), p->second.mean.end(), g.values.begin());
     // Before the boundary checkpoint: a run resumed from it starts the next stage pruned.
+    if (st.fillUnobservedAfter) fillUnobservedAlbedo(space);
     if (st.pruneAfter || st.redecideAfter) {
       decideLightSources(space, st.name, st.pruneAfter);
       lights_.reset();  // no table for the candidates that stopped being lights
@@ -896,9 +901,21 @@ class Fit {
       batch.append(own.sample(hashTuple({stream, static_cast<uint64_t>(o)}), 0,
                               {c_.lightEvidenceTexels, c_.framesPerTexel, RayFootprint::Point, 1}));
     }
+    // Each ray's camera, found by its origin (the sampler's rays start at the camera).
+    std::map<std::array<float, 3>, const Camera*> byPosition;
+    for (uint32_t k : w_.kept) {
+      const Vec3& p = w_.frames[k].camera.position;
+      byPosition.emplace(std::array<float, 3>{p.x(), p.y(), p.z()}, &w_.frames[k].camera);
+    }
+    std::vector<const Camera*> cameras(batch.rays.size());
+    for (size_t j = 0; j < batch.rays.size(); ++j) {
+      const Vec3& o = batch.rays[j].origin;
+      const auto it = byPosition.find({o.x(), o.y(), o.z()});
+      cameras[j] = it != byPosition.end() ? it->second : nullptr;
+    }
     const LightSampler lights(*w_.scene, appearance_);
     std::vector<LightEvidence> evidence =
-        gatherLightEvidence(*w_.scene, w_.mesh, appearance_, lights, batch.rays, batch.object, settings_.path, stream);
+        gatherLightEvidence(*w_.scene, w_.mesh, appearance_, lights, batch.rays, batch.object, settings_.path, stream, &cameras);
     const LightTestSettings test{c_.lightMinUnexplained, c_.lightSignificance, c_.pruneFraction};
     const std::vector<LightDecision> decisions = decideLights(evidence, candidate, test);
     std::vector<uint8_t> dropped(objects, 0);
@@ -929,6 +946,28 @@ class Fit {
       restartAlbedo(space, evidence, dropped);
     }
     lightDecisions_.push_back({{"after", after}, {"objects", lightDecisionsJson(evidence, decisions, appearance_.names, test)}});
+  }
+
+  // Texels no frame saw are never updated; they light the rest of the scene all the same (a
+  // capture that faces one way leaves most of a room unseen: 78% of the White Room's texels). They
+  // take their object's mean albedo over its observed texels, or 0.5 on an object no frame saw,
+  // instead of the init's radiance-scaled guess (an unseen wall's mean radiance x the white-point
+  // scale: 0.07 for a wall of albedo 0.6 there, which darkens the light every surface receives).
+  void fillUnobservedAlbedo(const TexelSpace& space) {
+    const int objects = appearance_.objectCount();
+    std::vector<Eigen::Array4d> mean(objects, Eigen::Array4d::Zero());
+    const std::vector<float>& a = appearance_.albedo.rgb;
+    for (uint32_t t : space.sampleable)
+      mean[w_.mesh.faceObject[space.map.triangle(t)]] += Eigen::Array4d(a[3 * t], a[3 * t + 1], a[3 * t + 2], 1.0);
+    size_t filled = 0;
+    for (size_t t = 0; t < space.map.texelCount(); ++t) {
+      if (!space.map.valid(t) || space.updatable[t]) continue;
+      const Eigen::Array4d& m = mean[w_.mesh.faceObject[space.map.triangle(t)]];
+      const Color fill = m[3] > 0 ? Color((m.head<3>() / m[3]).cast<float>()) : Color::Constant(0.5f);
+      for (int c = 0; c < 3; ++c) appearance_.albedo.rgb[3 * t + c] = fill[c];
+      ++filled;
+    }
+    spdlog::debug("fit: {} unobserved texels take their object's mean albedo", filled);
   }
 
   // The lights changed, so every albedo was fitted under the wrong light: the running fits start

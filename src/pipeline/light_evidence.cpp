@@ -43,9 +43,30 @@ void LightEvidence::add(const LightEvidence& o) {
   deficit += o.deficit, deficitPoint += o.deficitPoint, deficitNormal += o.deficitNormal;
 }
 
+namespace {
+
+// Whether the pixel of `camera` that sees `p` and its 8 neighbours all show `object`.
+bool interiorPixel(const Scene& scene, const Camera& camera, const Vec3& p, int object) {
+  const auto pixel = camera.project(p);
+  if (!pixel) return false;
+  for (int dy = -1; dy <= 1; ++dy)
+    for (int dx = -1; dx <= 1; ++dx) {
+      if (dx == 0 && dy == 0) continue;
+      const auto dir = camera.rayDirection(*pixel + Vec2(dx, dy));
+      if (!dir) return false;
+      const auto hit = scene.intersect(camera.position, *dir);
+      if (!hit || hit->object != object) return false;
+    }
+  return true;
+}
+
+}  // namespace
+
 std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const TriangleMesh& mesh, const Appearance& appearance,
                                                const LightSampler& lights, const std::vector<BatchRay>& rays,
-                                               const std::vector<int>& objects, const PathSettings& path, uint64_t seed) {
+                                               const std::vector<int>& objects, const PathSettings& path, uint64_t seed,
+                                               const std::vector<const Camera*>* cameras) {
+  CHECK(!cameras || cameras->size() == rays.size());
   const size_t n = rays.size();
   // The first vertex of every path evaluated with albedo 1 (sampling stays with the fitted
   // appearance, so the estimate is unbiased whatever the albedo).
@@ -71,6 +92,7 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
     if (!(r.reference.minCoeff() >= 0) || !r.reference.allFinite()) return;
     const auto hit = scene.intersect(r.origin, r.dir);
     if (!hit || hit->object != objects[j]) return;
+    if (cameras && (!(*cameras)[j] || !interiorPixel(scene, *(*cameras)[j], hit->p, objects[j]))) return;
     valid[j] = 1;
     ownEmission[j] = emittedRadiance(appearance, *hit, r.dir);
     const Vec3 n0 = hit->ng.dot(r.dir) < 0 ? hit->ng : Vec3(-hit->ng);

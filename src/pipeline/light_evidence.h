@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "core/camera.h"
 #include "io/json.h"
 #include "render/path_tracer.h"
 #include "sampling/batch.h"
@@ -76,10 +77,14 @@ struct LightEvidence {
 };
 
 // Per ray: I, B and P as above (B and P from one path each, seeded from `seed`). Rays whose
-// reference is masked, that miss, or that reach another object than `objects[j]` are not counted.
+// reference is masked, that miss, or that reach another object than `objects[j]` are not counted,
+// nor, with `cameras` (ray j's camera), rays whose pixel has a neighbour (of the 8) showing
+// another object (or no camera): the pixel filter mixes those neighbours into the reference, so an object seen
+// only at its silhouette (a thin string in front of a window) would borrow their radiance.
 std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const TriangleMesh& mesh, const Appearance& appearance,
                                                const LightSampler& lights, const std::vector<BatchRay>& rays,
-                                               const std::vector<int>& objects, const PathSettings& path, uint64_t seed);
+                                               const std::vector<int>& objects, const PathSettings& path, uint64_t seed,
+                                               const std::vector<const Camera*>* cameras = nullptr);
 
 struct LightTestSettings {
   double minUnexplained = 0.5;  // share of its radiance that no reflector returns

@@ -8,10 +8,12 @@
 #include "core/math.h"
 #include "io/atomic_file.h"
 #include "io/image.h"
+#include "optim/checkpoint.h"
 #include "pipeline/evaluate.h"
 #include "pipeline/fit.h"
 #include "pipeline/prepare.h"
 #include "pipeline/synth.h"
+#include "scene/texel_map.h"
 
 using namespace relume;
 namespace fs = std::filesystem;
@@ -518,4 +520,66 @@ TEST(Fit, TheLightsHintNamesTheLightSources) {
     EXPECT_NE(std::string(e.what()).find("'lights' names 'skylight'"), std::string::npos) << e.what();
   }
   EXPECT_THROW(FitConfig::fromJson(Json::parse(R"({"lights": "window_a"})"), "cfg", FitConfig{}), Error);
+}
+
+TEST(Fit, UnobservedTexelsTakeTheirObjectsMeanAlbedoOnceItIsFitted) {
+  // Stopped one iteration after the first albedo stage: every texel no frame saw must hold its
+  // object's mean over the texels it saw (which one iteration barely moved), not the init's guess.
+  const fs::path dir = cornellWork("unobserved_fill");
+  FitConfig c = smallConfig();
+  c.emissionIterations = 20, c.albedoPasses = 8;
+  // Where the first albedo stage ends: a run without the later stages logs it in its metrics.
+  FitConfig probe = c;
+  probe.materialIterations = 0;
+  runFit(dir / "work", probe, false);
+  int albedoEnd = 0;
+  {
+    std::ifstream metrics(dir / "work" / "metrics.jsonl");
+    for (std::string line; std::getline(metrics, line);) {
+      const Json m = Json::parse(line);
+      if (m.at("stage").get<std::string>().rfind("albedo@", 0) == 0) albedoEnd = std::max(albedoEnd, m.at("iteration").get<int>());
+    }
+  }
+  ASSERT_GT(albedoEnd, c.emissionIterations);
+  c.stopAfterIterations = albedoEnd + 1;
+  ASSERT_TRUE(runFit(dir / "work", c, false).stopped);
+  const Checkpoint ck = Checkpoint::read(dir / "work" / "checkpoint.bin");
+  const int res = static_cast<int>(ck.metaInteger("resolution", 1, 1 << 15));
+  std::vector<float> albedo(3 * size_t(res) * res);
+  ck.get("albedo.values", albedo);
+  const TriangleMesh mesh = loadMesh(dir / "work" / "atlas_mesh.ply");
+  const TexelMap map(mesh, res);
+  const Image coverage = readImage(dir / "work" / "coverage.exr");
+  ASSERT_EQ(coverage.width, res);
+  std::vector<Eigen::Array4d> seen(mesh.objectCount, Eigen::Array4d::Zero());
+  std::vector<std::vector<size_t>> unseen(mesh.objectCount);
+  // Texels the fill set and nothing after it reaches: no seen texel among their 8 neighbours (a
+  // seen texel's bilinear splats reach its neighbours in the step after the fill).
+  auto farFromSeen = [&](size_t t) {
+    const int x = static_cast<int>(t % res), y = static_cast<int>(t / res);
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int u = x + dx, v = y + dy;
+        if (u >= 0 && v >= 0 && u < res && v < res && coverage.rgb[3 * (size_t(v) * res + u)] > 0) return false;
+      }
+    return true;
+  };
+  for (size_t t = 0; t < map.texelCount(); ++t) {
+    if (!map.valid(t)) continue;
+    const int o = mesh.faceObject[map.triangle(t)];
+    if (coverage.rgb[3 * t] > 0) {
+      if (map.covered(t)) seen[o] += Eigen::Array4d(albedo[3 * t], albedo[3 * t + 1], albedo[3 * t + 2], 1.0);
+    } else if (farFromSeen(t)) {
+      unseen[o].push_back(t);
+    }
+  }
+  int checked = 0;
+  for (int o = 0; o < mesh.objectCount; ++o) {
+    if (unseen[o].empty()) continue;
+    const Eigen::Array3d expected = seen[o][3] > 0 ? Eigen::Array3d(seen[o].head<3>() / seen[o][3]) : Eigen::Array3d::Constant(0.5);
+    for (size_t t : unseen[o])
+      for (int ch = 0; ch < 3; ++ch) ASSERT_NEAR(albedo[3 * t + ch], expected[ch], 0.02) << "object " << o << " texel " << t;
+    ++checked;
+  }
+  EXPECT_GE(checked, 3);
 }

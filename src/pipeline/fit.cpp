@@ -860,7 +860,8 @@ class Fit {
       }
   }
 
-  // light: exactly the objects named are light-source candidates (they are also kept: no decision).
+  // The `lights` hint: exactly the objects it names are light-source candidates, and they stay
+  // lights (no decision is taken).
   void applyLightsHint() {
     if (c_.lights.empty()) return;
     std::vector<uint8_t> hinted(appearance_.objectCount(), 0);
@@ -918,6 +919,10 @@ class Fit {
         gatherLightEvidence(*w_.scene, w_.mesh, appearance_, lights, batch.rays, batch.object, settings_.path, stream, &cameras);
     const LightTestSettings test{c_.lightMinUnexplained, c_.lightSignificance, c_.pruneFraction};
     const std::vector<LightDecision> decisions = decideLights(evidence, candidate, test);
+    // Under-lit surfaces are reported at the last decision only: before the albedo is fitted, the
+    // init darkens the light every surface receives (the White Room: 12 under-lit reflectors after
+    // the emission stage, none after the first albedo stage).
+    const bool last = !first || !c_.lightRedecide;
     std::vector<uint8_t> dropped(objects, 0);
     bool changed = false;
     for (int o = 0; o < objects; ++o) {
@@ -925,7 +930,7 @@ class Fit {
       const LightDecision& d = decisions[o];
       const bool light = d.verdict == LightVerdict::Light;
       spdlog::info("fit: after {}: object {} ({}) is {}: {}", after, o, appearance_.names[o], lightVerdictName(d.verdict), d.why);
-      if (const UnderLit u = underLit(evidence[o], test); u.underLit && d.verdict == LightVerdict::Reflector)
+      if (const UnderLit u = underLit(evidence[o], test); last && u.underLit && d.verdict == LightVerdict::Reflector)
         spdlog::warn("fit: after {}: object {} ({}) is under-lit: {:.3g} of its radiance no light in view explains; the missing light "
                      "lands around ({:.2f}, {:.2f}, {:.2f}) and comes from direction ({:.2f}, {:.2f}, {:.2f}) (a light seen only from "
                      "behind, outside the frames or under a shade?)",
@@ -945,7 +950,7 @@ class Fit {
       refitEmission_ = 1;
       restartAlbedo(space, evidence, dropped);
     }
-    lightDecisions_.push_back({{"after", after}, {"objects", lightDecisionsJson(evidence, decisions, appearance_.names, test)}});
+    lightDecisions_.push_back({{"after", after}, {"objects", lightDecisionsJson(evidence, decisions, appearance_.names, test, last)}});
   }
 
   // Texels no frame saw are never updated; they light the rest of the scene all the same (a

@@ -212,7 +212,7 @@ std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& eviden
 }
 
 Json lightDecisionsJson(const std::vector<LightEvidence>& evidence, const std::vector<LightDecision>& decisions,
-                        const std::vector<std::string>& names, const LightTestSettings& settings) {
+                        const std::vector<std::string>& names, const LightTestSettings& settings, bool withUnderLit) {
   Json objects = Json::array();
   for (size_t o = 0; o < evidence.size(); ++o) {
     const LightEvidence& e = evidence[o];
@@ -228,7 +228,7 @@ Json lightDecisionsJson(const std::vector<LightEvidence>& evidence, const std::v
                        {"emission_estimate", {est[0], est[1], est[2]}}, {"area_m2", e.area},
                        {"power_share", decisions[o].powerShare}});
     const UnderLit u = underLit(e, settings);
-    if (decisions[o].verdict == LightVerdict::Reflector && u.underLit)
+    if (withUnderLit && decisions[o].verdict == LightVerdict::Reflector && u.underLit)
       objects.back()["under_lit"] = {{"missing_radiance", u.missing},
                                      {"centre", {u.centre[0], u.centre[1], u.centre[2]}},
                                      {"light_from", {u.from[0], u.from[1], u.from[2]}}};

@@ -117,8 +117,8 @@ std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& eviden
                                         const LightTestSettings& settings);
 
 // The evidence and decisions as the report shows them: one entry per object with rays (with
-// `under_lit` for the reflectors that are).
+// `under_lit` for the reflectors that are, when `withUnderLit`).
 Json lightDecisionsJson(const std::vector<LightEvidence>& evidence, const std::vector<LightDecision>& decisions,
-                        const std::vector<std::string>& names, const LightTestSettings& settings);
+                        const std::vector<std::string>& names, const LightTestSettings& settings, bool withUnderLit);
 
 }  // namespace relume

@@ -82,6 +82,7 @@ template <typename Fn> void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("light_redecide", ConfigField(&c.lightRedecide));
   fn("emission_refit_iterations", ConfigField(&c.emissionRefitIterations));
   fn("lights", ConfigField(&c.lights));
+  fn("light_albedo_zero", ConfigField(&c.lightAlbedoZero));
   fn("prune_fraction", ConfigField(&c.pruneFraction));
   fn("emitter_radiance_fraction", ConfigField(&c.emitterRadianceFraction));
   fn("highlight_min_pairs", ConfigField(&c.highlightMinPairs));
@@ -481,6 +482,7 @@ class Fit {
       initialiseAlbedo(*space);
       excludeUnseenEmitters(*space);
       applyLightsHint();
+      if (!c_.lights.empty()) zeroLightAlbedo(*space);
     }
 
     FitSummary summary;
@@ -623,13 +625,18 @@ class Fit {
     return s;
   }
 
-  // Zeroes the gradient of entries that must not move: unobserved texels, pruned emitters,
-  // objects whose highlights were never seen.
-  void maskGradients(ParamGroup& g, const TexelSpace& space, std::span<const uint32_t> splattedAlbedo) const {
+  // Zeroes the gradient (and the albedo's Gauss-Newton curvature, with which it would still move)
+  // of entries that must not move: unobserved texels and light sources' albedo (light_albedo_zero),
+  // pruned emitters, objects whose highlights were never seen.
+  void maskGradients(ParamGroup& g, std::vector<float>& albedoCurvature, const TexelSpace& space,
+                     std::span<const uint32_t> splattedAlbedo) const {
     switch (g.kind) {
       case ParamKind::Albedo:
         for (uint32_t t : splattedAlbedo)
-          if (!space.updatable[t]) std::fill_n(g.grads.begin() + 3 * static_cast<ptrdiff_t>(t), 3, 0.0f);
+          if (!space.updatable[t] || albedoHeld(w_.mesh.faceObject[space.map.triangle(t)])) {
+            std::fill_n(g.grads.begin() + 3 * static_cast<ptrdiff_t>(t), 3, 0.0f);
+            if (!albedoCurvature.empty()) std::fill_n(albedoCurvature.begin() + 3 * static_cast<ptrdiff_t>(t), 3, 0.0f);
+          }
         break;
       case ParamKind::Roughness:
       case ParamKind::Specular:
@@ -759,7 +766,7 @@ class Fit {
       const std::vector<uint32_t> splatted = st.active.active(ParamKind::Albedo) ? grads.splattedAlbedoTexels() : std::vector<uint32_t>{};
       for (ParamGroup& g : paramGroups(appearance_, &grads)) {
         if (!st.active.active(g.kind)) continue;
-        maskGradients(g, space, splatted);
+        maskGradients(g, grads.albedoCurvature, space, splatted);
         const float lrScale = st.settles.active(g.kind) ? settleScale : 1.0f;
         if (g.kind == ParamKind::Albedo && newtonAlbedo()) {
           // No gradient clamp: the step is bounded by maxStep, and a bright outlier in the adjoint
@@ -860,6 +867,18 @@ class Fit {
       }
   }
 
+  // A light source's albedo is held at 0 (light_albedo_zero) once the lights are decided.
+  bool albedoHeld(int object) const { return c_.lightAlbedoZero && lightsDecided() && emitter_[object]; }
+  bool lightsDecided() const { return !c_.lights.empty() || !lightDecisions_.empty(); }
+
+  // Light sources show their radiance as emission alone (light_albedo_zero): albedo 0 on their texels.
+  void zeroLightAlbedo(const TexelSpace& space) {
+    if (!c_.lightAlbedoZero) return;
+    for (size_t t = 0; t < space.map.texelCount(); ++t)
+      if (space.map.valid(t) && emitter_[w_.mesh.faceObject[space.map.triangle(t)]])
+        std::fill_n(appearance_.albedo.rgb.begin() + 3 * static_cast<ptrdiff_t>(t), 3, 0.0f);
+  }
+
   // The `lights` hint: exactly the objects it names are light-source candidates, and they stay
   // lights (no decision is taken).
   void applyLightsHint() {
@@ -940,12 +959,15 @@ class Fit {
       if (!light) {
         dropped[o] = !first && appearance_.isEmissive(o);
         appearance_.emission[o] = Color::Zero();
-      } else if (!appearance_.isEmissive(o)) {
-        appearance_.emission[o] = evidence[o].emissionEstimate();
-        changed |= !first;
+      } else {
+        const bool wasEmitting = appearance_.isEmissive(o);
+        if (c_.lightAlbedoZero) appearance_.emission[o] = evidence[o].meanObservedColor();
+        else if (!wasEmitting) appearance_.emission[o] = evidence[o].emissionEstimate();
+        changed |= !first && !wasEmitting;
       }
     }
     changed |= std::count(dropped.begin(), dropped.end(), 1) > 0;
+    zeroLightAlbedo(space);
     if (changed) {
       refitEmission_ = 1;
       restartAlbedo(space, evidence, dropped);
@@ -989,21 +1011,23 @@ class Fit {
       sum[o] += Eigen::Array3d(appearance_.albedo.rgb[3 * t], appearance_.albedo.rgb[3 * t + 1], appearance_.albedo.rgb[3 * t + 2]);
       ++count[o];
     }
-    std::vector<Color> scale(objects, Color::Constant(1.0f));
+    // Each channel scaled so that its mean is the estimate; set to it where the albedo is ~0 (held
+    // at 0 while the object was a light).
+    std::vector<Color> target(objects, Color::Zero()), scale(objects, Color::Zero());
     for (int o = 0; o < objects; ++o)
       if (dropped[o] && count[o] > 0) {
-        const Color target = evidence[o].albedoEstimate();
-        for (int c = 0; c < 3; ++c) scale[o][c] = sum[o][c] > 1e-6 * count[o] ? static_cast<float>(target[c] * count[o] / sum[o][c]) : 1.0f;
-        spdlog::info("fit: object {} ({}) is no light: its albedo restarts at {:.3g} {:.3g} {:.3g}", o, appearance_.names[o], target[0],
-                     target[1], target[2]);
+        target[o] = evidence[o].albedoEstimate();
+        for (int c = 0; c < 3; ++c) scale[o][c] = sum[o][c] > 1e-3 * count[o] ? static_cast<float>(target[o][c] * count[o] / sum[o][c]) : 0.0f;
+        spdlog::info("fit: object {} ({}) is no light: its albedo restarts at {:.3g} {:.3g} {:.3g}", o, appearance_.names[o],
+                     target[o][0], target[o][1], target[o][2]);
       }
     for (size_t t = 0; t < space.map.texelCount(); ++t) {
       if (!space.map.valid(t)) continue;
       const int o = w_.mesh.faceObject[space.map.triangle(t)];
-      if (!dropped[o]) continue;
+      if (!dropped[o] || count[o] == 0) continue;
       for (int c = 0; c < 3; ++c) {
         float& a = appearance_.albedo.rgb[3 * t + c];
-        a = std::clamp(a * scale[o][c], 0.0f, 1.0f);
+        a = std::clamp(scale[o][c] > 0 ? a * scale[o][c] : target[o][c], 0.0f, 1.0f);
       }
     }
     newton_ = GaussNewtonState();

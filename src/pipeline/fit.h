@@ -112,6 +112,10 @@ struct FitConfig {
   bool lightRedecide = true;        // decide again after the first albedo stage
   int emissionRefitIterations = 100;  // emission-only stage after a re-decision that changed the lights
   std::vector<std::string> lights;  // hint: exactly these objects (by name) emit; no decision taken
+  // A light source's radiance is all emission (its albedo 0 and not fitted): from any view a
+  // Lambertian emission and a diffuse reflection look the same, so the split is a convention, and
+  // windows and lamp shades transmit their light rather than reflect it. false: the albedo fitted.
+  bool lightAlbedoZero = true;
   float pruneFraction = 0.02f;      // light sources below this fraction of the total power go to 0
   float emitterRadianceFraction = 0.75f;  // light_test radiance_fraction: emission below this fraction
                                           // of the object's observed radiance is lit, not emitting

@@ -63,6 +63,7 @@ struct LightEvidence {
   Eigen::Vector3d deficitPoint = Eigen::Vector3d::Zero(), deficitNormal = Eigen::Vector3d::Zero();
 
   double meanObserved() const { return rays ? observed / rays : 0.0; }
+  Color meanObservedColor() const { return rays ? Color(observedColor / static_cast<float>(rays)) : Color::Zero(); }
   double meanReflector() const { return rays ? reflector / rays : 0.0; }
   double meanExcess() const { return rays ? excess / rays : 0.0; }
   double excessError() const;       // standard error of the mean excess

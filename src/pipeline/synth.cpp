@@ -268,9 +268,10 @@ SceneDescription buildLounge(int resolution) {
   const AlbedoPattern warmWhite = constant({0.78f, 0.76f, 0.72f});
   addShell(b, {floor, ceiling, walls, walls, planks, constant({0.85f, 0.85f, 0.83f}), warmWhite, warmWhite,
                constant({0.80f, 0.80f, 0.78f}), warmWhite});
-  // Window panes on the x = 0 wall, facing into the room.
-  b.quad(windowA, Vec3(0.01f, 0.9f, 0.5f), Vec3(0, 1.2f, 0), Vec3(0, 0, 1.0f), constant({0.9f, 0.9f, 0.9f}));
-  b.quad(windowB, Vec3(0.01f, 0.9f, 2.3f), Vec3(0, 1.2f, 0), Vec3(0, 0, 1.0f), constant({0.9f, 0.9f, 0.9f}));
+  // Window panes on the x = 0 wall, facing into the room: glass, which transmits the sky's light
+  // and reflects little of the room's.
+  b.quad(windowA, Vec3(0.01f, 0.9f, 0.5f), Vec3(0, 1.2f, 0), Vec3(0, 0, 1.0f), constant({0.05f, 0.05f, 0.05f}));
+  b.quad(windowB, Vec3(0.01f, 0.9f, 2.3f), Vec3(0, 1.2f, 0), Vec3(0, 0, 1.0f), constant({0.05f, 0.05f, 0.05f}));
   b.box(lamp, Vec3(3.2f, 1.75f, 1.6f), Vec3(3.4f, 1.9f, 1.8f), constant({0.9f, 0.9f, 0.9f}), true);
   b.box(table, Vec3(2.7f, 0.70f, 1.2f), Vec3(3.9f, 0.75f, 2.2f), constant({0.55f, 0.06f, 0.05f}), true);
   for (const Vec3& leg : {Vec3(2.75f, 0, 1.25f), Vec3(3.8f, 0, 1.25f), Vec3(2.75f, 0, 2.1f), Vec3(3.8f, 0, 2.1f)})

@@ -78,6 +78,7 @@ template <typename Fn> void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("light_test", ConfigField(&c.lightTest));
   fn("light_min_unexplained", ConfigField(&c.lightMinUnexplained));
   fn("light_significance", ConfigField(&c.lightSignificance));
+  fn("light_min_contrast", ConfigField(&c.lightMinContrast));
   fn("light_evidence_texels", ConfigField(&c.lightEvidenceTexels));
   fn("light_redecide", ConfigField(&c.lightRedecide));
   fn("emission_refit_iterations", ConfigField(&c.emissionRefitIterations));
@@ -142,6 +143,7 @@ void validate(const FitConfig& c, const std::string& where) {
   need(c.lightTest == "reflector" || c.lightTest == "radiance_fraction", "light_test must be reflector or radiance_fraction");
   need(c.lightMinUnexplained >= 0 && c.lightMinUnexplained <= 1, "light_min_unexplained must be in [0, 1]");
   need(std::isfinite(c.lightSignificance) && c.lightSignificance >= 0, "light_significance must be >= 0");
+  need(std::isfinite(c.lightMinContrast) && c.lightMinContrast >= 0, "light_min_contrast must be >= 0");
   need(c.lightEvidenceTexels >= 1 && c.lightEvidenceTexels <= (1 << 20), "light_evidence_texels must be in [1, 2^20]");
   need(c.emissionRefitIterations >= 0, "emission_refit_iterations must be >= 0");
   need(std::set<std::string>(c.lights.begin(), c.lights.end()).size() == c.lights.size(), "lights names an object twice");
@@ -936,7 +938,7 @@ class Fit {
     const LightSampler lights(*w_.scene, appearance_);
     std::vector<LightEvidence> evidence =
         gatherLightEvidence(*w_.scene, w_.mesh, appearance_, lights, batch.rays, batch.object, settings_.path, stream, &cameras);
-    const LightTestSettings test{c_.lightMinUnexplained, c_.lightSignificance, c_.pruneFraction};
+    const LightTestSettings test{c_.lightMinUnexplained, c_.lightSignificance, c_.pruneFraction, c_.lightMinContrast};
     const std::vector<LightDecision> decisions = decideLights(evidence, candidate, test);
     // Under-lit surfaces are reported at the last decision only: before the albedo is fitted, the
     // init darkens the light every surface receives (the White Room: 12 under-lit reflectors after

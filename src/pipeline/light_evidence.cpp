@@ -163,6 +163,14 @@ std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& eviden
   std::vector<LightDecision> out(evidence.size());
   std::vector<double> power(evidence.size(), 0.0);
   double totalPower = 0;
+  std::vector<double> radiances;
+  for (size_t o = 0; o < evidence.size(); ++o)
+    if (candidate[o] && evidence[o].rays > 0) radiances.push_back(evidence[o].meanObserved());
+  double median = 0;
+  if (!radiances.empty()) {
+    std::nth_element(radiances.begin(), radiances.begin() + radiances.size() / 2, radiances.end());
+    median = radiances[radiances.size() / 2];
+  }
   for (size_t o = 0; o < evidence.size(); ++o) {
     const LightEvidence& e = evidence[o];
     LightDecision& d = out[o];
@@ -181,6 +189,13 @@ std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& eviden
       d.why = fmt::format("looks {:.3g}; a reflector with albedo <= 1 returns {:.3g} (unexplained {:.0f}% +- {:.0f}%, needs {:.0f}% and {:.0f} sigma)",
                           e.meanObserved(), e.meanReflector(), 100 * share, 100 * se / std::max(1e-30, e.meanObserved()),
                           100 * s.minUnexplained, s.significance);
+      continue;
+    }
+    if (e.meanObserved() < s.minContrast * median) {
+      d.verdict = LightVerdict::Reflector;
+      d.why = fmt::format("looks {:.3g}, more than a reflector returns under the lights in view ({:.3g}), but only {:.1f}x the "
+                          "room's median {:.3g} (needs {:.0f}x): lit by a light the frames do not show?",
+                          e.meanObserved(), e.meanReflector(), e.meanObserved() / std::max(1e-30, median), median, s.minContrast);
       continue;
     }
     if (e.mirrorResidualSquares < e.constantResidualSquares()) {

@@ -18,7 +18,10 @@
 //               constant emission does (sum (I - P)^2 < sum (I - I_mean)^2): metal, mirror or
 //               glass showing a light, which relume's BSDF cannot represent;
 //   reflector   otherwise (the reflector returns enough);
-//   weak        it passes but carries too little of the power to matter.
+//   weak        it passes but carries too little of the power to matter;
+//   reflector   also when it passes but does not outshine the room (mean I below min_contrast x
+//               the median of the candidates' mean I): when no light in view explains the room,
+//               every surface passes, and the brightest wall is no more a light than the rest.
 #pragma once
 #include <cmath>
 #include <cstdint>
@@ -91,6 +94,10 @@ struct LightTestSettings {
   double minUnexplained = 0.5;  // share of its radiance that no reflector returns
   double significance = 3.0;    // z: standard errors the excess must clear
   double pruneFraction = 0.02;  // of the total power the lights imply
+  // A light outshines the room: its mean radiance is at least this many times the median of the
+  // candidates' mean radiances. Below it the excess is taken for light the frames do not show
+  // (the object is reported under-lit). 0 = off.
+  double minContrast = 4.0;
 };
 
 enum class LightVerdict { Light, Reflector, OutOfModel, Weak, NotACandidate };

@@ -463,14 +463,15 @@ const std::set<std::string> kLoungeLights = {"window_a", "window_b", "pendant_la
 
 TEST(Fit, ALightDroppedEarlyComesBackAndAFalseOneGoes) {
   // No emission iterations: the first decision sees a room without light, where no reflector
-  // returns anything, so every object is a light and the power share (15% here) keeps only the
-  // largest: the walls and the ceiling, not the windows nor the lamp. The second decision, under
+  // returns anything, so every object passes the excess test. Without the contrast test (which
+  // alone would find the three lights here) the power share (15% here) keeps only the largest:
+  // the walls and the ceiling, not the windows nor the lamp. The second decision, under
   // the fitted albedo, must drop the walls and ceiling, bring the three true lights back, and
   // refit their emission; a run stopped inside that refit must resume to the same end.
   const fs::path dir = loungeWork("redecide");
   FitConfig c;
   c.batchTexels = 2048;
-  c.emissionIterations = 0, c.pruneFraction = 0.15f;
+  c.emissionIterations = 0, c.pruneFraction = 0.15f, c.lightMinContrast = 0;
   c.albedoPasses = 20, c.materialIterations = 20, c.emissionRefitIterations = 30, c.emissionTextureIterations = 0;
   c.checkpointEvery = 1000;
   const FitSummary s = runFit(dir / "work", c, false);

@@ -218,21 +218,32 @@ TEST(LightDecisions, SignificanceShareAndPowerEachDecide) {
       const double I = observed + noise, x = I - reflector;
       ++e.rays, e.observed += I, e.observedSquares += I * I, e.reflector += reflector, e.excess += x, e.excessSquares += x * x;
       e.mirrorResidualSquares += 100 * I * I;  // no mirror explains these
+      if (x > 0) e.deficit += x, e.deficitNormal += x * Eigen::Vector3d::UnitY();
     }
     return e;
   };
-  const std::vector<LightEvidence> ev = {
-      evidence(10, 1, 0.1, 100, 1.0),   // a light
-      evidence(10, 1, 60, 4, 1.0),      // as bright on average, but 4 rays of huge spread: not significant
-      evidence(1.2, 1, 0.01, 100, 1.0), // significant, but 17% unexplained: a reflector
-      evidence(10, 1, 0.1, 100, 0.001), // a light, but 0.1% of the power
-      evidence(10, 1, 0.1, 100, 1.0),   // not a candidate
+  std::vector<LightEvidence> ev = {
+      evidence(10, 1, 0.1, 100, 1.0),    // a light
+      evidence(10, 1, 60, 4, 1.0),       // as bright on average, but 4 rays of huge spread: not significant
+      evidence(1.2, 1, 0.01, 100, 1.0),  // significant, but 17% unexplained: a reflector
+      evidence(10, 1, 0.1, 100, 0.001),  // a light, but 0.1% of the power
+      evidence(10, 1, 0.1, 100, 1.0),    // not a candidate
+      evidence(1.5, 0.2, 0.05, 100, 1.0),  // 87% unexplained, but only 3x the room's median: under-lit
   };
-  const auto d = decideLights(ev, {1, 1, 1, 1, 0}, LightTestSettings{});
+  for (int k = 0; k < 5; ++k) ev.push_back(evidence(0.5, 1, 0.05, 100, 1.0));  // the room: reflectors
+  std::vector<uint8_t> candidate(ev.size(), 1);
+  candidate[4] = 0;
+  const auto d = decideLights(ev, candidate, LightTestSettings{});
   EXPECT_EQ(d[0].verdict, LightVerdict::Light);
   EXPECT_EQ(d[1].verdict, LightVerdict::Reflector);
   EXPECT_EQ(d[2].verdict, LightVerdict::Reflector);
   EXPECT_EQ(d[3].verdict, LightVerdict::Weak);
   EXPECT_EQ(d[4].verdict, LightVerdict::NotACandidate);
+  EXPECT_EQ(d[5].verdict, LightVerdict::Reflector) << d[5].why;
+  EXPECT_TRUE(underLit(ev[5], LightTestSettings{}).underLit);
   EXPECT_NEAR(d[0].powerShare, 1.0 / 1.001, 1e-9);
+  // Without the contrast test it is a light.
+  LightTestSettings noContrast;
+  noContrast.minContrast = 0;
+  EXPECT_EQ(decideLights(ev, candidate, noContrast)[5].verdict, LightVerdict::Light);
 }

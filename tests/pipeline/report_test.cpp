@@ -53,6 +53,14 @@ TEST(Report, FitWritesASelfContainedPageWithCurvesImagesAndMaterials) {
   for (const Json& o : materials["objects"])
     EXPECT_NE(html.find("<td>" + o["name"].get<std::string>() + "</td>"), std::string::npos);
   EXPECT_NE(html.find("\"lr_albedo\""), std::string::npos);  // the config
+  // The light-source decisions: a table per decision. No frame of this capture sees the box's
+  // light, so the last decision finds the walls under-lit, with the direction of the missing light.
+  EXPECT_NE(html.find("<h2>Light sources</h2>"), std::string::npos);
+  const Json lights = readJson(dir / "work" / "result" / "lights.json");
+  ASSERT_FALSE(lights["decisions"].empty());
+  for (const Json& d : lights["decisions"])
+    EXPECT_NE(html.find("<h3>After " + d["after"].get<std::string>() + "</h3>"), std::string::npos);
+  EXPECT_NE(html.find("missing; light from"), std::string::npos);
   // A work folder copied without prepare's pictures still gets its report, without those figures.
   fs::remove(dir / "work" / "albedo_init.png");
   fs::remove(dir / "work" / "report" / "albedo_init.png");

@@ -7,7 +7,18 @@ reflectances, area emitters as object emission) so `relume render` can synthesis
 Reads the scene from a git mirror (`--git DIR`, objects read with `git show HEAD:path`) or from a
 folder. Shapes whose file is missing (large files absent from a snapshot) are skipped and listed.
 Supported shapes: obj, ply (ascii / binary little endian), serialized (Mitsuba's zlib format,
-with shapeIndex). Transforms: translate, scale, rotate, matrix, lookat.
+with shapeIndex), rectangle (area-light windows). Transforms: translate, scale, rotate, matrix,
+lookat; a mirroring transform keeps the front side. `--materials bsdf` maps each BSDF to relume's
+principled-v1 (diffuse: roughness 1, specular 0; plastic: specular 0.5; conductors, which relume
+cannot represent: albedo 0.04, specular 1; zero-transmittance dielectrics: opaque glossy black;
+textured reflectance: the texture's mean linear colour) and writes materials_source.json.
+
+The White Room (docs/notes/2026-11-25-light-sources.md):
+    python3 scripts/mitsuba_to_capture.py --git /work/.mirror/hchoi405+dppm-scenes/repo \
+        --xml scenes/living-room-2/scene.xml --scale 1 --out whiteroom --frames 48 --width 256 \
+        --height 192 --test-frames 8 --sweep 60 --materials bsdf
+then objects 179-181 named window_bay_centre/left/right and the back window (182, behind every
+camera) switched off in scene.json, and `SOURCE=whiteroom scripts/cycles_capture.sh OUT`.
 
     python3 scripts/mitsuba_to_capture.py --git /work/.mirror/VElysianP+mitsuba_scenes/repo \
         --xml statler_elevatorroom/elevatorRoom_statler_revised.xml --scale 0.01 --out scenes/statler
@@ -236,6 +247,9 @@ def transparent(bsdf, bsdfs):
     if bsdf.tag == "ref":
         return transparent(bsdfs.get(bsdf.attrib.get("id")), bsdfs)
     if bsdf.attrib.get("type") in ("dielectric", "roughdielectric", "thindielectric"):
+        t = bsdf.find("*[@name='specularTransmittance']")
+        if t is not None and max(floats(t.attrib["value"])) == 0.0:
+            return False  # zero transmittance: an opaque, glossy black surface (TV screen, black marble)
         return True
     return any(transparent(c, bsdfs) for c in bsdf if c.tag in ("bsdf", "ref"))
 
@@ -248,7 +262,7 @@ def reflectance(bsdf, bsdfs):
         return reflectance(bsdfs.get(bsdf.attrib.get("id")), bsdfs)
     for c in bsdf:
         if c.tag in ("srgb", "rgb") and c.attrib.get("name") in ("reflectance", "diffuseReflectance"):
-            v = floats(c.attrib["value"]) if "," not in c.attrib["value"] and not c.attrib["value"].startswith("#") else None
+            v = floats(c.attrib["value"]) if not c.attrib["value"].startswith("#") else None
             if v:
                 v = v * 3 if len(v) == 1 else v
                 if c.tag == "srgb":
@@ -259,6 +273,58 @@ def reflectance(bsdf, bsdfs):
             if r:
                 return r
     return None
+
+
+def inner_bsdf(bsdf, bsdfs):
+    """the BSDF under twosided / mask / bumpmap / ref wrappers."""
+    while bsdf is not None:
+        if bsdf.tag == "ref":
+            bsdf = bsdfs.get(bsdf.attrib.get("id"))
+            continue
+        if bsdf.attrib.get("type") in ("twosided", "mask", "bumpmap"):
+            bsdf = bsdf.find("bsdf")
+            continue
+        return bsdf
+    return None
+
+
+def texture_mean(bsdf, src, base):
+    """mean linear colour of a bitmap reflectance texture, or None."""
+    if bsdf is None:
+        return None
+    for t in bsdf.iter("texture"):
+        if t.attrib.get("type") == "bitmap" and t.attrib.get("name") in ("reflectance", "diffuseReflectance"):
+            fn = t.find("string[@name='filename']")
+            data = src.read(os.path.join(base, fn.attrib["value"])) if fn is not None else None
+            if data is None:
+                return None
+            import io
+            from PIL import Image
+            im = np.asarray(Image.open(io.BytesIO(data)).convert("RGB"), np.float64) / 255.0
+            lin = np.where(im <= 0.04045, im / 12.92, ((im + 0.055) / 1.055) ** 2.4)
+            return [round(min(max(float(x), 0.0), 0.95), 4) for x in lin.reshape(-1, 3).mean(0)]
+    return None
+
+
+def bsdf_material(bsdf, bsdfs, src, base):
+    """(albedo or None, roughness, specular, kind) for relume's principled-v1 with metallic 0:
+    roughness = sqrt(Mitsuba alpha) (GGX alpha = r^2); plastic / dielectric ior 1.5: F0 0.04 = specular
+    0.5; diffuse: roughness 1, specular 0; conductors (no metallic in relume): dark albedo 0.04, specular 1
+    (F0 0.08, the most principled-v1 allows), roughness from alpha."""
+    b = inner_bsdf(bsdf, bsdfs)
+    kind = b.attrib.get("type") if b is not None else "none"
+    a = b.find("float[@name='alpha']") if b is not None else None
+    alpha = float(a.attrib["value"]) if a is not None else 0.0
+    rough = round(min(max(math.sqrt(alpha), 0.035), 1.0), 3)
+    if kind == "diffuse":
+        return None, 1.0, 0.0, kind
+    if kind in ("plastic", "roughplastic"):
+        return None, rough, 0.5, kind
+    if kind in ("conductor", "roughconductor"):
+        return [0.04, 0.04, 0.04], rough, 1.0, kind
+    if kind in ("dielectric", "roughdielectric"):
+        return [0.01, 0.01, 0.01], rough, 0.5, kind
+    return None, 0.6, 0.3, kind
 
 
 def write_cameras(args, sensor):
@@ -301,7 +367,10 @@ def object_materials(objects, args):
     rng = np.random.default_rng(args.seed)
     out = []
     for o in objects:
-        draw = rng.uniform(size=5)  # drawn for every object, so one object's values never depend on another's source
+        draw = rng.uniform(size=5)
+        if args.materials == "bsdf":
+            out.append((o["albedo"] or [0.5, 0.5, 0.5], o["roughness"], o["specular"]))
+            continue  # drawn for every object, so one object's values never depend on another's source
         if args.materials == "varied":
             albedo = o["albedo"] or [round(0.05 + 0.8 * x, 3) for x in draw[:3]]
             out.append((albedo, round(0.15 + 0.8 * draw[3], 3), round(0.1 + 0.8 * draw[4], 3)))
@@ -322,7 +391,7 @@ def main():
     ap.add_argument("--height", type=int, default=120)
     ap.add_argument("--sweep", type=float, default=40.0, help="total yaw of the sweep, degrees")
     ap.add_argument("--test-frames", type=int, default=0, help="held-out cameras (transforms_test.json) between the training ones")
-    ap.add_argument("--materials", choices=["source", "varied"], default="source",
+    ap.add_argument("--materials", choices=["source", "varied", "bsdf"], default="source",
                     help="per-object roughness/specular (and albedo where the source has a texture): uniform, or drawn per object")
     ap.add_argument("--seed", type=int, default=1, help="with --materials varied")
     args = ap.parse_args()
@@ -349,21 +418,27 @@ def main():
     for shape in root.iter("shape"):
         kind = shape.attrib.get("type")
         fn = shape.find("string[@name='filename']")
-        if kind not in ("obj", "ply", "serialized") or fn is None:
+        if kind == "rectangle":  # Mitsuba's [-1,1]^2 at z = 0, normal +z
+            path = f"rectangle#{sum(1 for o in objects)}"
+        elif kind not in ("obj", "ply", "serialized") or fn is None:
             continue
-        path = os.path.join(base, fn.attrib["value"])
+        else:
+            path = os.path.join(base, fn.attrib["value"])
         bsdf = shape.find("bsdf")
         if bsdf is None:
             bsdf = shape.find("ref")
         if transparent(bsdf, bsdfs):
             skipped.append(path)
             continue
-        data = src.read(path)
+        data = b"" if kind == "rectangle" else src.read(path)
         if data is None:
             missing.append(path)
             continue
         try:
-            if kind == "obj":
+            if kind == "rectangle":
+                pos = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], np.float64)
+                nrm, tri = None, np.array([[0, 1, 2], [0, 2, 3]], np.int64)
+            elif kind == "obj":
                 pos, nrm, tri = read_obj(data)
             elif kind == "ply":
                 pos, nrm, tri = read_ply(data)
@@ -377,6 +452,11 @@ def main():
             continue
         t = shape.find("transform")
         m = parse_transform(t) if t is not None else np.eye(4)
+        if np.linalg.det(m[:3, :3]) < 0:  # a mirroring transform flips the winding; keep the front side
+            tri = tri[:, ::-1].copy()
+        fn_el = shape.find("boolean[@name='faceNormals']")
+        if fn_el is not None and fn_el.attrib.get("value") == "true":
+            nrm = None  # flat shading, as the source asks
         pos = (pos @ m[:3, :3].T + m[:3, 3]) * args.scale
         if nrm is not None:
             nrm = nrm @ np.linalg.inv(m[:3, :3])  # normals by the inverse transpose
@@ -389,7 +469,18 @@ def main():
             radiance = floats(r.attrib["value"]) if r is not None else [1.0, 1.0, 1.0]
             radiance = radiance * 3 if len(radiance) == 1 else radiance
         name = shape.attrib.get("id") or os.path.splitext(os.path.basename(path))[0]
-        objects.append({"id": oid, "name": name, "albedo": reflectance(bsdf, bsdfs), "emission": radiance})
+        alb_m, rough_m, spec_m, bkind = bsdf_material(bsdf, bsdfs, src, base)
+        ref_id = bsdf.attrib.get("id") if bsdf is not None and bsdf.tag == "ref" else None
+        if ref_id:
+            name = f"{name}_{ref_id}"
+        if kind == "rectangle" and radiance:
+            name = f"{name}_window_emitter"
+        albedo = reflectance(bsdf, bsdfs)
+        if args.materials == "bsdf":
+            albedo = albedo if bkind not in ("conductor", "roughconductor", "dielectric", "roughdielectric") else alb_m
+            albedo = albedo or texture_mean(inner_bsdf(bsdf, bsdfs), src, base)
+        objects.append({"id": oid, "name": name, "albedo": albedo, "emission": radiance,
+                        "roughness": rough_m, "specular": spec_m, "bsdf": bkind})
         all_pos.append(pos)
         all_nrm.append(nrm)
         all_tri.append(tri + nv)
@@ -415,6 +506,8 @@ def main():
         rec = np.zeros(len(tri), dtype=[("n", "u1"), ("i", "<i4", 3), ("o", "<i4")])
         rec["n"], rec["i"], rec["o"] = 3, tri, obj
         f.write(rec.tobytes())
+    with open(os.path.join(args.out, "materials_source.json"), "w") as f:
+        json.dump([{k: o[k] for k in ("id", "name", "bsdf", "albedo", "roughness", "specular", "emission")} for o in objects], f, indent=1)
     with open(os.path.join(args.out, "objects.json"), "w") as f:
         json.dump({"objects": [{"id": o["id"], "name": o["name"]} for o in objects]}, f, indent=1)
     scene = {"mesh": "mesh.ply", "model": "principled-v1", "objects": []}

@@ -392,7 +392,8 @@ def main():
     ap.add_argument("--sweep", type=float, default=40.0, help="total yaw of the sweep, degrees")
     ap.add_argument("--test-frames", type=int, default=0, help="held-out cameras (transforms_test.json) between the training ones")
     ap.add_argument("--materials", choices=["source", "varied", "bsdf"], default="source",
-                    help="per-object roughness/specular (and albedo where the source has a texture): uniform, or drawn per object")
+                    help="per-object roughness/specular (and albedo where the source has a texture): uniform, drawn per "
+                         "object, or mapped from each shape's BSDF")
     ap.add_argument("--seed", type=int, default=1, help="with --materials varied")
     args = ap.parse_args()
     if args.frames < 1 or args.test_frames < 0:

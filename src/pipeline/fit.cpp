@@ -368,7 +368,8 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   // changed them, their emission is fitted again (the albedo held) before the materials.
   const bool redecide = c.emitterParameterisation && c.lightTest == "reflector" && c.lightRedecide && c.lights.empty();
   s.back().redecideAfter = redecide;
-  s.front().fillUnobservedAfter = s.back().fillUnobservedAfter = true;
+  // The fill belongs to the reflector test's light estimate (with the hint too, so the two compare).
+  s.front().fillUnobservedAfter = s.back().fillUnobservedAfter = c.lightTest == "reflector";
   const size_t refitStage = s.size();
   if (redecide && c.emissionRefitIterations > 0)
     s.push_back({"emission_refit", emission, resolutions.front(), c.emissionRefitIterations});
@@ -627,18 +628,18 @@ class Fit {
     return s;
   }
 
-  // Zeroes the gradient (and the albedo's Gauss-Newton curvature, with which it would still move)
-  // of entries that must not move: unobserved texels and light sources' albedo (light_albedo_zero),
-  // pruned emitters, objects whose highlights were never seen.
+  // Zeroes the gradient of entries that must not move: unobserved texels, light sources' albedo
+  // (light_albedo_zero; also its Gauss-Newton curvature, with which a texel still moves towards its
+  // running fit), pruned emitters, objects whose highlights were never seen.
   void maskGradients(ParamGroup& g, std::vector<float>& albedoCurvature, const TexelSpace& space,
                      std::span<const uint32_t> splattedAlbedo) const {
     switch (g.kind) {
       case ParamKind::Albedo:
-        for (uint32_t t : splattedAlbedo)
-          if (!space.updatable[t] || albedoHeld(w_.mesh.faceObject[space.map.triangle(t)])) {
-            std::fill_n(g.grads.begin() + 3 * static_cast<ptrdiff_t>(t), 3, 0.0f);
-            if (!albedoCurvature.empty()) std::fill_n(albedoCurvature.begin() + 3 * static_cast<ptrdiff_t>(t), 3, 0.0f);
-          }
+        for (uint32_t t : splattedAlbedo) {
+          const bool held = albedoHeld(w_.mesh.faceObject[space.map.triangle(t)]);
+          if (!space.updatable[t] || held) std::fill_n(g.grads.begin() + 3 * static_cast<ptrdiff_t>(t), 3, 0.0f);
+          if (held && !albedoCurvature.empty()) std::fill_n(albedoCurvature.begin() + 3 * static_cast<ptrdiff_t>(t), 3, 0.0f);
+        }
         break;
       case ParamKind::Roughness:
       case ParamKind::Specular:
@@ -962,8 +963,10 @@ class Fit {
         dropped[o] = !first && appearance_.isEmissive(o);
         appearance_.emission[o] = Color::Zero();
       } else {
+        // A light's emission is set when it becomes one (and, with light_albedo_zero, at the
+        // first decision, where its albedo goes to 0); a re-decision that agrees changes nothing.
         const bool wasEmitting = appearance_.isEmissive(o);
-        if (c_.lightAlbedoZero) appearance_.emission[o] = evidence[o].meanObservedColor();
+        if (c_.lightAlbedoZero && (first || !wasEmitting)) appearance_.emission[o] = evidence[o].meanObservedColor();
         else if (!wasEmitting) appearance_.emission[o] = evidence[o].emissionEstimate();
         changed |= !first && !wasEmitting;
       }
@@ -990,7 +993,7 @@ class Fit {
       mean[w_.mesh.faceObject[space.map.triangle(t)]] += Eigen::Array4d(a[3 * t], a[3 * t + 1], a[3 * t + 2], 1.0);
     size_t filled = 0;
     for (size_t t = 0; t < space.map.texelCount(); ++t) {
-      if (!space.map.valid(t) || space.updatable[t]) continue;
+      if (!space.map.valid(t) || space.updatable[t] || outOfModel_[w_.mesh.faceObject[space.map.triangle(t)]]) continue;
       const Eigen::Array4d& m = mean[w_.mesh.faceObject[space.map.triangle(t)]];
       const Color fill = m[3] > 0 ? Color((m.head<3>() / m[3]).cast<float>()) : Color::Constant(0.5f);
       for (int c = 0; c < 3; ++c) appearance_.albedo.rgb[3 * t + c] = fill[c];
@@ -1000,7 +1003,7 @@ class Fit {
   }
 
   // The lights changed, so every albedo was fitted under the wrong light: the running fits start
-  // over (their averages hold residuals of the old lights), and an object that stopped being a
+  // over (their averages hold residuals of the old lights), as does the emission's Adam state, and an object that stopped being a
   // light, whose albedo had collapsed while its emission made up its radiance, is rescaled to the
   // albedo its evidence implies (what it shows over what albedo 1 returns).
   void restartAlbedo(const TexelSpace& space, const std::vector<LightEvidence>& evidence, const std::vector<uint8_t>& dropped) {
@@ -1035,6 +1038,7 @@ class Fit {
     newton_ = GaussNewtonState();
     adam_.erase("albedo");
     polyak_.erase("albedo");
+    adam_.erase("emission");  // the lights' emissions were set anew
   }
 
   // light_test radiance_fraction: light sources are the objects whose own emission explains most of how they look (at least

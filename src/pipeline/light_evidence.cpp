@@ -35,20 +35,12 @@ double LightEvidence::constantResidualSquares() const {
   return rays ? std::max(0.0, observedSquares - observed * observed / static_cast<double>(rays)) : 0.0;
 }
 
-void LightEvidence::add(const LightEvidence& o) {
-  rays += o.rays, observed += o.observed, observedColor += o.observedColor, reflector += o.reflector;
-  reflectorColor += o.reflectorColor;
-  excessColor += o.excessColor, excess += o.excess, excessSquares += o.excessSquares;
-  observedSquares += o.observedSquares, mirrorResidualSquares += o.mirrorResidualSquares;
-  deficit += o.deficit, deficitPoint += o.deficitPoint, deficitNormal += o.deficitNormal;
-}
-
 namespace {
 
 // Whether the pixel of `camera` that sees `p` and its 8 neighbours all show `object`.
 bool interiorPixel(const Scene& scene, const Camera& camera, const Vec3& p, int object) {
   const auto pixel = camera.project(p);
-  if (!pixel) return false;
+  if (!pixel || pixel->x() < 1 || pixel->y() < 1 || pixel->x() >= camera.width - 1 || pixel->y() >= camera.height - 1) return false;
   for (int dy = -1; dy <= 1; ++dy)
     for (int dx = -1; dx <= 1; ++dx) {
       if (dx == 0 && dy == 0) continue;
@@ -83,7 +75,7 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
   // Per ray: the own emission seen directly, the model's mirror bound and the perfect mirror's ray.
   std::vector<Color> ownEmission(n, Color::Zero());
   std::vector<float> mirrorBound(n, 0.0f);
-  std::vector<uint8_t> valid(n, 0);
+  std::vector<uint8_t> valid(n, 0), interior(n, 0);
   std::vector<Vec3> point(n), normal(n);
   std::vector<BatchRay> mirrorRays(n);
   tbb::parallel_for(size_t{0}, n, [&](size_t j) {
@@ -92,8 +84,8 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
     if (!(r.reference.minCoeff() >= 0) || !r.reference.allFinite()) return;
     const auto hit = scene.intersect(r.origin, r.dir);
     if (!hit || hit->object != objects[j]) return;
-    if (cameras && (!(*cameras)[j] || !interiorPixel(scene, *(*cameras)[j], hit->p, objects[j]))) return;
     valid[j] = 1;
+    interior[j] = !cameras || ((*cameras)[j] && interiorPixel(scene, *(*cameras)[j], hit->p, objects[j]));
     ownEmission[j] = emittedRadiance(appearance, *hit, r.dir);
     const Vec3 n0 = hit->ng.dot(r.dir) < 0 ? hit->ng : Vec3(-hit->ng);
     point[j] = hit->p, normal[j] = n0;
@@ -111,11 +103,16 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
   const std::vector<Color> mirrored = traceRays(scene, lights, AppearanceScope::uniform(appearance), mirrorRays, path,
                                                 [&](size_t j) { return hashTuple({seed, 0x6d697272ULL, j}); });
 
+  // An object with fewer than kMinInteriorRays interior rays (a lamp never 3x3 pixels wide in any
+  // frame) is judged on all its rays rather than on none.
+  constexpr uint64_t kMinInteriorRays = 16;
+  std::vector<uint64_t> interiorRays(appearance.objectCount(), 0);
+  for (size_t j = 0; j < n; ++j) interiorRays[objects[j]] += valid[j] && interior[j];
   std::vector<LightEvidence> out(appearance.objectCount());
   for (size_t f = 0; f < mesh.triangles.size(); ++f)
     if (mesh.faceObject[f] >= 0 && mesh.faceObject[f] < appearance.objectCount()) out[mesh.faceObject[f]].area += mesh.faceArea[f];
   for (size_t j = 0; j < n; ++j) {
-    if (!valid[j]) continue;
+    if (!valid[j] || (!interior[j] && interiorRays[objects[j]] >= kMinInteriorRays)) continue;
     LightEvidence& e = out[objects[j]];
     const Color reflectorColor = (returned[j] - ownEmission[j]).max(0.0f);
     const double I = luminance(rays[j].reference), B = luminance(reflectorColor) + mirrorBound[j];
@@ -163,9 +160,18 @@ std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& eviden
   std::vector<LightDecision> out(evidence.size());
   std::vector<double> power(evidence.size(), 0.0);
   double totalPower = 0;
-  std::vector<double> radiances;
+  // The room's radiance: the median over the candidates that no excess singles out (all of them
+  // when every one passes, as when no light is in view).
+  auto passesExcess = [&](const LightEvidence& e) {
+    return e.meanExcess() - s.significance * e.excessError() > 0 && e.unexplainedShare() >= s.minUnexplained;
+  };
+  std::vector<double> room, all;
   for (size_t o = 0; o < evidence.size(); ++o)
-    if (candidate[o] && evidence[o].rays > 0) radiances.push_back(evidence[o].meanObserved());
+    if (candidate[o] && evidence[o].rays > 0) {
+      all.push_back(evidence[o].meanObserved());
+      if (!passesExcess(evidence[o])) room.push_back(evidence[o].meanObserved());
+    }
+  std::vector<double>& radiances = room.empty() ? all : room;
   double median = 0;
   if (!radiances.empty()) {
     std::nth_element(radiances.begin(), radiances.begin() + radiances.size() / 2, radiances.end());
@@ -184,7 +190,7 @@ std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& eviden
       continue;
     }
     const double x = e.meanExcess(), se = e.excessError(), share = e.unexplainedShare();
-    if (!(x - s.significance * se > 0) || !(share >= s.minUnexplained)) {
+    if (!passesExcess(e)) {
       d.verdict = LightVerdict::Reflector;
       d.why = fmt::format("looks {:.3g}; a reflector with albedo <= 1 returns {:.3g} (unexplained {:.0f}% +- {:.0f}%, needs {:.0f}% and {:.0f} sigma)",
                           e.meanObserved(), e.meanReflector(), 100 * share, 100 * se / std::max(1e-30, e.meanObserved()),

@@ -20,7 +20,7 @@
 //   reflector   otherwise (the reflector returns enough);
 //   weak        it passes but carries too little of the power to matter;
 //   reflector   also when it passes but does not outshine the room (mean I below min_contrast x
-//               the median of the candidates' mean I): when no light in view explains the room,
+//               the median mean I of the candidates that do not pass): when no light in view explains the room,
 //               every surface passes, and the brightest wall is no more a light than the rest.
 #pragma once
 #include <cmath>
@@ -77,14 +77,15 @@ struct LightEvidence {
   Color albedoEstimate() const;
   // sum of (I - I_mean)^2: what a constant emission leaves.
   double constantResidualSquares() const;
-  void add(const LightEvidence& o);
 };
 
 // Per ray: I, B and P as above (B and P from one path each, seeded from `seed`). Rays whose
 // reference is masked, that miss, or that reach another object than `objects[j]` are not counted,
 // nor, with `cameras` (ray j's camera), rays whose pixel has a neighbour (of the 8) showing
-// another object (or no camera): the pixel filter mixes those neighbours into the reference, so an object seen
-// only at its silhouette (a thin string in front of a window) would borrow their radiance.
+// another object (or lies on the image border, or has no camera): the pixel filter mixes those
+// neighbours into the reference, so an object seen only at its silhouette (a thin string in front
+// of a window) would borrow their radiance. An object with fewer than 16 such interior rays is
+// judged on all of its rays.
 std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const TriangleMesh& mesh, const Appearance& appearance,
                                                const LightSampler& lights, const std::vector<BatchRay>& rays,
                                                const std::vector<int>& objects, const PathSettings& path, uint64_t seed,
@@ -95,8 +96,9 @@ struct LightTestSettings {
   double significance = 3.0;    // z: standard errors the excess must clear
   double pruneFraction = 0.02;  // of the total power the lights imply
   // A light outshines the room: its mean radiance is at least this many times the median of the
-  // candidates' mean radiances. Below it the excess is taken for light the frames do not show
-  // (the object is reported under-lit). 0 = off.
+  // mean radiances of the candidates that do not pass the excess test (of all of them when every
+  // one passes). Below it the excess is taken for light the frames do not show (the object is
+  // reported under-lit). 0 = off.
   double minContrast = 4.0;
 };
 

@@ -199,9 +199,11 @@ std::string lightsSection(const fs::path& file) {
   const Json lights = readJson(file);
   if (!lights.value("hint", Json::array()).empty())
     return "<p>The light sources were given (<code>lights</code>): " + html(lights["hint"].dump()) + "; no decision taken.</p>";
-  std::string s = fmt::format("<p>Test <code>{}</code>: an object is a light source when a reflector with albedo &le; 1 and the "
-                              "model's specular lobe cannot return what its pixels show (docs: light sources).</p>",
-                              html(lights.value("light_test", std::string())));
+  const std::string test = lights.value("light_test", std::string());
+  std::string s = test == "reflector" ? "<p>Test <code>reflector</code>: an object is a light source when a reflector with albedo "
+                                        "&le; 1 and the model's specular lobe cannot return what its pixels show "
+                                        "(docs/design/light-sources.md).</p>"
+                                      : "<p>Test <code>" + html(test) + "</code>.</p>";
   for (const Json& d : lights.value("decisions", Json::array())) {
     s += "<h3>After " + html(d.value("after", std::string())) + "</h3><table><tr><th>object</th><th>decision</th><th>rays</th>"
          "<th>observed</th><th>reflector bound</th><th>unexplained</th><th>power share</th><th>why</th><th>under-lit</th></tr>";
@@ -211,12 +213,13 @@ std::string lightsSection(const fs::path& file) {
       if (const Json u = o.value("under_lit", Json()); u.is_object())
         under = fmt::format("{:.3g} missing; light from ({:.2f}, {:.2f}, {:.2f})", u.value("missing_radiance", 0.0),
                             u["light_from"][0].get<double>(), u["light_from"][1].get<double>(), u["light_from"][2].get<double>());
-      s += fmt::format("<tr><td>{} {}</td><td>{}</td><td>{}</td><td>{:.3g}</td><td>{:.3g}</td><td>{:.0f}% &plusmn; {:.0f}%</td>"
+      const double error = o.value("unexplained_error", -1.0);  // -1: fewer than 2 rays
+      s += fmt::format("<tr><td>{} {}</td><td>{}</td><td>{}</td><td>{:.3g}</td><td>{:.3g}</td><td>{:.0f}% &plusmn; {}</td>"
                        "<td>{:.1f}%</td><td>{}</td><td>{}</td></tr>",
                        o.value("id", 0), html(o.value("name", std::string())), html(o.value("decision", std::string())),
                        o.value("rays", 0), o.value("observed", 0.0), o.value("reflector_bound", 0.0),
                        100 * o.value("unexplained_share", 0.0),
-                       100 * std::max(0.0, o.value("unexplained_error", 0.0)) / std::max(1e-30, o.value("observed", 0.0)),
+                       error < 0 ? std::string("?") : fmt::format("{:.0f}%", 100 * error / std::max(1e-30, o.value("observed", 0.0))),
                        100 * o.value("power_share", 0.0), html(o.value("why", std::string())), under);
     }
     s += "</table>";

@@ -526,10 +526,8 @@ class Fit {
     summary.iterations = globalIteration_;
     summary.finalResolution = finalRes_;
     summary.finalLoss = lastLoss_;
-    for (int o = 0; o < appearance_.objectCount(); ++o) {
+    for (int o = 0; o < appearance_.objectCount(); ++o)
       if (appearance_.isEmissive(o)) summary.emitters.push_back(o);
-      if (outOfModel_[o]) summary.outOfModel.push_back(o);
-    }
     return summary;
   }
 

@@ -143,7 +143,6 @@ struct FitSummary {
   int finalResolution = 0;
   double finalLoss = 0;
   std::vector<int> emitters;
-  std::vector<int> outOfModel;       // objects excluded from emission and albedo (light_evidence.h)
   std::filesystem::path resultDir;   // empty when stopped
   bool stopped = false;
   Json memory;                       // the largest stage's bytes by part

@@ -13,7 +13,7 @@
 #include <algorithm>
 
 #include "adjoint/gradcheck.h"
-#include "pipeline/experiment.h"
+#include "lab/experiment.h"
 
 using namespace relume;
 

@@ -2,7 +2,7 @@
 #include <tbb/task_arena.h>
 
 #include "adjoint/solver.h"
-#include "pipeline/experiment.h"
+#include "lab/experiment.h"
 
 using namespace relume;
 

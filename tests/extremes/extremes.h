@@ -14,9 +14,9 @@
 
 #include "adjoint/gradcheck.h"
 #include "io/json.h"
-#include "pipeline/experiment.h"
-#include "pipeline/fit.h"
-#include "pipeline/prepare.h"
+#include "lab/experiment.h"
+#include "product/fit.h"
+#include "product/prepare.h"
 
 namespace relume::extremes {
 

@@ -5,7 +5,7 @@
 #include <array>
 
 #include "core/error.h"
-#include "pipeline/synth.h"
+#include "scenes/synth.h"
 #include "render/film.h"
 
 using namespace relume;

@@ -3,7 +3,7 @@
 
 #include "core/error.h"
 #include "io/image.h"
-#include "pipeline/prepare.h"
+#include "product/prepare.h"
 #include "sampling/samplers.h"
 
 using namespace relume;

@@ -4,7 +4,7 @@
 #include <fstream>
 
 #include "core/rng.h"
-#include "pipeline/synth.h"
+#include "scenes/synth.h"
 #include "scene/atlas.h"
 #include "framed_room.h"
 

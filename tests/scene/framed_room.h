@@ -3,7 +3,7 @@
 // and 20000 separate 2-5 mm triangles (screws, chain links, sub-texel parts).
 #pragma once
 #include "core/rng.h"
-#include "pipeline/synth.h"
+#include "scenes/synth.h"
 
 namespace relume {
 

@@ -8,7 +8,7 @@
 
 #include "io/image.h"
 #include "io/json.h"
-#include "pipeline/prepare.h"
+#include "product/prepare.h"
 #include "render/film.h"
 #include "render/lights.h"
 

@@ -9,7 +9,7 @@
 #include "core/rng.h"
 #include "core/system.h"
 #include "core/warp.h"
-#include "pipeline/synth.h"
+#include "scenes/synth.h"
 #include "scene/atlas.h"
 #include "scene/texel_map.h"
 #include "framed_room.h"

@@ -1,0 +1,154 @@
+#include "product/evaluate.h"
+
+#include <spdlog/spdlog.h>
+
+#include "capture/transforms.h"
+#include "core/error.h"
+#include "scene/texel_map.h"
+
+namespace relume {
+
+Json ViewComparison::toJson() const {
+  return {{"psnr", psnr}, {"msre", msre}, {"frame_psnr", framePsnr}, {"frame_msre", frameMsre}};
+}
+
+ViewComparison compareViews(const SceneDescription& desc, const std::filesystem::path& cameras, const RenderOptions& render,
+                            const std::filesystem::path& out) {
+  const Capture cap = readTransforms(cameras);
+  const Scene scene(desc.mesh);
+  const LightSampler lights(scene, desc.appearance);
+  ViewComparison v;
+  for (const Frame& frame : cap.frames) {
+    const Image reference = loadFrameImage(frame);
+    const RenderResult r = renderImage(scene, desc.appearance, lights, frame.camera, render);
+    if (!out.empty()) {
+      const std::string stem = frame.image.stem().string();
+      writeExr(out / (stem + ".exr"), r.color);
+      writePng(out / (stem + ".png"), r.color);
+    }
+    double se = 0, rel = 0;
+    size_t n = 0;
+    for (size_t i = 0; i < reference.rgb.size(); ++i) {
+      const float ref = reference.rgb[i], est = r.color.rgb[i];
+      if (ref < 0 || !std::isfinite(est)) continue;  // masked pixel
+      const double d = linearToSrgb(std::clamp(est, 0.0f, 1.0f)) - linearToSrgb(std::clamp(ref, 0.0f, 1.0f));
+      se += d * d;
+      rel += double(est - ref) * (est - ref) / (double(ref) * ref + 1e-2);
+      ++n;
+    }
+    if (n == 0) fail("{}: every pixel is masked", frame.image.string());
+    v.framePsnr.push_back(10.0 * std::log10(1.0 / std::max(se / n, 1e-12)));
+    v.frameMsre.push_back(rel / n);
+  }
+  for (size_t i = 0; i < v.framePsnr.size(); ++i) v.psnr += v.framePsnr[i] / v.framePsnr.size(), v.msre += v.frameMsre[i] / v.frameMsre.size();
+  return v;
+}
+
+Json TruthComparison::toJson() const {
+  return {{"albedo_texels", albedoTexels}, {"albedo_mae", albedoMae}, {"albedo_psnr", albedoPsnr},
+          {"roughness_mae", roughnessMae}, {"specular_mae", specularMae}, {"material_objects", materialObjects},
+          {"emitters_true", emittersTrue}, {"emitters_found", emittersFound}, {"emitters_correct", emittersCorrect},
+          {"emission_rel_error", emissionRelError}, {"albedo_psnr_8bit", albedoPsnr8}, {"roughness_psnr_8bit", roughnessPsnr8},
+          {"emission_iou", emissionIou}, {"objects", perObject}};
+}
+
+TruthOptions truthOptionsFor(const std::filesystem::path& sceneFile) {
+  TruthOptions o;
+  const std::filesystem::path materials = sceneFile.parent_path() / "materials.json";
+  if (!std::filesystem::exists(materials)) return o;
+  const Json m = readJson(materials);
+  withJsonErrors(materials, [&] {
+    for (const Json& obj : m.at("objects")) o.highlightObserved.push_back(obj.at("highlight_observed").get<bool>());
+    return 0;
+  });
+  return o;
+}
+
+namespace {
+int srgb8(float linear) { return static_cast<int>(std::lround(std::clamp(linearToSrgb(std::max(linear, 0.0f)), 0.0f, 1.0f) * 255)); }
+int unit8(float v) { return static_cast<int>(std::lround(std::clamp(v, 0.0f, 1.0f) * 255)); }
+double psnrOf(double sumSquares, size_t n) { return 10.0 * std::log10(1.0 / std::max(sumSquares / std::max<size_t>(n, 1), 1e-12)); }
+}  // namespace
+
+TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescription& truth, const Image& coverage,
+                                 const TruthOptions& o, Image* truthAlbedo) {
+  const TriangleMesh& fm = fit.mesh;
+  const TriangleMesh& tm = truth.mesh;
+  if (fm.triangles.size() != tm.triangles.size())
+    fail("eval: the fitted mesh has {} triangles, the truth {}: they must be the same triangles", fm.triangles.size(), tm.triangles.size());
+  for (size_t f = 0; f < fm.triangles.size(); f += std::max<size_t>(1, fm.triangles.size() / 64))
+    for (int k = 0; k < 3; ++k)
+      if ((fm.positions[fm.triangles[f][k]] - tm.positions[tm.triangles[f][k]]).norm() > 1e-4f)
+        fail("eval: triangle {} differs between the fitted and the truth mesh", f);
+  TruthComparison c;
+  const Appearance& fa = fit.appearance;
+  const Appearance& ta = truth.appearance;
+  // Albedo: every covered texel of the fit observed often enough, against the truth at its point.
+  const int res = fa.albedo.width;
+  const TexelMap map(fm, res);
+  if (truthAlbedo) *truthAlbedo = Image(res, res);
+  double abs = 0, sq = 0, sq8 = 0, roughSq8 = 0;
+  size_t emitBoth = 0, emitEither = 0;
+  struct ObjectError { double abs = 0, signedSum = 0; size_t texels = 0; };  // bias vs noise, per object
+  std::vector<ObjectError> objectError(fa.objectCount());
+  for (size_t t = 0; t < map.texelCount(); ++t) {
+    if (!map.covered(t)) continue;
+    const uint32_t tri = map.triangle(t);
+    const Vec3 bc = map.barycentrics(fm, t);
+    Vec2 uv = Vec2::Zero(), fitUv = Vec2::Zero();
+    for (int k = 0; k < 3; ++k) {
+      if (tm.hasUv()) uv += bc[k] * tm.uvs[tm.triangles[tri][k]];
+      fitUv += bc[k] * fm.uvs[fm.triangles[tri][k]];
+    }
+    const int tObj = tm.faceObject[tri], fObj = fm.faceObject[tri];
+    const Color truth = ta.albedoAt(tObj, uv);
+    if (truthAlbedo) truthAlbedo->set(static_cast<int>(t % res), static_cast<int>(t / res), truth);
+    const bool emitsTrue = ta.emissionAt(tObj, uv).maxCoeff() > 0, emitsFit = fa.emissionAt(fObj, fitUv).maxCoeff() > 0;
+    emitBoth += emitsTrue && emitsFit, emitEither += emitsTrue || emitsFit;
+    const int s = res / coverage.width;
+    if (coverage.at(static_cast<int>(t % res) / s, static_cast<int>(t / res) / s)[0] < o.minObservations) continue;
+    const Color fitted = fa.albedo.texel(static_cast<uint32_t>(t));
+    const Color d = fitted - truth;
+    abs += d.abs().sum() / 3, sq += d.square().sum() / 3;
+    for (int k = 0; k < 3; ++k) sq8 += std::pow((srgb8(fitted[k]) - srgb8(truth[k])) / 255.0, 2) / 3;
+    roughSq8 += std::pow((unit8(fa.roughness[fObj]) - unit8(ta.roughness[tObj])) / 255.0, 2);
+    ++c.albedoTexels;
+    ObjectError& oe = objectError[fObj];
+    oe.abs += d.abs().sum() / 3, oe.signedSum += d.sum() / 3, ++oe.texels;
+  }
+  if (c.albedoTexels) {
+    c.albedoMae = abs / c.albedoTexels, c.albedoPsnr = psnrOf(sq, c.albedoTexels);
+    c.albedoPsnr8 = psnrOf(sq8, c.albedoTexels), c.roughnessPsnr8 = psnrOf(roughSq8, c.albedoTexels);
+  }
+  c.emissionIou = emitEither ? static_cast<double>(emitBoth) / emitEither : 1.0;
+  // Per object.
+  int found = 0;
+  double emissionErr = 0;
+  for (int obj = 0; obj < std::min(fa.objectCount(), ta.objectCount()); ++obj) {
+    const bool materials = o.highlightObserved.empty() || o.highlightObserved[obj];
+    const bool trueEmitter = ta.isEmissive(obj), fitEmitter = fa.isEmissive(obj);
+    const Color te = ta.meanEmission(obj), fe = fa.meanEmission(obj);
+    Json row = {{"id", obj}, {"name", ta.names[obj]}, {"roughness", {fa.roughness[obj], ta.roughness[obj]}},
+                {"specular", {fa.specular[obj], ta.specular[obj]}}, {"materials_scored", materials},
+                {"emitter", {fitEmitter, trueEmitter}}};
+    if (const ObjectError& oe = objectError[obj]; oe.texels)
+      row["albedo"] = {{"texels", oe.texels}, {"mae", oe.abs / oe.texels}, {"bias", oe.signedSum / oe.texels}};
+    if (materials && !trueEmitter) {
+      c.roughnessMae += std::abs(fa.roughness[obj] - ta.roughness[obj]);
+      c.specularMae += std::abs(fa.specular[obj] - ta.specular[obj]);
+      ++c.materialObjects;
+    }
+    c.emittersTrue += trueEmitter, c.emittersFound += fitEmitter, c.emittersCorrect += trueEmitter && fitEmitter;
+    if (trueEmitter && fitEmitter) {
+      const double err = ((fe - te).abs() / te.max(1e-6f)).mean();
+      row["emission_rel_error"] = err;
+      emissionErr += err, ++found;
+    }
+    c.perObject.push_back(row);
+  }
+  if (c.materialObjects) c.roughnessMae /= c.materialObjects, c.specularMae /= c.materialObjects;
+  c.emissionRelError = found ? emissionErr / found : 1.0;
+  return c;
+}
+
+}  // namespace relume

@@ -1,0 +1,338 @@
+#include "product/prepare.h"
+
+#include <spdlog/spdlog.h>
+#include <tbb/parallel_for.h>
+
+#include <atomic>
+#include <cstring>
+#include <fstream>
+#include <map>
+
+#include "capture/frame_store.h"
+#include "capture/objects.h"
+#include "core/error.h"
+#include "core/rng.h"
+#include "core/system.h"
+#include "io/atomic_file.h"
+#include "io/image.h"
+#include "io/json.h"
+#include "scene/scene.h"
+#include "scene/texel_map.h"
+#include "sampling/median_sketch.h"
+#include "sampling/visibility.h"
+
+namespace relume {
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string fingerprintOf(const std::vector<fs::path>& files, const std::string& extra) {
+  uint64_t h = std::hash<std::string>{}(extra);
+  for (const fs::path& f : files) {
+    std::error_code ec;
+    const auto size = fs::file_size(f, ec);
+    const auto time = fs::last_write_time(f, ec).time_since_epoch().count();
+    h = hashTuple({h, std::hash<std::string>{}(f.string()), static_cast<uint64_t>(size), static_cast<uint64_t>(time)});
+  }
+  return fmt::format("{:016x}", h);
+}
+
+// The previous run's report, whose fingerprints say which phases are current. --force ignores it;
+// an unreadable one (hand-edited, truncated) only means every phase is redone.
+Json previousReport(const fs::path& file, bool force) {
+  if (force || !fs::exists(file)) return Json::object();
+  try {
+    Json report = readJson(file);
+    if (report.is_object() && report.value("phases", Json::object()).is_object()) return report;
+    spdlog::warn("{}: not a prepare report; rebuilding every phase", file.string());
+  } catch (const Error& e) {
+    spdlog::warn("{}; rebuilding every phase", e.what());
+  }
+  return Json::object();
+}
+
+fs::path findMesh(const fs::path& capture) {
+  for (const char* name : {"mesh.ply", "mesh.obj"})
+    if (fs::exists(capture / name)) return capture / name;
+  fail("{}: no mesh.ply or mesh.obj in the capture folder", capture.string());
+}
+
+Image falseColour(const std::vector<uint32_t>& counts, int res) {
+  uint32_t maxCount = 1;
+  for (uint32_t c : counts) maxCount = std::max(maxCount, c);
+  Image img(res, res);
+  for (size_t i = 0; i < counts.size(); ++i) {
+    if (counts[i] == 0) continue;
+    const float t = std::log1p(static_cast<float>(counts[i])) / std::log1p(static_cast<float>(maxCount));
+    // Blue (seen once) -> green -> yellow -> red (seen most); black = never.
+    const Color c = t < 0.5f ? Color(0, 2 * t, 1 - 2 * t) : Color(2 * (t - 0.5f), 1 - 2 * (t - 0.5f) * 0.5f, 0);
+    img.rgb[3 * i] = srgbToLinear(c[0]), img.rgb[3 * i + 1] = srgbToLinear(c[1]), img.rgb[3 * i + 2] = srgbToLinear(c[2]);
+  }
+  return img;
+}
+
+}  // namespace
+
+PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, const PrepareOptions& o) {
+  Timer total;
+  fs::create_directories(work);
+  if (const size_t stale = removeStaleTemporaries(work)) spdlog::info("prepare: removed {} temporaries of killed runs", stale);
+  const fs::path transformsPath = capture / "transforms.json";
+  const fs::path meshPath = findMesh(capture);
+  const Capture cap = readTransforms(transformsPath);
+  Json report = previousReport(work / "prepare.json", o.force);
+  const Json reportBefore = report;
+  Json phases = report.value("phases", Json::object());
+  const int initRes = o.resolutions.front();
+  if (initRes % o.tileTexels != 0) fail("prepare: init resolution {} is not a multiple of the tile size {}", initRes, o.tileTexels);
+  for (int r : o.resolutions)
+    if (r < o.atlas.gutterResolution || r % o.atlas.gutterResolution != 0)
+      fail("prepare: resolution {} must be a multiple of the atlas gutter resolution {}", r, o.atlas.gutterResolution);
+
+  // A phase is current when its fingerprint (inputs + options + the previous phase) is unchanged.
+  auto runPhase = [&](const char* name, const std::string& fingerprint, const std::vector<fs::path>& outputs,
+                      const std::function<Json()>& body) {
+    bool current = !o.force && phases.contains(name) && phases[name].value("fingerprint", "") == fingerprint;
+    for (const fs::path& out : outputs) current = current && fs::exists(out);
+    if (current) {
+      spdlog::info("prepare: {} is up to date", name);
+      return;
+    }
+    Timer t;
+    Json result = body();
+    result["fingerprint"] = fingerprint;
+    result["seconds"] = t.seconds();
+    phases[name] = result;
+    report["phases"] = phases;
+    writeJson(work / "prepare.json", report);  // after each phase: an interrupted run keeps its progress
+    spdlog::info("prepare: {} done in {:.1f}s", name, t.seconds());
+  };
+
+  // Atlas.
+  // "atlas2": the charting/packing version, so work folders made by an older atlas are re-charted.
+  const std::string atlasPrint = fingerprintOf({meshPath}, fmt::format("atlas2 {} {} {} {}", o.atlas.gutterResolution,
+                                                                       o.atlas.gutterTexels, o.atlas.coneDegrees, o.atlas.planarDegrees));
+  runPhase("atlas", atlasPrint, {work / "atlas_mesh.ply"}, [&] {
+    TriangleMesh mesh = loadMesh(meshPath);
+    AtlasReport ar;
+    const TriangleMesh atlas = buildAtlas(mesh, o.atlas, &ar);
+    writePly(work / "atlas_mesh.ply", atlas.toData());
+    spdlog::info("atlas: {}", ar.summary());
+    // Names from objects.json, else from the mesh file (OBJ groups).
+    Json names = Json::object();
+    for (size_t id = 0; id < mesh.objectNames.size(); ++id) names[std::to_string(id)] = mesh.objectNames[id];
+    if (fs::exists(capture / "objects.json"))
+      for (const auto& [id, name] : readObjectNames(capture / "objects.json")) names[std::to_string(id)] = name;
+    return Json{{"triangles", atlas.triangles.size()}, {"objects", atlas.objectCount}, {"dropped_degenerate", mesh.droppedDegenerate},
+                {"dropped_coincident", mesh.droppedCoincident},
+                {"kept_input_uv", ar.keptInputUv}, {"charts", ar.charts}, {"lscm_charts", ar.lscmCharts},
+                {"split_charts", ar.splitCharts}, {"merged_charts", ar.mergedCharts}, {"hollow_charts", ar.hollowCharts},
+                {"shared_blocks", ar.sharedBlocks}, {"charts_in_shared_blocks", ar.blockedCharts},
+                {"surface_in_shared_blocks", ar.blockedSurface}, {"packing_efficiency", ar.packingEfficiency},
+                {"texels_per_metre", ar.texelsPerMetre}, {"gutter_resolution", o.atlas.gutterResolution},
+                {"stretch_p05_median_p95", {ar.stretchP05, ar.stretchMedian, ar.stretchP95}},
+                {"uv_overlaps", ar.uvOverlaps}, {"atlas_seconds", ar.seconds},
+                {"object_names", names}};
+  });
+  const TriangleMesh mesh = loadMesh(work / "atlas_mesh.ply");
+  const Scene scene(mesh);
+
+  // Frames: convert, then filter.
+  std::vector<fs::path> imagePaths{transformsPath};
+  for (const Frame& f : cap.frames) imagePaths.push_back(f.image);
+  const std::string framesPrint = fingerprintOf(imagePaths, fmt::format("frames {} {} {} {} {}", o.maxOverexposed, o.maxUnderexposed,
+                                                                         o.maxSpeed, o.maxAngularSpeed, o.downscale));
+  runPhase("frames", framesPrint, {work / "frames.bin"}, [&] {
+    Progress progress("frame cache", cap.frames.size());
+    const std::vector<FrameStats> stats = writeFrameStore(work / "frames.bin", cap.frames, o.downscale, [&] { progress.advance(); });
+    Json kept = Json::array(), dropped = Json::array();
+    std::map<std::string, int> reasons;
+    for (size_t i = 0; i < cap.frames.size(); ++i) {
+      std::string reason;
+      const Camera& c = cap.frames[i].camera;
+      // Camera motion to the nearer neighbour: a fast frame moves far from both neighbours,
+      // whereas a frame next to a jump still has one close neighbour.
+      float speed = INFINITY, angle = INFINITY;
+      for (long j : {static_cast<long>(i) - 1, static_cast<long>(i) + 1}) {
+        if (j < 0 || j >= static_cast<long>(cap.frames.size())) continue;
+        const Camera& d = cap.frames[j].camera;
+        speed = std::min(speed, (c.position - d.position).norm());
+        angle = std::min(angle, std::acos(std::clamp(((c.rotation.transpose() * d.rotation).trace() - 1.0f) / 2.0f, -1.0f, 1.0f)) * 180.0f / kPi);
+      }
+      if (!std::isfinite(speed)) speed = angle = 0;
+      if (stats[i].overexposed > o.maxOverexposed) reason = fmt::format("overexposed ({:.0f}% saturated)", 100 * stats[i].overexposed);
+      else if (stats[i].underexposed > o.maxUnderexposed) reason = fmt::format("underexposed ({:.0f}% dark)", 100 * stats[i].underexposed);
+      else if (speed > o.maxSpeed) reason = fmt::format("motion blur (moved {:.2f} m per frame)", speed);
+      else if (angle > o.maxAngularSpeed) reason = fmt::format("motion blur (turned {:.1f} deg per frame)", angle);
+      if (reason.empty()) {
+        kept.push_back(i);
+      } else {
+        spdlog::warn("frame {} ({}) dropped: {}", i, cap.frames[i].image.filename().string(), reason);
+        dropped.push_back({{"frame", i}, {"image", cap.frames[i].image.filename().string()}, {"reason", reason}});
+        ++reasons[reason.substr(0, reason.find(' '))];
+      }
+    }
+    Json masked = Json::object();  // frames with NaN/Inf pixels (masked, never used)
+    for (size_t i = 0; i < stats.size(); ++i)
+      if (stats[i].masked > 0) masked[std::to_string(i)] = stats[i].masked;
+    return Json{{"frames", cap.frames.size()}, {"kept", kept}, {"dropped", dropped}, {"dropped_by_reason", reasons},
+                {"masked_pixel_fraction", masked},
+                {"bytes", fs::file_size(work / "frames.bin")}};
+  });
+  const std::vector<size_t> kept = phases["frames"]["kept"].get<std::vector<size_t>>();
+  if (kept.empty()) fail("prepare: every frame was dropped (see {})", (work / "prepare.json").string());
+
+  // Visibility index over tiles of the init resolution.
+  const TexelMap initMap(mesh, initRes);
+  const int tilesPerSide = initRes / o.tileTexels;
+  const std::string visPrint = fingerprintOf({}, fmt::format("vis {} {} {} {} {}", atlasPrint, framesPrint, initRes, o.tileTexels,
+                                                             o.samplesPerTile));
+  runPhase("visibility", visPrint, {work / "visibility.bin"}, [&] {
+    const size_t skippedBefore = scene.skippedRays();
+    const VisibilityIndex vis = buildVisibilityIndex(scene, initMap, cap.frames, kept, o.tileTexels, o.samplesPerTile);
+    const size_t tiles = vis.offsets.size() - 1;
+    vis.write(work / "visibility.bin");
+    size_t seen = 0;
+    for (size_t t = 0; t < tiles; ++t) seen += vis.offsets[t + 1] > vis.offsets[t];
+    std::vector<char> frameSees(cap.frames.size(), 0);
+    for (uint32_t f : vis.frames) frameSees[f] = 1;
+    Json blind = Json::array();
+    for (size_t k : kept)
+      if (!frameSees[k]) {
+        spdlog::warn("frame {} ({}) sees no surface of the mesh: skipped", k, cap.frames[k].image.filename().string());
+        blind.push_back(k);
+      }
+    return Json{{"tiles", tiles}, {"tiles_seen", seen}, {"entries", vis.frames.size()}, {"bytes", vis.bytes()},
+                {"frames_seeing_nothing", blind}, {"skipped_rays", scene.skippedRays() - skippedBefore},
+                {"mean_frames_per_seen_tile", seen ? double(vis.frames.size()) / seen : 0.0}};
+  });
+
+  // Initial albedo (streaming median of observed radiance) and coverage.
+  const std::string initPrint = fingerprintOf({}, fmt::format("init {} {}", visPrint, static_cast<int>(o.init)));
+  runPhase("init", initPrint, {work / "albedo_init.exr", work / "coverage.exr", work / "coverage.png"}, [&] {
+    const size_t skippedBefore = scene.skippedRays();
+    const VisibilityIndex vis = VisibilityIndex::read(work / "visibility.bin", cap.frames.size());
+    const FrameStore store(work / "frames.bin");
+    if (store.frameCount() != cap.frames.size())
+      fail("{}: holds {} frames, the capture has {} (rerun with --force)", (work / "frames.bin").string(), store.frameCount(),
+           cap.frames.size());
+    // For each frame, its tiles and its position in each tile's frame list.
+    std::vector<std::vector<std::pair<uint32_t, uint32_t>>> tilesOf(cap.frames.size());
+    for (size_t t = 0; t + 1 < vis.offsets.size(); ++t)
+      for (uint32_t k = vis.offsets[t]; k < vis.offsets[t + 1]; ++k)
+        tilesOf[vis.frames[k]].push_back({static_cast<uint32_t>(t), k - vis.offsets[t]});
+    // One bit per (texel, frame of its tile) remembers which observations the first pass found
+    // unoccluded, so a second pass re-projects without tracing again.
+    const size_t tileArea = static_cast<size_t>(o.tileTexels) * o.tileTexels;
+    std::vector<std::vector<uint64_t>> seenBits(vis.offsets.size() - 1);
+    for (size_t t = 0; t + 1 < vis.offsets.size(); ++t) seenBits[t].assign((tileArea * (vis.offsets[t + 1] - vis.offsets[t]) + 63) / 64, 0);
+    const size_t texels = initMap.texelCount();
+    // Each texel's surface point and normal, computed once rather than once per frame.
+    std::vector<Vec3> texelPoint(texels), texelNormal(texels);
+    std::atomic<size_t> fellBack{0};
+    tbb::parallel_for(size_t{0}, texels, [&](size_t t) {
+      if (!initMap.valid(t)) return;
+      bool geometric = false;
+      texelPoint[t] = initMap.point(mesh, t);
+      texelNormal[t] = initMap.normal(mesh, t, &geometric);
+      if (geometric) fellBack.fetch_add(1, std::memory_order_relaxed);
+    });
+    MedianSketch sketch(texels);
+    std::vector<Eigen::Array3d> sum(o.init == InitStatistic::Mean ? texels : 0, Eigen::Array3d::Zero());
+    std::vector<uint32_t> coverage(texels, 0);
+    // Each pass visits frames in order and, inside a frame, its tiles in parallel: a texel (and
+    // its tile's bits) is only ever updated by one thread at a time, so nothing needs atomics.
+    int passIndex = 0;
+    auto pass = [&](const char* label, const std::function<void(size_t, const Color&)>& add) {
+      const bool traced = passIndex++ > 0;
+      Progress progress(label, kept.size());
+      for (size_t k : kept) {
+        tbb::parallel_for(size_t{0}, tilesOf[k].size(), [&](size_t i) {
+          const auto [tile, slot] = tilesOf[k][i];
+          std::vector<uint64_t>& bits = seenBits[tile];
+          const int tx = static_cast<int>(tile) % tilesPerSide, ty = static_cast<int>(tile) / tilesPerSide;
+          for (int y = ty * o.tileTexels; y < (ty + 1) * o.tileTexels; ++y)
+            for (int x = tx * o.tileTexels; x < (tx + 1) * o.tileTexels; ++x) {
+              const size_t texel = static_cast<size_t>(y) * initRes + x;
+              if (!initMap.valid(texel)) continue;
+              const size_t bit = (static_cast<size_t>(y - ty * o.tileTexels) * o.tileTexels + (x - tx * o.tileTexels)) +
+                                 tileArea * slot;
+              std::optional<Vec2> px;
+              if (traced) {
+                if (!(bits[bit / 64] >> (bit % 64) & 1)) continue;
+                px = cap.frames[k].camera.project(texelPoint[texel]);
+              } else {
+                px = observe(scene, cap.frames[k].camera, texelPoint[texel], texelNormal[texel]);
+              }
+              if (!px) continue;
+              const auto c = store.bilinear(k, *px);
+              if (!c) continue;
+              if (!traced) bits[bit / 64] |= uint64_t{1} << (bit % 64);
+              add(texel, *c);
+            }
+        });
+        progress.advance();
+      }
+    };
+    if (o.init == InitStatistic::Median) {
+      pass("median (coarse)", [&](size_t t, const Color& c) { sketch.addCoarse(t, c); });
+      sketch.startFine();
+      pass("median (fine)", [&](size_t t, const Color& c) { sketch.addFine(t, c); });
+      for (size_t t = 0; t < texels; ++t) coverage[t] = sketch.count(t);
+    } else {
+      pass("mean", [&](size_t t, const Color& c) { sum[t] += c.cast<double>(), ++coverage[t]; });
+    }
+    Image albedo(initRes, initRes), cov(initRes, initRes);
+    size_t valid = 0, unobserved = 0;
+    std::vector<Eigen::Array4d> objectMean(mesh.objectCount, Eigen::Array4d::Zero());
+    for (size_t t = 0; t < texels; ++t) {
+      if (!initMap.valid(t)) continue;
+      ++valid;
+      cov.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes), Color::Constant(static_cast<float>(coverage[t])));
+      if (coverage[t] == 0) {
+        ++unobserved;
+        continue;
+      }
+      const Color v = o.init == InitStatistic::Median ? sketch.median(t) : Color((sum[t] / coverage[t]).cast<float>());
+      albedo.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes), v);
+      const Eigen::Array3d vd = v.cast<double>();
+      objectMean[mesh.faceObject[initMap.triangle(t)]] += Eigen::Array4d(vd[0], vd[1], vd[2], 1.0);
+    }
+    // Texels no frame saw start from their object's average (or mid-grey).
+    for (size_t t = 0; t < texels; ++t) {
+      if (!initMap.valid(t) || coverage[t] > 0) continue;
+      const Eigen::Array4d& m = objectMean[mesh.faceObject[initMap.triangle(t)]];
+      albedo.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes),
+                 m[3] > 0 ? Color((m.head<3>() / m[3]).cast<float>()) : Color::Constant(0.5f));
+    }
+    writeExr(work / "albedo_init.exr", albedo);
+    writePng(work / "albedo_init.png", albedo);  // preview
+    writeExr(work / "coverage.exr", cov);
+    writePng(work / "coverage.png", falseColour(coverage, initRes));
+    const double fraction = valid ? double(unobserved) / valid : 0.0;
+    spdlog::info("init: {} valid texels at {}^2, {:.2f}% never observed", valid, initRes, 100 * fraction);
+    return Json{{"resolution", initRes}, {"statistic", o.init == InitStatistic::Median ? "median" : "mean"},
+                {"valid_texels", valid}, {"unobserved_texels", unobserved}, {"fraction_unobserved", fraction},
+                {"texels_geometric_normal", fellBack.load()}, {"skipped_rays", scene.skippedRays() - skippedBefore}};
+  });
+
+  PrepareSummary s;
+  s.frames = cap.frames.size();
+  s.keptFrames = kept.size();
+  s.triangles = mesh.triangles.size();
+  s.fractionUnobserved = phases["init"].value("fraction_unobserved", 0.0);
+  s.seconds = total.seconds();
+  report["capture"] = fs::absolute(capture).string();
+  report["resolutions"] = o.resolutions;
+  report["texel_map_bytes_per_texel"] = sizeof(uint32_t);
+  // Timings describe the last run that did something: an up-to-date folder (even a read-only one)
+  // is left untouched.
+  if (report != reportBefore) {
+    report["peak_rss_mib"] = peakRssMiB();
+    report["seconds_total_last_run"] = s.seconds;
+    writeJson(work / "prepare.json", report);
+  }
+  return s;
+}
+
+}  // namespace relume

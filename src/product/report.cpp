@@ -1,0 +1,324 @@
+#include "product/report.h"
+
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <optional>
+
+#include "capture/transforms.h"
+#include "core/error.h"
+#include "io/atomic_file.h"
+#include "io/image.h"
+#include "io/json.h"
+#include "product/evaluate.h"
+#include "render/lights.h"
+
+namespace relume {
+
+namespace fs = std::filesystem;
+
+std::string lineChartSvg(const std::string& title, const std::string& xLabel, const std::vector<ChartSeries>& series, bool logY) {
+  constexpr double W = 420, H = 180, L = 60, R = 10, T = 24, B = 28;
+  static const char* const colours[] = {"#1f5fbf", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b"};
+  std::vector<std::vector<std::pair<double, double>>> pts(series.size());
+  bool any = false;
+  double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+  for (size_t k = 0; k < series.size(); ++k)
+    for (size_t i = 0; i < std::min(series[k].x.size(), series[k].y.size()); ++i) {
+      const double y = series[k].y[i];
+      if (!std::isfinite(y) || (logY && y <= 0)) continue;
+      pts[k].push_back({series[k].x[i], logY ? std::log10(y) : y});
+      x0 = std::min(x0, series[k].x[i]), x1 = std::max(x1, series[k].x[i]);
+      y0 = std::min(y0, pts[k].back().second), y1 = std::max(y1, pts[k].back().second);
+      any = true;
+    }
+  std::string svg = fmt::format(R"(<svg xmlns="http://www.w3.org/2000/svg" width="{}" height="{}" viewBox="0 0 {} {}">)", W, H, W, H);
+  svg += fmt::format(R"(<rect width="{}" height="{}" fill="white" stroke="#ccc"/><text x="{}" y="16" font-size="12" font-family="sans-serif">{}</text>)",
+                     W, H, L, title);
+  if (!any) return svg + R"(<text x="60" y="90" font-size="12">no data</text></svg>)";
+  if (x1 == x0) x1 = x0 + 1;
+  if (y1 == y0) y0 -= 0.5, y1 += 0.5;
+  auto sx = [&](double v) { return L + (v - x0) / (x1 - x0) * (W - L - R); };
+  auto sy = [&](double v) { return T + (y1 - v) / (y1 - y0) * (H - T - B); };
+  auto label = [&](double v) { return logY ? std::pow(10.0, v) : v; };
+  for (size_t k = 0; k < series.size(); ++k) {
+    std::string line;
+    for (const auto& [px, py] : pts[k]) line += fmt::format("{:.1f},{:.1f} ", sx(px), sy(py));
+    const char* colour = colours[k % std::size(colours)];
+    svg += fmt::format(R"(<polyline fill="none" stroke="{}" stroke-width="1.5" points="{}"/>)", colour, line);
+    if (!series[k].name.empty())
+      svg += fmt::format(R"(<text x="{}" y="{}" font-size="10" font-family="sans-serif" fill="{}" text-anchor="end">{}</text>)",
+                         W - R - 2, T + 12 * (k + 1), colour, series[k].name);
+  }
+  svg += fmt::format(R"(<g font-size="10" font-family="sans-serif"><text x="2" y="{:.0f}">{:.3g}</text><text x="2" y="{:.0f}">{:.3g}</text>)",
+                     sy(y1) + 4, label(y1), sy(y0) + 4, label(y0));
+  svg += fmt::format(R"(<text x="{}" y="{}">{:g}</text><text x="{}" y="{}" text-anchor="end">{:g} ({})</text></g></svg>)",
+                     L, H - 8, x0, W - R, H - 8, x1, xLabel);
+  return svg;
+}
+
+std::string lossCurveSvg(const std::string& title, const std::vector<double>& x, const std::vector<double>& y) {
+  return lineChartSvg(title, "iteration; loss on a log scale", {{"", x, y}}, true);
+}
+
+namespace {
+
+std::string html(const std::string& s) {
+  std::string out;
+  for (char c : s) out += c == '<' ? "&lt;" : c == '>' ? "&gt;" : c == '&' ? "&amp;" : std::string(1, c);
+  return out;
+}
+
+std::vector<Json> readJsonLines(const fs::path& path) {
+  std::vector<Json> lines;
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line))
+    if (!line.empty()) lines.push_back(Json::parse(line, nullptr, false));
+  return lines;
+}
+
+// One exposure for every picture of the views: the references' 95th percentile maps to 0.8.
+float viewExposure(const std::vector<Image>& references) {
+  std::vector<float> v;
+  for (const Image& img : references)
+    for (size_t i = 0; i < img.rgb.size(); i += 7) v.push_back(img.rgb[i]);
+  if (v.empty()) return 1.0f;
+  std::nth_element(v.begin(), v.begin() + v.size() * 95 / 100, v.end());
+  const float p95 = v[v.size() * 95 / 100];
+  return p95 > 0 ? 0.8f / p95 : 1.0f;
+}
+
+std::string viewsSection(const fs::path& out, const SceneDescription& fit, const Json& prepare, const ReportOptions& o) {
+  const fs::path capture = prepare.at("capture").get<std::string>();
+  const std::vector<Frame> frames = readTransforms(capture / "transforms.json").frames;
+  const auto kept = prepare.at("phases").at("frames").at("kept").get<std::vector<uint32_t>>();
+  if (kept.empty() || o.frames <= 0) return "<p>No frames.</p>";
+  const Scene scene(fit.mesh);
+  const LightSampler lights(scene, fit.appearance);
+  RenderOptions ro;
+  ro.spp = o.spp;
+  std::vector<Image> refs, renders;
+  std::vector<uint32_t> shown;
+  const size_t n = std::min<size_t>(o.frames, kept.size());
+  for (size_t k = 0; k < n; ++k) {
+    const uint32_t f = kept[k * kept.size() / n];
+    shown.push_back(f);
+    refs.push_back(loadFrameImage(frames[f]));
+    renders.push_back(renderImage(scene, fit.appearance, lights, frames[f].camera, ro).color);
+  }
+  const float exposure = viewExposure(refs);
+  std::string s = fmt::format(
+      "<p>Kept frames re-rendered from the result ({} spp), one exposure ({:.3g}) for all; error = |render - reference| x 4 "
+      "(masked pixels black).</p><table><tr><th>frame</th><th>reference</th><th>re-render</th><th>error</th></tr>",
+      o.spp, exposure);
+  for (size_t k = 0; k < shown.size(); ++k) {
+    Image err(refs[k].width, refs[k].height);
+    for (size_t i = 0; i < err.rgb.size(); ++i)
+      err.rgb[i] = refs[k].rgb[i] < 0 ? 0.0f : 4.0f * std::abs(renders[k].rgb[i] - refs[k].rgb[i]);
+    const std::string stem = fmt::format("view_{}", shown[k]);
+    writePng(out / (stem + "_reference.png"), refs[k], exposure);
+    writePng(out / (stem + "_render.png"), renders[k], exposure);
+    writePng(out / (stem + "_error.png"), err, exposure);
+    s += fmt::format("<tr><td>{}</td><td><img src=\"{}_reference.png\"></td><td><img src=\"{}_render.png\"></td>"
+                     "<td><img src=\"{}_error.png\"></td></tr>", html(frames[shown[k]].image.filename().string()), stem, stem, stem);
+  }
+  return s + "</table>";
+}
+
+std::string figure(const std::string& file, const std::string& caption) {
+  return fmt::format("<figure><img class=\"tex\" src=\"{}\"><figcaption>{}</figcaption></figure>", file, caption);
+}
+
+// Albedo init / fit / truth (in the fit's atlas), coverage, emission textures.
+std::string texturesSection(const fs::path& work, const fs::path& out, const SceneDescription& fit,
+                            const SceneDescription* truth, TruthComparison* scores) {
+  // prepare's pictures: a work folder copied without them still gets its report.
+  auto prepared = [&](const std::string& file, const std::string& caption) -> std::string {
+    if (!fs::exists(work / file)) {
+      spdlog::warn("report: {} is missing (prepare writes it): figure skipped", (work / file).string());
+      return "";
+    }
+    fs::copy_file(work / file, out / file, fs::copy_options::overwrite_existing);
+    return figure(file, caption);
+  };
+  std::string s = prepared("albedo_init.png", "albedo init (median)");
+  Image albedo(fit.appearance.albedo.width, fit.appearance.albedo.height);
+  albedo.rgb = fit.appearance.albedo.rgb;
+  writeSrgbPng(out / "albedo.png", albedo, 8);
+  s += figure("albedo.png", "albedo (fit)");
+  if (truth) {
+    Image truthAlbedo;
+    *scores = compareWithTruth(fit, *truth, readImage(work / "coverage.exr"), {}, &truthAlbedo);
+    if (!truthAlbedo.rgb.empty()) {
+      writeSrgbPng(out / "albedo_truth.png", truthAlbedo, 8);
+      s += figure("albedo_truth.png", "albedo (truth, in the fit's atlas)");
+    }
+  }
+  s += prepared("coverage.png", "coverage (observations per texel: black never, blue once, red most)");
+  for (int o = 0; o < fit.appearance.objectCount(); ++o)
+    if (const Texture* t = fit.appearance.emissionTexture(o)) {
+      Image img(t->width, t->height);
+      img.rgb = t->rgb;
+      float peak = 0;
+      for (float v : img.rgb) peak = std::max(peak, v);
+      const std::string file = fmt::format("emission_{}.png", o);
+      writePng(out / file, img, peak > 0 ? 1.0f / peak : 1.0f);
+      s += figure(file, fmt::format("emission of {} (divided by its peak {:.3g})", html(fit.appearance.names[o]), peak));
+    }
+  return s;
+}
+
+std::string materialsSection(const Json& materials, const SceneDescription* truth) {
+  std::string s = "<table><tr><th>id</th><th>name</th><th>roughness</th><th>specular</th><th>emission</th><th>light</th>"
+                  "<th>highlights seen</th><th>texels observed</th>";
+  if (truth) s += "<th>truth roughness</th><th>truth specular</th><th>truth emission</th>";
+  s += "</tr>";
+  auto rgb = [](const Json& e) { return fmt::format("{:.3g} {:.3g} {:.3g}", e[0].get<double>(), e[1].get<double>(), e[2].get<double>()); };
+  for (const Json& o : materials.at("objects")) {
+    const int id = static_cast<int>(jsonInteger(o.at("id"), 0, INT32_MAX, "materials.json", "id"));  // indexes the truth
+    s += fmt::format("<tr><td>{}</td><td>{}</td><td>{:.3f}</td><td>{:.3f}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.0f}%</td>", id,
+                     html(o.at("name").get<std::string>()), o.at("roughness").get<double>(), o.at("specular").get<double>(),
+                     rgb(o.at("emission")), o.at("is_emitter").get<bool>() ? "yes" : o.value("out_of_model", false) ? "out of model" : "", o.at("highlight_observed").get<bool>() ? "yes" : "no",
+                     100 * o.at("observed_texel_fraction").get<double>());
+    if (truth && id < truth->appearance.objectCount()) {
+      const Appearance& t = truth->appearance;
+      const Color e = t.meanEmission(id);
+      s += fmt::format("<td>{:.3f}</td><td>{:.3f}</td><td>{:.3g} {:.3g} {:.3g}</td>", t.roughness[id], t.specular[id], e[0], e[1], e[2]);
+    }
+    s += "</tr>";
+  }
+  return s + "</table>";
+}
+
+// Each light-source decision (result/lights.json): per object, the verdict and its evidence.
+std::string lightsSection(const fs::path& file) {
+  if (!fs::exists(file)) return "<p>No light-source decisions recorded.</p>";
+  const Json lights = readJson(file);
+  if (!lights.value("hint", Json::array()).empty())
+    return "<p>The light sources were given (<code>lights</code>): " + html(lights["hint"].dump()) + "; no decision taken.</p>";
+  const std::string test = lights.value("light_test", std::string());
+  std::string s = test == "reflector" ? "<p>Test <code>reflector</code>: an object is a light source when a reflector with albedo "
+                                        "&le; 1 and the model's specular lobe cannot return what its pixels show "
+                                        "(docs/design/light-sources.md).</p>"
+                                      : "<p>Test <code>" + html(test) + "</code>.</p>";
+  for (const Json& d : lights.value("decisions", Json::array())) {
+    s += "<h3>After " + html(d.value("after", std::string())) + "</h3><table><tr><th>object</th><th>decision</th><th>rays</th>"
+         "<th>observed</th><th>reflector bound</th><th>unexplained</th><th>power share</th><th>why</th><th>under-lit</th></tr>";
+    for (const Json& o : d.value("objects", Json::array())) {
+      if (o.value("decision", std::string()) == "not_a_candidate") continue;
+      std::string under;
+      if (const Json u = o.value("under_lit", Json()); u.is_object())
+        under = fmt::format("{:.3g} missing; light from ({:.2f}, {:.2f}, {:.2f})", u.value("missing_radiance", 0.0),
+                            u["light_from"][0].get<double>(), u["light_from"][1].get<double>(), u["light_from"][2].get<double>());
+      const double error = o.value("unexplained_error", -1.0);  // -1: fewer than 2 rays
+      s += fmt::format("<tr><td>{} {}</td><td>{}</td><td>{}</td><td>{:.3g}</td><td>{:.3g}</td><td>{:.0f}% &plusmn; {}</td>"
+                       "<td>{:.1f}%</td><td>{}</td><td>{}</td></tr>",
+                       o.value("id", 0), html(o.value("name", std::string())), html(o.value("decision", std::string())),
+                       o.value("rays", 0), o.value("observed", 0.0), o.value("reflector_bound", 0.0),
+                       100 * o.value("unexplained_share", 0.0),
+                       error < 0 ? std::string("?") : fmt::format("{:.0f}%", 100 * error / std::max(1e-30, o.value("observed", 0.0))),
+                       100 * o.value("power_share", 0.0), html(o.value("why", std::string())), under);
+    }
+    s += "</table>";
+  }
+  return s;
+}
+
+// Per stage: a loss curve and the phase times of its last record (cumulative within the stage).
+std::string stagesSection(const std::vector<Json>& metrics) {
+  std::vector<std::string> order;
+  std::map<std::string, std::pair<std::vector<double>, std::vector<double>>> curves;
+  std::map<std::string, Json> last;
+  for (const Json& m : metrics) {
+    if (!m.is_object() || !m.contains("stage") || !m.contains("loss")) continue;
+    const std::string stage = m["stage"].get<std::string>();
+    if (!curves.count(stage)) order.push_back(stage);
+    curves[stage].first.push_back(m.value("iteration", 0.0));
+    curves[stage].second.push_back(m["loss"].get<double>());
+    last[stage] = m;
+  }
+  std::string svgs, rows;
+  for (const std::string& stage : order) {
+    svgs += lossCurveSvg("loss, stage " + html(stage), curves[stage].first, curves[stage].second);
+    const Json& m = last[stage];
+    double total = 0;
+    std::string phases;
+    const Json seconds = m.value("seconds", Json::object());
+    for (const auto& [phase, sec] : seconds.items()) {
+      total += sec.get<double>();
+      phases += fmt::format("{} {:.2f} s, ", phase, sec.get<double>());
+    }
+    rows += fmt::format("<tr><td>{}</td><td>{}</td><td>{:.3e}</td><td>{:.1f} s</td><td>{}</td></tr>", html(stage),
+                        m.value("stage_iteration", 0), m["loss"].get<double>(), total, phases.substr(0, phases.size() - 2));
+  }
+  return "<div class=\"curves\">" + svgs + "</div><table><tr><th>stage</th><th>iterations</th><th>final loss</th><th>time</th>"
+         "<th>by phase</th></tr>" + rows + "</table>";
+}
+
+std::string prepareSection(const Json& prepare, const Json& materials) {
+  std::string s = "<table><tr><th>phase</th><th>time</th></tr>";
+  for (const auto& [phase, p] : prepare.at("phases").items())
+    if (p.contains("seconds")) s += fmt::format("<tr><td>prepare: {}</td><td>{:.2f} s</td></tr>", html(phase), p["seconds"].get<double>());
+  s += "</table>";
+  return s + fmt::format("<p>Peak RSS: prepare {:.0f} MiB, fit {:.0f} MiB.</p>", prepare.value("peak_rss_mib", 0.0),
+                         materials.value("peak_rss_mib", 0.0));
+}
+
+}  // namespace
+
+fs::path writeFitReport(const fs::path& work, const ReportOptions& o) {
+  const fs::path out = work / "report";
+  fs::create_directories(out);
+  const Json prepare = readJson(work / "prepare.json");
+  const Json materials = readJson(work / "result" / "materials.json");
+  const SceneDescription fit = loadSceneFile(work / "result" / "scene.json");
+  const fs::path truthFile = fs::path(prepare.at("capture").get<std::string>()) / "gt" / "scene.json";
+  std::optional<SceneDescription> truth;
+  if (fs::exists(truthFile)) truth = loadSceneFile(truthFile);
+  TruthComparison scores;
+  std::string textures;
+  try {
+    textures = texturesSection(work, out, fit, truth ? &*truth : nullptr, &scores);
+  } catch (const Error& e) {  // a truth on other triangles (the `scan` capture) cannot be scored texel by texel
+    spdlog::warn("report: truth not compared: {}", e.what());
+    truth.reset();
+    textures = texturesSection(work, out, fit, nullptr, &scores);
+  }
+  std::string page = R"(<!DOCTYPE html><html><head><meta charset="utf-8"><title>relume fit report</title><style>
+body{font-family:sans-serif;margin:1.5em;max-width:1400px} table{border-collapse:collapse;margin:.5em 0}
+td,th{border:1px solid #ccc;padding:3px 6px;font-size:13px;text-align:left} td img{image-rendering:pixelated;width:320px}
+img.tex{width:256px;height:256px} figure{display:inline-block;margin:4px} figcaption{font-size:12px;max-width:256px}
+.curves svg{margin:4px} pre{background:#f4f4f4;padding:8px;font-size:12px}</style></head><body>)";
+  page += fmt::format("<h1>relume fit report</h1><p>Work folder <code>{}</code>; capture <code>{}</code>. {} iterations, final "
+                      "loss {:.3e}, albedo {}&sup2;.</p>",
+                      html(fs::absolute(work).string()), html(prepare.at("capture").get<std::string>()),
+                      materials.value("iterations", 0), materials.value("final_loss", 0.0), materials.value("albedo_resolution", 0));
+  if (truth)
+    page += fmt::format("<p>Against the capture's ground truth: albedo MAE {:.4f} (PSNR {:.2f} dB) over {} texels observed "
+                        "&ge; 5 times; roughness MAE {:.3f}, specular MAE {:.3f}; emitters {}/{} found; emission error {:.1f}%. "
+                        "Peers' measures: albedo PSNR {:.2f} dB and roughness PSNR {:.2f} dB on 8-bit maps, emission IoU {:.3f}.</p>",
+                        scores.albedoMae, scores.albedoPsnr, scores.albedoTexels, scores.roughnessMae, scores.specularMae,
+                        scores.emittersCorrect, scores.emittersTrue, 100 * scores.emissionRelError, scores.albedoPsnr8,
+                        scores.roughnessPsnr8, scores.emissionIou);
+  page += "<h2>Views</h2>";
+  try {
+    page += viewsSection(out, fit, prepare, o);
+  } catch (const Error& e) {  // the capture moved or lost images: the rest of the report still stands
+    spdlog::warn("report: views not rendered: {}", e.what());
+    page += "<p>Views not rendered: " + html(e.what()) + "</p>";
+  }
+  page += "<h2>Textures</h2>" + textures;
+  page += "<h2>Materials</h2>" + materialsSection(materials, truth ? &*truth : nullptr);
+  page += "<h2>Light sources</h2>" + lightsSection(work / "result" / "lights.json");
+  page += "<h2>Loss and time per stage</h2>" + stagesSection(readJsonLines(work / "metrics.jsonl"));
+  page += "<h2>Prepare and memory</h2>" + prepareSection(prepare, materials);
+  page += "<h2>Config</h2><pre>" + html(materials.value("config", Json::object()).dump(2)) + "</pre></body></html>\n";
+  writeTextAtomically(out / "index.html", page);
+  spdlog::info("fit: report {}", (out / "index.html").string());
+  return out / "index.html";
+}
+
+}  // namespace relume

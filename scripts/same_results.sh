@@ -36,7 +36,7 @@ run "$B" "$SCRATCH/b" > "$SCRATCH/b.log" 2>&1 || { echo "$B failed: $SCRATCH/b.l
 python3 - "$SCRATCH/a" "$SCRATCH/b" <<'PY'
 import json, pathlib, re, sys
 a, b = map(pathlib.Path, sys.argv[1:3])
-TIMING = re.compile(r"second|_ms$|elapsed|rss|^time")
+VARYING = re.compile(r"second|_ms$|elapsed|rss|^time|fingerprint")  # fingerprints hash the paths
 def scrub(v):
     if isinstance(v, dict): return {k: scrub(x) for k, x in v.items() if not VARYING.search(k)}
     if isinstance(v, list): return [scrub(x) for x in v]

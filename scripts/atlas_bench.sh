@@ -1,6 +1,5 @@
 #!/usr/bin/env bash
-# Reruns the README's atlas table (section "Texture space: relume prepare", "Atlas on real
-# interiors"): for each scene, a short capture rendered by relume itself, `relume prepare` end to
+# Reruns the atlas table of docs/notes/2026-11-22-prepare-and-atlas.md: for each scene, a short capture rendered by relume itself, `relume prepare` end to
 # end, and one table row from its prepare.json.
 #
 # The real interiors come from https://github.com/VElysianP/mitsuba_scenes (artist-made rooms,
@@ -10,7 +9,7 @@
 #   MIRROR=/data/mitsuba_scenes scripts/atlas_bench.sh
 # The procedural room and the 1M-triangle scan are made by `relume synth`. Captures already in OUT
 # are reused (delete one to convert and render it again); `prepare` always reruns. Needs
-# build/relume (scripts/demo.sh or the README's cmake lines) and python3 with numpy. OUT defaults
+# build/relume (scripts/demo.sh builds it) and python3 with numpy. OUT defaults
 # to out/atlas_bench.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Reproduces the performance figures of the README (about 12 minutes on 2 cores). Not part of the
+# Reproduces the performance figures of docs/design/rendering.md (about 12 minutes on 2 cores). Not part of the
 # test suite. Output: out/perf/ (logs) and the figures on stdout. The speed/accuracy sweeps are
 # `relume bench` (about 30 minutes), the peer comparison scripts/peer_bench.sh, the 4096^2 memory
 # runs scripts/memory_4k.sh.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# relume against Blender 3.4 Cycles on the same scene (README "Agreement with Blender Cycles").
+# relume against Blender 3.4 Cycles on the same scene (docs/notes/2026-11-22-cycles-agreement.md).
 # Not part of the test suite (needs Blender: `apt-get install blender`). Writes the scene
 # (scripts/cycles_scene.py), renders it with relume and with Cycles, twice each with independent
 # seeds (the two halves give each per-object mean its standard error), and prints per-object

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # `relume export --gltf` in the real consumer: Blender 3.4's glTF importer reads the .glb as is
 # (no fix-up), Cycles renders the cameras, and the per-object means are compared with relume's
-# render of the same cameras (README "Export"). Not part of the test suite (needs Blender:
+# render of the same cameras (docs/user/export.md). Not part of the test suite (needs Blender:
 # `apt-get install blender`). Cycles settings as scripts/cycles_compare.sh (max bounces 8 =
 # relume's default --max-depth 9, GGX, no clamping, no denoising), two seeds each for the
 # standard error.

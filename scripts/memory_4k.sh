@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Memory-bounded 4096^2 reconstruction from the command line (README "Memory-bounded 4K"): a
+# Memory-bounded 4096^2 reconstruction from the command line (docs/notes/2026-11-23-memory-4k.md): a
 # scan-like capture (1M-triangle noisy room, 128x96 frames) at 2000 and 500 frames, prepared at
 # 1024/2048/4096, fitted to 4096^2. The 2000-frame depth-9 fit is a whole (short) reconstruction;
 # the other three (500 frames, and depth 2) reach the 4096^2 stage in a few iterations each, to

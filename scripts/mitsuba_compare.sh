@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # `relume export --mitsuba` in the real consumer: Mitsuba 3 (scalar_rgb, CPU) loads the exported
 # scene.xml as is and renders the cameras; per-object means are compared with relume's render of
-# the same cameras (README "Export"). Not part of the test suite, and Mitsuba is never a
+# the same cameras (docs/user/export.md). Not part of the test suite, and Mitsuba is never a
 # dependency of relume: `pip install mitsuba` (3.x).
 #
 # Usage: scripts/mitsuba_compare.sh [SCENE.json|WORK_DIR CAMERAS.json] [OUT_DIR]

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# One variant of a fit resumed from a shared checkpoint, then scored: how the README's
+# One variant of a fit resumed from a shared checkpoint, then scored: how the notes'
 # "resumed from one checkpoint" tables were measured (e.g. the albedo stage with 2 samples per
 # ray, the material stage with highlight texels). A benchmark helper, not a test.
 #

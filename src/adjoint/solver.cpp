@@ -3,41 +3,18 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
+#include "core/check.h"
 #include "core/error.h"
 #include "core/system.h"
+#include "core/random_streams.h"
 
 namespace relume {
 
-GradientMode parseGradientMode(const std::string& s) {
-  if (s == "direct") return GradientMode::Direct;
-  if (s == "full") return GradientMode::Full;
-  fail("--gradients must be direct or full, not '{}'", s);
-}
-EmitterGradients parseEmitterGradients(const std::string& s) {
-  if (s == "strict") return EmitterGradients::Strict;
-  if (s == "all-depth") return EmitterGradients::AllDepth;
-  fail("--emitter-gradients must be strict or all-depth, not '{}'", s);
-}
-Pairing parsePairing(const std::string& s) {
-  if (s == "decorrelated") return Pairing::Decorrelated;
-  if (s == "crossfit") return Pairing::Crossfit;
-  if (s == "reuse") return Pairing::Reuse;
-  fail("--pairing must be decorrelated, crossfit or reuse, not '{}'", s);
-}
-const char* pairingName(Pairing p) {
-  switch (p) {
-    case Pairing::Decorrelated: return "decorrelated";
-    case Pairing::Crossfit: return "crossfit";
-    case Pairing::Reuse: return "reuse";
-  }
-  return "";
-}
-
 uint64_t primalSeed(const AdjointSettings& s, uint64_t iteration, size_t ray) {
-  return hashTuple({s.seed, iteration, ray, 0x5031});
+  return hashTuple({s.seed, iteration, ray, streamTag(RandomStream::PrimalPass)});
 }
 uint64_t adjointSeed(const AdjointSettings& s, uint64_t iteration, size_t ray) {
-  return hashTuple({s.seed, iteration, ray, 0x5032});
+  return hashTuple({s.seed, iteration, ray, streamTag(RandomStream::AdjointPass)});
 }
 
 namespace {
@@ -334,6 +311,9 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
                                 const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration,
                                 Gradients& grads) {
   GradientResult result;
+  CHECK(grads.albedo.size() == appearance.albedo.rgb.size());  // the buffers belong to this appearance
+  CHECK(grads.albedoCurvature.empty() || grads.albedoCurvature.size() == grads.albedo.size());
+  CHECK(settings.path.maxDepth >= 0);
   if (rays.empty()) return result;
   const float invN = 1.0f / static_cast<float>(rays.size());
   auto lossOf = [&](size_t j, const Color& est) { return rays[j].weight * rayLoss(est, rays[j].reference, rays[j].clip); };

@@ -5,10 +5,13 @@
 // accumulated as a suffix (never subtracted from a total), and delta_j x derivative is scattered
 // onto the parameters. Memory: O(batch) for delta + O(threads x kWaveRecordBytes) for records.
 #pragma once
+#include <array>
 #include <functional>
+#include <string_view>
 #include <vector>
 
 #include "adjoint/loss.h"
+#include "core/enum_names.h"
 #include "params/parameters.h"
 #include "render/path_tracer.h"
 
@@ -18,10 +21,21 @@ enum class GradientMode { Direct, Full };         // Direct: parameters at the f
 enum class EmitterGradients { Strict, AllDepth }; // with Direct: emitters reached from x0 only, or any
 enum class Pairing { Decorrelated, Crossfit, Reuse };
 
-GradientMode parseGradientMode(const std::string& s);
-EmitterGradients parseEmitterGradients(const std::string& s);
-Pairing parsePairing(const std::string& s);
-const char* pairingName(Pairing p);
+template <>
+struct EnumNames<GradientMode> {
+  static constexpr std::array<std::pair<GradientMode, std::string_view>, 2> values{
+      {{GradientMode::Direct, "direct"}, {GradientMode::Full, "full"}}};
+};
+template <>
+struct EnumNames<EmitterGradients> {
+  static constexpr std::array<std::pair<EmitterGradients, std::string_view>, 2> values{
+      {{EmitterGradients::Strict, "strict"}, {EmitterGradients::AllDepth, "all-depth"}}};
+};
+template <>
+struct EnumNames<Pairing> {
+  static constexpr std::array<std::pair<Pairing, std::string_view>, 3> values{
+      {{Pairing::Decorrelated, "decorrelated"}, {Pairing::Crossfit, "crossfit"}, {Pairing::Reuse, "reuse"}}};
+};
 
 struct AdjointSettings {
   GradientMode mode = GradientMode::Direct;

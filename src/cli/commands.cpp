@@ -3,28 +3,24 @@
 #include <spdlog/spdlog.h>
 
 #include <limits>
-#include <numeric>
-#include <optional>
+#include <map>
 #include <sstream>
 
-#include "capture/transforms.h"
-#include "io/atomic_file.h"
-#include "io/json.h"
 #include "core/error.h"
 #include "core/system.h"
-#include "adjoint/gradcheck.h"
+#include "io/atomic_file.h"
 #include "lab/bench.h"
-#include "scenes/demo.h"
+#include "lab/gradcheck_command.h"
+#include "lab/profile_command.h"
 #include "product/evaluate.h"
-#include "lab/experiment.h"
 #include "product/export.h"
 #include "product/fit.h"
 #include "product/prepare.h"
-#include "lab/profile.h"
 #include "product/render_views.h"
 #include "product/report.h"
-#include "scenes/synth.h"
 #include "render/film.h"
+#include "scenes/demo.h"
+#include "scenes/synth.h"
 
 namespace relume {
 namespace {
@@ -41,59 +37,19 @@ CLI::Validator inRange(double lo, double hi) {
       fmt::format("in [{}, {}]", lo, hi));
 }
 constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// An option naming a value of enum E (core/enum_names.h): parsed here, once; any other text is
+// an error naming the option and the choices.
+template <typename E>
+CLI::Option* addEnumOption(CLI::App* c, const std::string& name, E& target, const std::string& help) {
+  std::map<std::string, E> byName;
+  for (const auto& [value, text] : EnumNames<E>::values) byName.emplace(std::string(text), value);
+  return c->add_option(name, target, fmt::format("{}: {} (default {})", help, enumChoices<E>(), enumName(target)))
+      ->transform(CLI::CheckedTransformer(byName));
+}
 constexpr int kMaxSide = 65536, kMaxSpp = 1 << 20, kMaxDepthLimit = 1024;
 
 constexpr const char* kMaxDepthHelp = "scattering vertices per path, each with light sampling (1 = direct light only; Cycles' max bounces B is depth B + 1)";
-
-struct GradcheckArgs {
-  std::string scene, cameras, synth = "room", param = "all", gradients = "direct", emitters = "strict",
-                                 pairing = "decorrelated", level = "both";
-  int rays = 256, batches = 32, perKind = 3, maxDepth = kDefaultMaxDepth, atlas = 64;
-  float eps = 1e-3f, emissionScale = 1.0f, clipHigh = INFINITY;
-  bool roulette = false;
-};
-
-int runGradcheck(const GradcheckArgs& a) {
-  ExperimentOptions eo;
-  eo.rays = a.rays;
-  eo.maxDepth = a.maxDepth;
-  eo.atlasResolution = a.atlas;
-  eo.emissionScale = a.emissionScale;
-  eo.clipHigh = a.clipHigh;
-  GradcheckOptions go;
-  go.kinds = a.param == "all" ? std::vector<ParamKind>(kAllParamKinds.begin(), kAllParamKinds.end())
-                              : std::vector<ParamKind>{parseParamKind(a.param)};
-  eo.emissionTextures = std::find(go.kinds.begin(), go.kinds.end(), ParamKind::EmissionTexture) != go.kinds.end();
-  GradientExperiment e;
-  if (!a.scene.empty()) {
-    if (a.cameras.empty()) fail("gradcheck: --scene needs --cameras transforms.json to aim rays");
-    std::vector<Camera> cams;
-    for (const Frame& f : readTransforms(a.cameras).frames) cams.push_back(f.camera);
-    e = makeGradientExperiment(loadSceneFile(a.scene), cams, eo);
-  } else {
-    e = makeGradientExperiment(parseSynthScene(a.synth), eo);
-  }
-  go.settings.mode = parseGradientMode(a.gradients);
-  go.settings.emitters = parseEmitterGradients(a.emitters);
-  go.settings.pairing = parsePairing(a.pairing);
-  go.settings.path.maxDepth = a.maxDepth;
-  go.settings.path.russianRoulette = a.roulette;
-  go.eps = a.eps;
-  go.batches = a.batches;
-  go.paramsPerKind = a.perKind;
-  go.level1 = a.level != "loss";
-  go.level2 = a.level != "sample";
-  const Scene scene(e.truth.mesh);
-  Timer t;
-  const GradcheckReport report = runGradcheck(scene, e.current, e.rays, go);
-  fmt::print("gradcheck: {} rays, gradients {}, emitter gradients {}, pairing {}, depth {}, eps {}\n", e.rays.size(),
-             a.gradients, a.emitters, a.pairing, a.maxDepth, a.eps);
-  fmt::print("{}", report.table());
-  if (go.settings.mode == GradientMode::Direct && go.level2)
-    fmt::print("\n{}", directVersusFull(scene, e.current, e.rays, go.settings, report, go.batches));
-  fmt::print("{} in {:.1f}s\n", report.pass() ? "PASS" : "FAIL", t.seconds());
-  return report.pass() ? 0 : 1;
-}
 
 void registerPrepare(CLI::App& app, CommandTable& table) {
   auto o = std::make_shared<PrepareOptions>();
@@ -136,151 +92,8 @@ void registerPrepare(CLI::App& app, CommandTable& table) {
   };
 }
 
-struct ProfileArgs {
-  std::string synth = "room", what = "render,adjoint";
-  std::string work, config, stage = "albedo", json, scratch = "out/room";
-  std::string scene, cameras, raysOut;  // render: a scene.json seen from a transforms.json's first camera
-  int iterations = 20;
-  bool maxDepthGiven = false;  // fit: --max-depth overrides the config's
-  int width = 320, height = 240, spp = 4, maxDepth = kDefaultMaxDepth, rays = 65536, repeats = 3, batches = 32, studyRays = 4096;
-  int scatterRes = 4096;
-};
-
-void printFitProfile(const ProfileArgs& a) {
-  std::filesystem::path work = a.work;
-  FitConfig cfg = DemoOptions::demoFitConfig();
-  cfg.emissionIterations = 20;  // warm-up only: the profiled stage is what counts
-  if (!a.config.empty()) cfg = FitConfig::load(a.config);
-  if (a.maxDepthGiven) cfg.maxDepth = a.maxDepth;
-  if (work.empty()) work = prepareDemoCapture(a.scratch).work;
-  const FitProfile p = profileFit(work, cfg, a.stage, a.iterations);
-  const Json j = p.toJson();
-  fmt::print("fit iteration  {}: stage {}, {} iterations timed, {} rays/iteration, depth {}, {} threads\n", work.string(),
-             p.stage, p.iterations, p.raysPerIteration, p.maxDepth, p.threads);
-  fmt::print("  {:<26} {:>9} {:>9} {:>9}\n", "phase (ms)", "mean", "min", "max");
-  const std::pair<const char*, const char*> rows[] = {{"sample", "texel sampling + connections"}, {"lights", "light sampler build"},
-                                                      {"primal", "primal"}, {"loss", "loss"}, {"adjoint", "adjoint (incl. scatter)"},
-                                                      {"optimiser", "optimiser"}, {"total", "iteration"}};
-  for (const auto& [key, label] : rows) {
-    const Json& ph = j["phases"][key];
-    fmt::print("  {:<26} {:9.2f} {:9.2f} {:9.2f}\n", label, ph["mean_ms"].get<double>(), ph["min_ms"].get<double>(),
-               ph["max_ms"].get<double>());
-  }
-  fmt::print("  whole iteration / primal    {:8.2f}x (means)\n", j["iteration_over_primal"].get<double>());
-  const double primalRays = static_cast<double>(p.primalClosestRays + p.primalShadowRays);
-  fmt::print("  last batch, replayed (best of 3):\n");
-  fmt::print("    connection rays, Embree alone   {:8.2f} ms ({} rays)\n", 1e3 * p.connectionTraceOnly, p.raysPerIteration);
-  fmt::print("    primal                          {:8.2f} ms  {:.3f} Mpaths/s  {:.2f} Mrays/s ({:.1f} rays/path)\n", 1e3 * p.primal,
-             p.raysPerIteration / p.primal * 1e-6, primalRays / p.primal * 1e-6, primalRays / p.raysPerIteration);
-  fmt::print("    primal's rays, Embree alone     {:8.2f} ms  efficiency {:.2f} (trace-only / primal)\n", 1e3 * p.primalTraceOnly,
-             p.primalTraceOnly / p.primal);
-  fmt::print("    adjoint                         {:8.2f} ms  (primal + adjoint) / primal = {:.2f}x\n", 1e3 * p.adjoint,
-             (p.primal + p.adjoint) / p.primal);
-  fmt::print("    adjoint, no parameter active    {:8.2f} ms  (derivatives + scatter: {:.2f} ms)\n", 1e3 * p.adjointNoScatter,
-             1e3 * (p.adjoint - p.adjointNoScatter));
-  fmt::print("  per ray {} B between the passes, vertex record {} B x (depth+1) x {} paths per thread ({:.0f} KiB)\n", p.rayStateBytes,
-             p.recordBytes, kRecordedWaves * wavePaths(p.maxDepth), adjointRecordBytesPerThread(p.maxDepth) / 1024.0);
-  fmt::print("  memory held by the fit (MiB):");
-  for (const auto& [k, v] : p.memory.items()) fmt::print(" {} {:.1f},", k, v.get<double>() / 1048576.0);
-  fmt::print("\n  peak RSS {:.0f} MiB (whole process)\n", p.peakRssMiB);
-  if (!a.json.empty()) writeJson(a.json, j);
-}
-
-int runProfile(const ProfileArgs& a) {
-  const SynthSceneKind kind = parseSynthScene(a.synth);
-  auto wants = [&](const char* w) { return a.what.find(w) != std::string::npos; };
-  if (wants("render")) {
-    const SceneDescription scene = a.scene.empty() ? makeSynthScene(kind, 1024).scene : loadSceneFile(a.scene);
-    const Camera cam = a.scene.empty() ? synthCameraPath(kind, 8, a.width, a.height, 0.0)[2]
-                                       : readTransforms(a.cameras).frames.at(0).camera;
-    const RenderProfile p = profileRender(scene, cam, a.spp, a.maxDepth, a.raysOut);
-    const double rays = static_cast<double>(p.closestRays + p.shadowRays);
-    fmt::print("primal render  {}x{} spp {} depth {} threads {} triangles {}\n", p.width, p.height, p.spp, p.maxDepth,
-               p.threads, scene.mesh.triangles.size());
-    fmt::print("  render       {:8.3f} s  {:7.3f} Mpaths/s  {:6.2f} Mrays/s ({:.1f} rays/path: {} closest, {} shadow)\n",
-               p.renderSeconds, p.paths / p.renderSeconds * 1e-6, rays / p.renderSeconds * 1e-6, rays / p.paths,
-               p.closestRays, p.shadowRays);
-    fmt::print("  trace only   {:8.3f} s  {:6.2f} Mrays/s\n", p.traceOnlySeconds, rays / p.traceOnlySeconds * 1e-6);
-    fmt::print("  efficiency   {:8.3f} (trace-only time / render time)\n", p.efficiency());
-  }
-  if (wants("adjoint") || wants("pairing")) {
-    ExperimentOptions eo;
-    eo.rays = wants("adjoint") ? a.rays : a.studyRays;
-    eo.maxDepth = a.maxDepth;
-    eo.atlasResolution = 1024;
-    const GradientExperiment e = makeGradientExperiment(kind, eo);
-    if (wants("adjoint")) {
-      const AdjointProfile p = profileAdjoint(e.truth, e.current, e.rays, a.maxDepth, a.repeats);
-      const double iterDirect = p.primal + p.loss + p.adjointDirect, iterFull = p.primal + p.loss + p.adjointFull;
-      fmt::print("adjoint iteration  {} rays, depth {}, threads {} (best of {})\n", p.rays, p.maxDepth, p.threads, a.repeats);
-      fmt::print("  primal               {:8.3f} s  ({:.3f} Mpaths/s, {:.0f} ns/path)\n", p.primal,
-                 p.rays / p.primal * 1e-6, p.primal / p.rays * 1e9);
-      fmt::print("  loss                 {:8.4f} s\n", p.loss);
-      fmt::print("  adjoint (direct)     {:8.3f} s   iteration/primal = {:.2f}x\n", p.adjointDirect, iterDirect / p.primal);
-      fmt::print("  adjoint (full)       {:8.3f} s   iteration/primal = {:.2f}x\n", p.adjointFull, iterFull / p.primal);
-      fmt::print("  crossfit (1 pass)    {:8.3f} s   iteration/primal = {:.2f}x\n", p.crossfit, p.crossfit / p.primal);
-      fmt::print("  reuse (1 pass)       {:8.3f} s   iteration/primal = {:.2f}x\n", p.reuse, p.reuse / p.primal);
-      fmt::print("  Embree alone         {:8.3f} s   primal's {} rays {:.3f} s + adjoint pass's {} rays {:.3f} s; "
-                 "full iteration = {:.2f}x it\n",
-                 p.traceOnlyFloor(), p.primalRaysTraced, p.primalTraceOnly, p.adjointRaysTraced, p.adjointTraceOnly,
-                 iterFull / p.traceOnlyFloor());
-      fmt::print("  per-ray state {} B (delta), vertex record {} B x (depth+1) x {} paths per thread ({:.0f} KiB)\n", sizeof(Color),
-                 p.recordBytes, kRecordedWaves * wavePaths(p.maxDepth), adjointRecordBytesPerThread(p.maxDepth) / 1024.0);
-      fmt::print("  peak RSS {:.0f} MiB (whole process, before the rays were recorded for Embree alone)\n", p.peakRssMiB);
-    }
-    if (wants("pairing")) {
-      const auto stats = studyPairings(e.truth, e.current, e.rays, a.batches, 4 * a.batches);
-      fmt::print("pairing study  {} rays x {} batches, reference = {} crossfit batches (unbiased)\n", e.rays.size(),
-                 a.batches, 4 * a.batches);
-      fmt::print("  {:<13} {:>10} {:>12} {:>12} {:>12}\n", "pairing", "s/iter", "rel bias", "bias (se)", "rel std/iter");
-      for (const PairingStat& st : stats)
-        fmt::print("  {:<13} {:>10.4f} {:>12.4f} {:>12.2f} {:>12.4f}\n", pairingName(st.pairing), st.seconds, st.relBias,
-                   st.biasZ, st.relStd);
-    }
-  }
-  if (wants("fit")) printFitProfile(a);
-  if (wants("visibility")) {
-    const TriangleMesh mesh = buildAtlas(makeScanLikeRoom(1000000, 0.004f), {});
-    const Scene scene(mesh);
-    for (int res : {1024, 4096}) {
-      Timer t;
-      const TexelMap m(mesh, res);
-      fmt::print("texel map {}^2  {:.2f} s  {:.0f} MiB ({} bytes/texel)\n", res, t.seconds(), m.bytes() / 1048576.0,
-                 m.bytes() / m.texelCount());
-    }
-    const TexelMap map(mesh, 1024);
-    fmt::print("visibility index  scan-like room, {} triangles, 1024^2 texels in 32^2 tiles\n", mesh.triangles.size());
-    for (int n : {2000, 10000}) {
-      std::vector<Frame> frames;
-      for (const Camera& c : synthCameraPath(SynthSceneKind::Scan, n, 320, 240, 0.0)) frames.push_back({c, {}});
-      std::vector<size_t> use(frames.size());
-      std::iota(use.begin(), use.end(), size_t{0});
-      Timer t;
-      const VisibilityIndex vis = buildVisibilityIndex(scene, map, frames, use, 32, 6);
-      fmt::print("  {:>6} frames  {:6.2f} s  {} entries  {:.2f} MB\n", n, t.seconds(), vis.frames.size(), vis.bytes() / 1e6);
-    }
-  }
-  if (wants("leaks")) {
-    const SynthScene s = makeSynthScene(SynthSceneKind::Room, 1024);
-    const Eigen::AlignedBox3f interior(Vec3(0.05f, 0.05f, 0.05f), Vec3(4.95f, 2.65f, 3.95f));
-    fmt::print("edge leaks  random rays from inside the closed room ({} triangles)\n", s.scene.mesh.triangles.size());
-    for (const LeakStat& st : studyLeaks(s.scene.mesh, interior, size_t{1} << 24))
-      fmt::print("  {:<8} {} rays, {} escaped, {:.2f} Mrays/s\n", st.robust ? "robust" : "default", st.rays, st.misses,
-                 st.mraysPerSecond);
-  }
-  if (wants("scatter")) {
-    fmt::print("gradient scatter  random bilinear RGB splats into {}^2, {} threads (time per iteration)\n", a.scatterRes,
-               threadCount());
-    for (size_t splats : {size_t{1} << 17, size_t{1} << 20, size_t{1} << 24})
-      for (const ScatterStat& st : studyScatter(a.scatterRes, splats))
-        fmt::print("  {:>9} splats  {:<28} {:8.4f} s  {:7.2f} Msplats/s\n", st.splats, st.strategy, st.seconds,
-                   st.splats / st.seconds * 1e-6);
-  }
-  return 0;
-}
-
 void registerProfile(CLI::App& app, CommandTable& table) {
-  auto a = std::make_shared<ProfileArgs>();
+  auto a = std::make_shared<ProfileRequest>();
   CLI::App* c = app.add_subcommand("profile", "measure speed: renderer, adjoint passes, fit iterations, pairings, gradient scatter");
   c->add_option("--what", a->what, "comma list of render, adjoint, pairing, scatter, leaks, visibility (+ texel maps), fit")->capture_default_str();
   c->add_option("--work", a->work, "fit: a prepared work folder (default: the demo's room, prepared in --scratch)")->check(CLI::ExistingDirectory);
@@ -308,7 +121,7 @@ void registerProfile(CLI::App& app, CommandTable& table) {
   c->add_option("--scatter-res", a->scatterRes)->capture_default_str()->check(inRange(1, 1 << 15));
   table[c] = [=] {
     a->maxDepthGiven = c->count("--max-depth") > 0;
-    return runProfile(*a);
+    return runProfileCommand(*a);
   };
 }
 
@@ -323,7 +136,7 @@ void registerBench(CLI::App& app, CommandTable& table) {
   c->add_option("--scratch", o->scratch, "where the room is prepared when no --work is given (reused)")->capture_default_str();
   c->add_option("--out", o->out, "where bench.md, bench.csv, curves.csv and the charts go")->capture_default_str();
   c->add_option("--sweeps", *sweeps, "comma list of " + names + " (default: all)");
-  c->add_option("--config", *config, "base fit config JSON (default: the demo's, shortened; see the README)")->check(CLI::ExistingFile);
+  c->add_option("--config", *config, "base fit config JSON (default: the demo's, shortened; docs/user/commands.md)")->check(CLI::ExistingFile);
   c->add_option("--truth", o->truth, "ground-truth scene.json (default: CAPTURE/gt/scene.json)")->check(CLI::ExistingFile);
   c->add_option("--test-cameras", o->testCameras, "held-out frames (default: CAPTURE/transforms_test.json)")->check(CLI::ExistingFile);
   c->add_option("--eval-every", o->evaluateEvery, "iterations between error-vs-time points")->capture_default_str()->check(inRange(1, 1 << 20));
@@ -346,7 +159,7 @@ void registerFit(CLI::App& app, CommandTable& table) {
   auto maxRes = std::make_shared<int>(0);
   CLI::App* c = app.add_subcommand("fit", "reconstruct albedo, roughness, specular and emission from a prepared work folder");
   c->add_option("work", *work, "work folder written by `relume prepare`")->required()->check(CLI::ExistingDirectory);
-  c->add_option("--config", *config, "fit config JSON (every key in the README)")->check(CLI::ExistingFile);
+  c->add_option("--config", *config, "fit config JSON (keys: docs/user/fit-config.md)")->check(CLI::ExistingFile);
   c->add_option("--res", *maxRes, "cap on the final albedo resolution (default: what the frames resolve)")->check(CLI::NonNegativeNumber);
   c->add_flag("--resume", *resume, "continue from WORK/checkpoint.bin");
   auto noReport = std::make_shared<bool>(false);
@@ -356,11 +169,11 @@ void registerFit(CLI::App& app, CommandTable& table) {
     if (*maxRes > 0) cfg.maxResolution = *maxRes;
     // Its checkpoint is written atomically into the work folder: clear what killed runs left.
     if (const size_t stale = removeStaleTemporaries(*work)) spdlog::info("fit: removed {} temporaries of killed runs", stale);
-    FitHooks run;
-    run.report = !*noReport;
-    const FitSummary s = runFit(*work, cfg, *resume, run);
+    const FitSummary s = runFit(*work, cfg, *resume);
+    if (s.stopped) return 0;
     spdlog::info("fit: {} iterations in {:.0f}s, albedo {}^2, {} light source(s), result in {}", s.iterations, s.seconds,
                  s.finalResolution, s.emitters.size(), s.resultDir.string());
+    if (!*noReport) writeFitReport(*work);  // re-renders a few frames: tens of seconds
     return 0;
   };
 }
@@ -378,29 +191,7 @@ void registerEval(CLI::App& app, CommandTable& table) {
   c->add_option("--spp", *spp)->capture_default_str()->check(CLI::Range(1, 1 << 16));
   table[c] = [=] {
     const auto& [scenePath, cameras, out, truthPath, coveragePath] = *paths;
-    const SceneDescription scene = loadSceneFile(scenePath);
-    RenderOptions ro;
-    ro.spp = *spp;
-    if (!truthPath.empty() && coveragePath.empty()) fail("eval: --truth needs --coverage (prepare's coverage.exr)");
-    std::filesystem::create_directories(out);
-    const ViewComparison v = compareViews(scene, cameras, ro, out);
-    Json report = {{"views", v.toJson()}};
-    std::optional<TruthComparison> t;
-    if (!truthPath.empty()) {
-      t = compareWithTruth(scene, loadSceneFile(truthPath), readImage(coveragePath), truthOptionsFor(scenePath));
-      report["truth"] = t->toJson();
-    }
-    writeJson(std::filesystem::path(out) / "eval.json", report);  // before printing: the results outlive a closed stdout
-    fmt::print("views: PSNR {:.2f} dB, MSRE {:.4f} over {} frames\n", v.psnr, v.msre, v.framePsnr.size());
-    if (t) {
-      fmt::print("albedo: MAE {:.4f}, PSNR {:.2f} dB over {} texels; roughness MAE {:.3f}, specular MAE {:.3f}; emitters "
-                 "{}/{} found ({} found in all), emission error {:.2f}% (roughness/specular over {} objects with observed highlights)\n",
-                 t->albedoMae, t->albedoPsnr, t->albedoTexels, t->roughnessMae, t->specularMae, t->emittersCorrect, t->emittersTrue,
-                 t->emittersFound, 100 * t->emissionRelError, t->materialObjects);
-      fmt::print("peers' measures: albedo PSNR {:.2f} dB (8-bit sRGB maps), roughness PSNR {:.2f} dB (8-bit maps), emission IoU {:.3f}\n",
-                 t->albedoPsnr8, t->roughnessPsnr8, t->emissionIou);
-      for (const Json& o : t->perObject) fmt::print("  {}\n", o.dump());
-    }
+    runEvaluation({scenePath, cameras, out, truthPath, coveragePath, *spp});
     return 0;
   };
 }
@@ -439,16 +230,16 @@ void registerReport(CLI::App& app, CommandTable& table) {
 }
 
 void registerGradcheck(CLI::App& app, CommandTable& table) {
-  auto a = std::make_shared<GradcheckArgs>();
+  auto a = std::make_shared<GradcheckRequest>();
   CLI::App* c = app.add_subcommand("gradcheck", "adjoint gradients vs central finite differences (common random numbers)");
   c->add_option("--scene", a->scene, "scene.json (default: a synthetic scene)");
   c->add_option("--cameras", a->cameras, "transforms.json whose cameras aim the rays (with --scene)");
   c->add_option("--synth", a->synth, "room, cornell or furnace")->capture_default_str();
   c->add_option("--param", a->param, "albedo, roughness, specular, emission, emission_tex or all")->capture_default_str();
-  c->add_option("--gradients", a->gradients, "direct or full")->capture_default_str();
-  c->add_option("--emitter-gradients", a->emitters, "strict or all-depth")->capture_default_str();
-  c->add_option("--pairing", a->pairing, "decorrelated, crossfit or reuse")->capture_default_str();
-  c->add_option("--level", a->level, "sample, loss or both")->capture_default_str();
+  addEnumOption(c, "--gradients", a->gradients, "parameters at the first vertex only, or along the whole path");
+  addEnumOption(c, "--emitter-gradients", a->emitters, "with direct: emitters reached from the first vertex only, or any");
+  addEnumOption(c, "--pairing", a->pairing, "how the primal and adjoint passes share random numbers");
+  c->add_option("--level", a->level, "sample, loss or both")->capture_default_str()->check(CLI::IsMember({"sample", "loss", "both"}));
   c->add_option("--rays", a->rays, "rays per batch")->capture_default_str()->check(inRange(1, 1 << 26));
   c->add_option("--batches", a->batches, "independent batches for the whole-loss check")->capture_default_str()->check(inRange(2, 1 << 20));
   c->add_option("--params-per-kind", a->perKind)->capture_default_str()->check(inRange(1, 1 << 20));
@@ -458,7 +249,7 @@ void registerGradcheck(CLI::App& app, CommandTable& table) {
   c->add_option("--emission-scale", a->emissionScale, "multiply emitters (e.g. 1e4 to stress)")->capture_default_str()->check(inRange(1e-6, 1e12));
   c->add_option("--clip-high", a->clipHigh, "reference saturation threshold (one-sided loss)")->check(inRange(1e-30, kInf));
   c->add_flag("--russian-roulette", a->roulette);
-  table[c] = [=] { return runGradcheck(*a); };
+  table[c] = [=] { return runGradcheckCommand(*a); };
 }
 
 }  // namespace
@@ -510,7 +301,7 @@ CommandTable registerCommands(CLI::App& app) {
   render->add_option("--seed", renderArgs->render.seed)->capture_default_str();
   render->add_flag("--russian-roulette", renderArgs->render.path.russianRoulette);
   render->add_option("--aov", renderArgs->aovs, "comma list of albedo,normal,depth,object");
-  render->add_option("--edit", renderArgs->edit, "EDIT.json: switch off/rescale emitters, change materials, add lights and meshes (README)")
+  render->add_option("--edit", renderArgs->edit, "EDIT.json: switch off/rescale emitters, change materials, add lights and meshes (docs/user/edit-file.md)")
       ->check(CLI::ExistingFile);
   table[render] = [=] {
     renderViews((*renderPaths)[0], (*renderPaths)[1], (*renderPaths)[2], *renderArgs);

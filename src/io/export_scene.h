@@ -38,7 +38,7 @@ std::vector<MeshData> objectSubmeshes(const MeshData& mesh, int objects);
 // glTF 2.0 binary (.glb), one node + mesh + material per object, textures embedded as sRGB PNG:
 // KHR_materials_specular (F0 = min(0.04 specularColorFactor, 1) specularFactor, F90 =
 // specularFactor) and KHR_materials_emissive_strength carry relume's F0/F90 and radiance above 1
-// (README "Export"). Atomic.
+// (docs/user/export.md). Atomic.
 void writeGlb(const std::filesystem::path& path, const ExportScene& scene);
 
 // Mitsuba 3 scene: DIR/scene.xml, one PLY per object under DIR/meshes, linear EXR textures under

@@ -3,6 +3,7 @@
 #include <tbb/parallel_for.h>
 
 #include "sampling/samplers.h"
+#include "core/random_streams.h"
 
 namespace relume {
 
@@ -14,14 +15,14 @@ std::vector<BatchRay> raysFromCameras(const Scene& scene, const Appearance& trut
   path.maxDepth = o.maxDepth;
   std::vector<BatchRay> rays(o.rays);
   tbb::parallel_for(0, o.rays, [&](int j) {
-    Pcg32 rng(hashTuple({o.seed, static_cast<uint64_t>(j), 0x7261}));
+    Pcg32 rng(hashTuple({o.seed, static_cast<uint64_t>(j), streamTag(RandomStream::ExperimentRays)}));
     const Camera& cam = cameras[rng.nextU32() % cameras.size()];
     BatchRay& r = rays[j];
     r.origin = cam.position;
     r.dir = randomPixelRay(cam, rng).value_or(std::pair{Vec2::Zero().eval(), Vec3(cam.rotation.col(2))}).second;
     Color sum = Color::Zero();
     for (int s = 0; s < o.referenceSpp; ++s) {
-      Pcg32 pr(hashTuple({o.seed, static_cast<uint64_t>(j), static_cast<uint64_t>(s), 0x7265}));
+      Pcg32 pr(hashTuple({o.seed, static_cast<uint64_t>(j), static_cast<uint64_t>(s), streamTag(RandomStream::ExperimentPerturbation)}));
       sum += tracePath(scene, lights, scope, path, r.origin, r.dir, pr);
     }
     r.reference = sum / static_cast<float>(o.referenceSpp);

@@ -13,6 +13,7 @@
 #include "core/warp.h"
 #include "io/atomic_file.h"
 #include "render/film.h"
+#include "core/random_streams.h"
 
 namespace relume {
 namespace {
@@ -303,7 +304,7 @@ std::vector<LeakStat> studyLeaks(const TriangleMesh& mesh, const Eigen::AlignedB
     Timer t;
     tbb::parallel_for(tbb::blocked_range<size_t>(0, rays, 8192), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i < r.end(); ++i) {
-        Pcg32 rng(hashTuple({i, 0x6c65}));
+        Pcg32 rng(hashTuple({i, streamTag(RandomStream::LeakRays)}));
         const Vec3 o = interior.min() + interior.sizes().cwiseProduct(rng.next3D());
         misses.local() += !std::isfinite(scene.hitDistance(o, squareToUniformSphere(rng.next2D())));
       }

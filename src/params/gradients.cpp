@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <bit>
 
+#include "core/check.h"
 #include "core/error.h"
 
 namespace relume {
@@ -84,6 +85,7 @@ void Gradients::accumulate(size_t count, const std::function<void(Chunk&, size_t
   for (size_t first = 0; first < count; first += subBatch) {
     const size_t last = std::min(count, first + subBatch);
     const size_t chunks = (last - first + kChunkRays - 1) / kChunkRays;
+    CHECK(chunks <= chunks_.size());  // every chunk of a sub-batch has its own log
     tbb::parallel_for(size_t{0}, chunks, [&](size_t c) {
       const size_t begin = first + c * kChunkRays;
       trace(chunks_[c], begin, std::min(last, begin + kChunkRays));
@@ -102,6 +104,7 @@ void Gradients::apply(size_t chunks) {
     for (size_t c = 0; c < chunks; ++c) {
       auto& splats = chunks_[c].buckets_[b];
       for (const Chunk::Splat& s : splats) {
+        DCHECK(s.entry < splatted_.size());
         float* d = texelData(s.entry);
         for (int k = 0; k < 3; ++k) d[k] += s.value[k];
         if (!splatted_[s.entry]) splatted_[s.entry] = 1, splattedEntries_[b].push_back(s.entry);  // bucket b's alone

@@ -2,8 +2,12 @@
 
 #include <spdlog/spdlog.h>
 
+#include <optional>
+
 #include "capture/transforms.h"
 #include "core/error.h"
+#include "io/atomic_file.h"
+#include "io/image.h"
 #include "scene/texel_map.h"
 
 namespace relume {
@@ -149,6 +153,32 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
   if (c.materialObjects) c.roughnessMae /= c.materialObjects, c.specularMae /= c.materialObjects;
   c.emissionRelError = found ? emissionErr / found : 1.0;
   return c;
+}
+
+void runEvaluation(const EvalOptions& o) {
+  const SceneDescription scene = loadSceneFile(o.scene);
+  RenderOptions ro;
+  ro.spp = o.spp;
+  if (!o.truth.empty() && o.coverage.empty()) fail("eval: --truth needs --coverage (prepare's coverage.exr)");
+  std::filesystem::create_directories(o.out);
+  const ViewComparison v = compareViews(scene, o.cameras, ro, o.out);
+  Json report = {{"views", v.toJson()}};
+  std::optional<TruthComparison> t;
+  if (!o.truth.empty()) {
+    t = compareWithTruth(scene, loadSceneFile(o.truth), readImage(o.coverage), truthOptionsFor(o.scene));
+    report["truth"] = t->toJson();
+  }
+  writeJson(o.out / "eval.json", report);  // before printing: the results outlive a closed stdout
+  fmt::print("views: PSNR {:.2f} dB, MSRE {:.4f} over {} frames\n", v.psnr, v.msre, v.framePsnr.size());
+  if (t) {
+    fmt::print("albedo: MAE {:.4f}, PSNR {:.2f} dB over {} texels; roughness MAE {:.3f}, specular MAE {:.3f}; emitters "
+               "{}/{} found ({} found in all), emission error {:.2f}% (roughness/specular over {} objects with observed highlights)\n",
+               t->albedoMae, t->albedoPsnr, t->albedoTexels, t->roughnessMae, t->specularMae, t->emittersCorrect, t->emittersTrue,
+               t->emittersFound, 100 * t->emissionRelError, t->materialObjects);
+    fmt::print("peers' measures: albedo PSNR {:.2f} dB (8-bit sRGB maps), roughness PSNR {:.2f} dB (8-bit maps), emission IoU {:.3f}\n",
+               t->albedoPsnr8, t->roughnessPsnr8, t->emissionIou);
+    for (const Json& object : t->perObject) fmt::print("  {}\n", object.dump());
+  }
 }
 
 }  // namespace relume

@@ -53,4 +53,13 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
                                  const Image& coverage, const TruthOptions& options,
                                  Image* truthAlbedo = nullptr);
 
+// `relume eval`: re-renders `scene` at the frames of `cameras` into `out`, compares (and with
+// `truth`, scored where `coverage` shows enough observations), writes OUT/eval.json, then prints
+// the scores on stdout.
+struct EvalOptions {
+  std::filesystem::path scene, cameras, out, truth, coverage;
+  int spp = 64;
+};
+void runEvaluation(const EvalOptions& o);
+
 }  // namespace relume

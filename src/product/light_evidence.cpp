@@ -8,6 +8,7 @@
 #include "adjoint/solver.h"
 #include "core/check.h"
 #include "core/rng.h"
+#include "core/random_streams.h"
 
 namespace relume {
 
@@ -70,7 +71,7 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
   std::fill(white.albedoFromTexture.begin(), white.albedoFromTexture.end(), 0);
   const AppearanceScope whiteFirst{&appearance, &white, &appearance, &appearance, &appearance};
   const std::vector<Color> returned =
-      traceRays(scene, lights, whiteFirst, rays, path, [&](size_t j) { return hashTuple({seed, 0x7265666cULL, j}); });
+      traceRays(scene, lights, whiteFirst, rays, path, [&](size_t j) { return hashTuple({seed, streamTag(RandomStream::ReflectorBound), j}); });
 
   // Per ray: the own emission seen directly, the model's mirror bound and the perfect mirror's ray.
   std::vector<Color> ownEmission(n, Color::Zero());
@@ -101,7 +102,7 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
     });
   });
   const std::vector<Color> mirrored = traceRays(scene, lights, AppearanceScope::uniform(appearance), mirrorRays, path,
-                                                [&](size_t j) { return hashTuple({seed, 0x6d697272ULL, j}); });
+                                                [&](size_t j) { return hashTuple({seed, streamTag(RandomStream::MirrorPath), j}); });
 
   // An object with fewer than kMinInteriorRays interior rays (a lamp never 3x3 pixels wide in any
   // frame) is judged on all its rays rather than on none.

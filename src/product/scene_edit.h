@@ -1,5 +1,5 @@
-// Edits applied to a scene before rendering (`relume render --edit EDIT.json`, schema in the
-// README): switch off or rescale emitters, change an object's material, add rectangular area
+// Edits applied to a scene before rendering (`relume render --edit EDIT.json`, schema in
+// docs/user/edit-file.md): switch off or rescale emitters, change an object's material, add rectangular area
 // lights and meshes with constant materials. Added geometry becomes new objects appended to the
 // mesh (the BVH is rebuilt from it); the albedo atlas is untouched.
 #pragma once

@@ -8,6 +8,7 @@
 
 #include "core/error.h"
 #include "core/system.h"
+#include "core/random_streams.h"
 
 namespace relume {
 
@@ -44,7 +45,7 @@ struct RayCounter : NullPathObserver {
 }  // namespace
 
 CameraSample cameraSample(const Camera& camera, int x, int y, int s, uint64_t seed) {
-  CameraSample cs{Pcg32(hashTuple({static_cast<uint64_t>(y) * camera.width + x, static_cast<uint64_t>(s), seed, 0x7265})), {}};
+  CameraSample cs{Pcg32(hashTuple({static_cast<uint64_t>(y) * camera.width + x, static_cast<uint64_t>(s), seed, streamTag(RandomStream::FilmPixel)})), {}};
   const Vec2 u = cs.rng.next2D();
   const Vec2 pixel(x + camera.filter.sample(u.x()), y + camera.filter.sample(u.y()));
   cs.dir = camera.rayDirection(pixel);
@@ -107,6 +108,7 @@ RenderResult renderImage(const Scene& scene, const Appearance& appearance, const
     if (r.cols().begin() == 0) progress.advance(r.rows().size());
     rayCount.local() += counter.rays;
   });
+  scene.throwIfEmbreeFailed();
   result.stats.seconds = timer.seconds();
   result.stats.paths = static_cast<uint64_t>(W) * H * options.spp;
   result.stats.rays = rayCount.combine(std::plus<>());

@@ -1,9 +1,9 @@
 #include "render/lights.h"
 
 #include <algorithm>
-#include <cassert>
 #include <cmath>
 
+#include "core/check.h"
 #include "core/error.h"
 #include "core/warp.h"
 
@@ -11,7 +11,7 @@ namespace relume {
 
 LightSampler::LightSampler(const Scene& scene, const Appearance& appearance, const LightSampler* previous)
     : scene_(&scene) {
-  assert(!previous || previous->scene_ == &scene);
+  CHECK(!previous || previous->scene_ == &scene);
   const TriangleMesh& mesh = scene.mesh();
   const int objectCount = appearance.objectCount();
   shapes_.resize(objectCount);
@@ -69,7 +69,7 @@ size_t LightSampler::bytes() const {
 }
 
 LightPick LightSampler::pickTriangle(LightPick pick, float uTriangle) const {
-  assert(pick.emitter < emitters_.size());
+  DCHECK(pick.emitter < emitters_.size());
   const EmitterShape& e = *emitters_[pick.emitter].shape;
   pick.triangle = e.byArea.sample(uTriangle);
   scene_->prefetchFace(e.triangles[pick.triangle].prim);

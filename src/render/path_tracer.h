@@ -17,7 +17,7 @@ namespace relume {
 // Path length: the number of scattering vertices, each with next-event estimation (0 = emission
 // seen directly only, 1 = direct lighting, N = N - 1 indirect bounces). Cycles' "max bounces" B
 // counts indirect bounces, so it equals depth B + 1; the default 9 is Cycles' default 8 (measured
-// against Cycles 3.4: README "Agreement with Blender Cycles").
+// against Cycles 3.4: docs/notes/2026-11-22-cycles-agreement.md).
 inline constexpr int kDefaultMaxDepth = 9;
 
 // Paths a thread traces together (tracePaths below): wide enough that a whole bounce's other paths

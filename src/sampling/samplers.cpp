@@ -6,6 +6,7 @@
 
 #include "core/error.h"
 #include "core/rng.h"
+#include "core/random_streams.h"
 
 namespace relume {
 
@@ -96,12 +97,6 @@ void appendPixelRays(SlotOutput& out, const Camera& cam, const FrameStore::Store
 
 }  // namespace
 
-RayFootprint parseRayFootprint(const std::string& name) {
-  if (name == "pixel") return RayFootprint::Pixel;
-  if (name == "point") return RayFootprint::Point;
-  fail("ray footprint '{}': must be pixel or point", name);
-}
-
 TextureSpaceSampler::TextureSpaceSampler(const Scene& scene, const TexelMap& map, std::span<const uint32_t> texels,
                                          const VisibilityIndex& vis, const TrainingFrames& frames)
     : scene_(scene), map_(map), texels_(texels), vis_(vis), frames_(frames), usable_(frames.frames->size(), 0) {
@@ -174,7 +169,7 @@ Batch TextureSpaceSampler::sample(uint64_t seed, uint64_t iteration, const Textu
     std::array<uint32_t, kChunkSlots> texels;
     std::vector<uint32_t> candidates;
     for (size_t i = 0; i < count; ++i) {
-      rngs[i] = Pcg32(hashTuple({seed, iteration, first + i, 0x7473}));
+      rngs[i] = Pcg32(hashTuple({seed, iteration, first + i, streamTag(RandomStream::TextureSampler)}));
       texels[i] = texels_[rngs[i].nextU32() % texels_.size()];
     }
     for (size_t i = 0; i < count; ++i) {
@@ -211,7 +206,7 @@ std::optional<std::pair<Vec2, Vec3>> randomPixelRay(const Camera& cam, Pcg32& rn
 Batch ImageSpaceSampler::sample(uint64_t seed, uint64_t iteration, int rays, const Scene& scene, RayFootprint footprint,
                                 int samples) const {
   const auto samplePixel = [&](size_t j, SlotOutput& out) {
-    Pcg32 rng(hashTuple({seed, iteration, j, 0x6973}));
+    Pcg32 rng(hashTuple({seed, iteration, j, streamTag(RandomStream::ImageSampler)}));
     ++out.stats().slots, ++out.stats().candidates;
     const uint32_t f = frames_.usable[rng.nextU32() % frames_.usable.size()];
     const Frame& frame = (*frames_.frames)[f];

@@ -5,11 +5,13 @@
 // The image-space sampler (random frames, random pixels) is the ablation's baseline. Both are
 // deterministic: slot j of iteration i is seeded from (seed, i, j), whatever the thread count.
 #pragma once
+#include <array>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "capture/frame_store.h"
+#include "core/enum_names.h"
 #include "core/rng.h"
 #include "sampling/batch.h"
 #include "sampling/visibility.h"
@@ -54,7 +56,11 @@ struct Batch {
 // ~9 degrees of reflected directions, a roughness-0.1 lobe ~1) the pixel is a blur the point
 // estimate must reproduce with a rougher material.
 enum class RayFootprint { Pixel, Point };
-RayFootprint parseRayFootprint(const std::string& name);  // "pixel" | "point"
+template <>
+struct EnumNames<RayFootprint> {
+  static constexpr std::array<std::pair<RayFootprint, std::string_view>, 2> values{
+      {{RayFootprint::Pixel, "pixel"}, {RayFootprint::Point, "point"}}};
+};
 
 struct TextureSamplerSettings {
   int texels = 16384;         // B: texels per iteration

@@ -11,7 +11,7 @@
 
 namespace relume {
 
-// The scene's appearance model, each exactly one published BSDF (README "Scene file"):
+// The scene's appearance model, each exactly one published BSDF (docs/user/scene-file.md):
 // PrincipledV1 is Blender 2.8-3.x Principled BSDF in Cycles with metallic 0, Gltf the glTF 2.0
 // metallic-roughness BRDF with KHR_materials_specular.
 enum class BsdfModel { PrincipledV1, Gltf };
@@ -70,7 +70,7 @@ struct SceneDescription {
 // albedo replaces the albedo texture on that object.
 void readConstantFields(const Json& o, int id, const std::string& where, Appearance& a);
 
-// scene.json (schema in the README). Throws relume::Error naming the file and field.
+// scene.json (schema: docs/user/scene-file.md). Throws relume::Error naming the file and field.
 SceneDescription loadSceneFile(const std::filesystem::path& path);
 // Writes scene.json plus textures next to it (albedo.exr, emission_<object>.exr) and the mesh (atomic).
 void saveSceneFile(const std::filesystem::path& path, const SceneDescription& scene);

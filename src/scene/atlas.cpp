@@ -4,13 +4,13 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include <cassert>
 #include <map>
 #include <numeric>
 #include <unordered_map>
 
 #include <tbb/parallel_for.h>
 
+#include "core/check.h"
 #include "core/error.h"
 #include "core/system.h"
 #include "scene/atlas_internal.h"
@@ -562,7 +562,7 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
     }
     for (Chart& c : singles) {
       [[maybe_unused]] const bool mapped = parameterise(mesh, normals, cosPlanar, c);
-      assert(mapped && "a single triangle projects on its own plane");
+      DCHECK(mapped && "a single triangle projects on its own plane");
       orientChart(c);
       charts.push_back(std::move(c));
     }

@@ -2,21 +2,31 @@
 
 #include <spdlog/spdlog.h>
 
-#include <cassert>
 
+#include "core/check.h"
 #include "core/error.h"
 
 namespace relume {
-namespace {
-void embreeError(void*, RTCError code, const char* message) {
-  spdlog::error("embree error {}: {}", static_cast<int>(code), message ? message : "");
+void Scene::onEmbreeError(void* scene, RTCError code, const char* message) {
+  Scene& s = *static_cast<Scene*>(scene);
+  spdlog::debug("embree error {}: {}", static_cast<int>(code), message ? message : "");
+  const std::lock_guard<std::mutex> lock(s.embreeErrorMutex_);
+  if (s.embreeFailed_.load()) return;
+  s.embreeErrorCode_ = code;
+  s.embreeMessage_ = message ? message : "";
+  s.embreeFailed_.store(true);
 }
-}  // namespace
+
+void Scene::throwIfEmbreeFailed() const {
+  if (!embreeFailed_.load(std::memory_order_relaxed)) return;
+  const std::lock_guard<std::mutex> lock(embreeErrorMutex_);
+  fail("embree error {} on a mesh of {} triangles: {}", embreeErrorCode_, mesh_.triangles.size(), embreeMessage_);
+}
 
 Scene::Scene(TriangleMesh mesh, SceneOptions options) : mesh_(std::move(mesh)) {
   device_ = rtcNewDevice(nullptr);
   if (!device_) fail("cannot create Embree device (error {})", static_cast<int>(rtcGetDeviceError(nullptr)));
-  rtcSetDeviceErrorFunction(device_, embreeError, nullptr);
+  rtcSetDeviceErrorFunction(device_, onEmbreeError, this);
   scene_ = rtcNewScene(device_);
   rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_HIGH);
   rtcSetSceneFlags(scene_, options.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);
@@ -43,12 +53,19 @@ Scene::Scene(TriangleMesh mesh, SceneOptions options) : mesh_(std::move(mesh)) {
   rtcAttachGeometry(scene_, geom);
   rtcReleaseGeometry(geom);
   rtcCommitScene(scene_);
+  if (embreeFailed_.load()) {
+    release();  // the destructor does not run when the constructor throws
+    throwIfEmbreeFailed();
+  }
 }
 
-Scene::~Scene() {
+void Scene::release() {
   if (scene_) rtcReleaseScene(scene_);
   if (device_) rtcReleaseDevice(device_);
+  scene_ = nullptr, device_ = nullptr;
 }
+
+Scene::~Scene() { release(); }
 
 SurfaceHit Scene::hitFromFace(uint32_t prim, float b1, float b2) const {
   const FaceRecord& face = faces_[prim];
@@ -86,7 +103,7 @@ RTCRayHit traceClosest(RTCScene scene, const Vec3& o, const Vec3& d, float tmax)
 
 bool Scene::traceable(const Vec3& o, const Vec3& d, float tmax) const {
   const bool ok = o.allFinite() && d.allFinite() && tmax >= 0.0f;  // false for a NaN tmax too
-  assert(ok && "non-finite or inverted ray");
+  DCHECK(ok && "non-finite or inverted ray");
   if (!ok) skippedRays_.fetch_add(1, std::memory_order_relaxed);
   return ok;
 }

@@ -4,7 +4,9 @@
 
 #include <atomic>
 #include <memory>
+#include <mutex>
 #include <optional>
+#include <string>
 
 #include "core/prefetch.h"
 #include "scene/mesh.h"
@@ -31,7 +33,7 @@ struct RayHit {
 };
 
 struct SceneOptions {
-  bool robust = false;  // RTC_SCENE_FLAG_ROBUST: see README "Performance" for its measured cost
+  bool robust = false;  // RTC_SCENE_FLAG_ROBUST: its measured cost: docs/design/rendering.md
 };
 
 class Scene {
@@ -61,6 +63,11 @@ class Scene {
   // Origin nudged off the surface towards `dir`, scaled to the coordinate magnitude.
   static Vec3 offsetOrigin(const SurfaceHit& hit, const Vec3& dir);
   size_t skippedRays() const { return skippedRays_.load(std::memory_order_relaxed); }
+  // An error Embree reported (out of memory, an invalid argument) fails the command: the first
+  // one is kept, and this throws relume::Error with it. The constructor calls it; so do the
+  // loops that trace many rays, once per pass.
+  void throwIfEmbreeFailed() const;
+  RTCDevice embreeDevice() const { return device_; }
 
  private:
   TriangleMesh mesh_;
@@ -74,6 +81,12 @@ class Scene {
     Vec3 n[3];  // vertex normals (zero when the mesh has none)
   };
   bool traceable(const Vec3& origin, const Vec3& dir, float tmax) const;
+  static void onEmbreeError(void* scene, RTCError code, const char* message);
+  void release();
+  std::atomic<bool> embreeFailed_{false};  // set once the first error is stored
+  mutable std::mutex embreeErrorMutex_;
+  int embreeErrorCode_ = RTC_ERROR_NONE;
+  std::string embreeMessage_;
   std::vector<float> vertexBuffer_;  // xyz + padding so Embree can read 16 bytes at the end
   std::vector<FaceRecord> faces_;
   RTCDevice device_ = nullptr;

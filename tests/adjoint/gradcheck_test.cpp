@@ -62,7 +62,7 @@ class GradcheckModes : public ::testing::TestWithParam<std::tuple<GradientMode, 
 
 TEST_P(GradcheckModes, EveryParameterKindOnCornell) {
   const auto [mode, pairing] = GetParam();
-  const std::string name = std::string(mode == GradientMode::Direct ? "direct/" : "full/") + pairingName(pairing);
+  const std::string name = std::string(mode == GradientMode::Direct ? "direct/" : "full/") + enumName(pairing);
   expectPass(check(experiment(SynthSceneKind::Cornell, false), kConstantKinds, mode, pairing), name + " constant emission");
   expectPass(check(experiment(SynthSceneKind::Cornell, true), {ParamKind::EmissionTexture}, mode, pairing),
              name + " emission texture");
@@ -73,7 +73,7 @@ INSTANTIATE_TEST_SUITE_P(AllModes, GradcheckModes,
                                             ::testing::Values(Pairing::Decorrelated, Pairing::Crossfit, Pairing::Reuse)),
                          [](const auto& info) {
                            return std::string(std::get<0>(info.param) == GradientMode::Direct ? "direct_" : "full_") +
-                                  pairingName(std::get<1>(info.param));
+                                  enumName(std::get<1>(info.param));
                          });
 
 // Every parameter kind under each appearance model, references rendered with the same model.

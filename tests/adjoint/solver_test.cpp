@@ -164,7 +164,7 @@ TEST(GradientSums, AreBitIdenticalAtAnyThreadCount) {
     const Scene scene{e.truth.mesh};
     const LightSampler lights{scene, e.current};
     for (const Pairing pairing : {Pairing::Decorrelated, Pairing::Crossfit, Pairing::Reuse}) {
-      SCOPED_TRACE(std::string(pairingName(pairing)) + (textured ? ", emission textures" : ""));
+      SCOPED_TRACE(std::string(enumName(pairing)) + (textured ? ", emission textures" : ""));
       AdjointSettings s;
       s.mode = GradientMode::Full;
       s.pairing = pairing;

@@ -77,7 +77,7 @@ TEST(Rng, SeedsAreIndependentOfOrder) {
   EXPECT_LT(mx, 1.0f);
 }
 
-// Every stream relume has written (captures, fits, README figures) drew a point's coordinates last
+// Every stream relume has written (captures, fits, documented figures) drew a point's coordinates last
 // first; the order is now explicit and must not change.
 TEST(Rng, PointsDrawTheirLastCoordinateFirst) {
   Pcg32 a(5), b(5);

@@ -70,7 +70,7 @@ TEST(Fit, BeatsItsStartingPointAndFindsTheLights) {
   // median init) but for what the light decisions set: the albedo criterion below is measured
   // against it, so a fit whose adjoint or optimiser does nothing fails it.
   FitConfig off = smallConfig();
-  off.albedoStep = "adam";  // the Gauss-Newton step has no learning rate to zero
+  off.albedoStep = AlbedoStep::Adam;  // the Gauss-Newton step has no learning rate to zero
   off.lrAlbedo = off.lrRoughness = off.lrSpecular = off.lrEmission = 1e-9f;
   runFit(dir / "work", off, false);
   const TruthComparison start = score(dir);
@@ -377,7 +377,7 @@ TEST(Fit, MaterialsSettleInTheirOwnStage) {
 // the adjoint pass, a point ray aims both passes at its texel.
 TEST(Fit, EachStageComparesItsRaysWithItsOwnFootprint) {
   const fs::path dir = cornellWork("stage_footprints");
-  for (const auto& [emission, rest] : {std::pair{"pixel", "point"}, std::pair{"point", "pixel"}}) {
+  for (const auto& [emission, rest] : {std::pair{RayFootprint::Pixel, RayFootprint::Point}, std::pair{RayFootprint::Point, RayFootprint::Pixel}}) {
     FitConfig c = smallConfig();
     c.emissionIterations = 3, c.materialIterations = 3, c.albedoPasses = 1, c.materialBatchTexels = 0;
     c.emissionFootprint = emission, c.rayFootprint = rest;
@@ -392,12 +392,12 @@ TEST(Fit, EachStageComparesItsRaysWithItsOwnFootprint) {
     runFit(dir / "work", c, false, hooks);
     ASSERT_EQ(pixelRays.size(), 3u);  // emission, albedo@256, materials
     for (const auto& [stage, counts] : pixelRays) {
-      const bool pixelStage = (stage == "emission" ? std::string(emission) : std::string(rest)) == "pixel";
+      const bool pixelStage = (stage == "emission" ? emission : rest) == RayFootprint::Pixel;
       ASSERT_GT(counts.second, 1000u) << stage;
       if (pixelStage)
-        EXPECT_EQ(counts.first, counts.second) << stage << " (" << emission << " / " << rest << ")";
+        EXPECT_EQ(counts.first, counts.second) << stage << " (" << enumName(emission) << " / " << enumName(rest) << ")";
       else
-        EXPECT_EQ(counts.first, 0u) << stage << " (" << emission << " / " << rest << ")";
+        EXPECT_EQ(counts.first, 0u) << stage << " (" << enumName(emission) << " / " << enumName(rest) << ")";
     }
   }
 }

@@ -141,7 +141,7 @@ TEST(Atlas, RealTopologyCut) {
   const TriangleMesh a = buildAtlas(mesh, {}, &r);
   expectSound(mesh, a);
   // 27 charts, a few of them large, in a square: little to fill the gaps with (the whole bedroom
-  // packs 0.69, README).
+  // packs 0.69, docs/notes/2026-11-22-prepare-and-atlas.md).
   EXPECT_GE(r.packingEfficiency, 0.35) << r.summary();
   EXPECT_LE(r.stretchP95, 1.1) << r.summary();
 }
@@ -179,7 +179,7 @@ TEST(Atlas, FurnishedLikeMeshPacksAtLeast60Percent) {
   std::printf("room + 2000 boxes: %s\n", r.summary().c_str());
 }
 
-// What sank the living room to 0.18 (README): rings whose box the packer cannot fill, and thousands
+// What sank the living room to 0.18 (docs/notes/2026-11-24-artist-interiors.md): rings whose box the packer cannot fill, and thousands
 // of sub-texel parts each paying a gutter ring.
 TEST(Atlas, FramesAreCutAndTinyPartsShareBlocks) {
   const TriangleMesh mesh = makeFramedRoom();

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include "core/error.h"
 #include "core/rng.h"
 #include "scene/atlas.h"
 #include "scene/scene.h"
@@ -129,3 +130,18 @@ TEST(Scene, NonFiniteRayAssertsInDebugBuilds) {
   EXPECT_DEATH(scene.occluded(Vec3(std::numeric_limits<float>::quiet_NaN(), 0, 1), Vec3(0, 0, -1), 1.0f), "non-finite or inverted ray");
 }
 #endif
+
+// An error Embree reports through its callback (here an invalid argument on the scene's own
+// device) is kept and fails the command as one relume::Error naming it; the first one wins.
+TEST(Scene, AnEmbreeErrorFailsWithItsMessage) {
+  const Scene scene(opposedNormals());
+  EXPECT_NO_THROW(scene.throwIfEmbreeFailed());
+  rtcReleaseGeometry(rtcNewGeometry(scene.embreeDevice(), static_cast<RTCGeometryType>(12345)));
+  try {
+    scene.throwIfEmbreeFailed();
+    ADD_FAILURE() << "the Embree error was not reported";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("embree error"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("2 triangles"), std::string::npos) << e.what();
+  }
+}

@@ -117,12 +117,9 @@ TEST(TexelMap, GutterHoldsOnARealMeshAtEveryStage) {
 
 TEST(TexelMap, GutterHoldsAroundSharedBlocksAndCutFrames) { expectFootprintsInsideTheirChart(buildAtlas(makeFramedRoom(), {}), 20000); }
 
-TEST(TexelMap, BuildTimeAndSizeAt4096) {
-  const TriangleMesh mesh = roomAtlas();
-  Timer t;
-  const TexelMap map(mesh, 4096);
-  const double seconds = t.seconds();
+// 4 bytes a texel at 4096^2 (its build time: `relume profile --what visibility`).
+TEST(TexelMap, SizeAt4096) {
+  const TexelMap map(roomAtlas(), 4096);
   EXPECT_EQ(map.bytes(), 4096u * 4096u * 4u);
-  EXPECT_LT(seconds, 60.0);
-  std::printf("4096^2 texel map: %.2fs, %zu covered texels, %zu bytes\n", seconds, map.coveredCount(), map.bytes());
+  EXPECT_GT(map.coveredCount(), 4096u * 4096u / 4);
 }

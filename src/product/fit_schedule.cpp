@@ -1,0 +1,90 @@
+#include "product/fit_schedule.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace relume {
+
+float Stage::settleScale(int it, float finalFraction) const {
+  const float half = 0.5f * iterations;
+  return it < half ? 1.0f : 1.0f - (1.0f - finalFraction) * (it - half) / std::max(1.0f, half);
+}
+
+int Stage::averageFrom(ParamKind kind, float fraction) const {
+  return settles.active(kind) && fraction > 0 ? iterations - std::max(1, static_cast<int>(std::lround(fraction * iterations)))
+                                              : iterations;
+}
+
+std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& resolutions,
+                                 const std::function<size_t(int)>& sampleableAt) {
+  using K = ParamKind;
+  const int finalRes = resolutions.back();
+  auto albedoIterations = [&](int res) {
+    const double n = std::ceil(c.albedoPasses * sampleableAt(res) / std::max(1, c.sampler == SamplerKind::Texture ? c.batchTexels : c.imageRays));
+    return static_cast<int>(std::clamp(n, 1.0, static_cast<double>(c.maxStageIterations)));
+  };
+  std::vector<Stage> s;
+  const RayFootprint rays = c.rayFootprint;
+  const ParamMask emission = c.emitterParameterisation ? ParamMask::only({K::Emission}) : ParamMask::only({K::EmissionTexture});
+  if (!c.coarseToFine) {
+    ParamMask all = ParamMask::only({K::Albedo, K::Roughness, K::Specular});
+    all.bits |= emission.bits;
+    int n = c.emissionIterations + c.materialIterations;
+    for (int r : resolutions) n += albedoIterations(r);
+    s.push_back({"all", all, finalRes, n, false, false, all, rays});
+    return s;
+  }
+  // Its unknowns are per object (with emitter_parameterisation), so a ray may stand for a whole
+  // pixel: an emitter seen as a few pixels is mixed with its surroundings in every one of them,
+  // and a ray through the emitter's own point compared with that mixture dims it (docs/design/fit.md). Per-texel unknowns are better served by points: a pixel ray's residual and
+  // sensitivity belong to different texels, noise a per-texel step cannot average away.
+  s.push_back({"emission", emission, resolutions.front(), c.emissionIterations, c.emitterParameterisation, false, {0},
+               c.emissionFootprint});
+  // Then the albedo at the first resolution, and only then roughness and specular with it: while
+  // the albedo is still near its (too dark) init, the specular lobe of a rough object makes up
+  // for it (measured on the room: the walls' specular went to 1.0 whether it was fitted before or
+  // together with the first albedo steps).
+  // Emission stays where stage 1 put it: there the emitters are pinned by the frames that see them
+  // (I = E), while fitted together with the albedo it drifts along the near-null direction
+  // "brighter lights, darker albedo" (room: 3% after stage 1, 10% after the albedo stages).
+  const ParamMask albedo = ParamMask::only({K::Albedo});
+  s.push_back({fmt::format("albedo@{}", resolutions.front()), albedo, resolutions.front(), albedoIterations(resolutions.front())});
+  // The light sources decided again now that the albedo explains the lit surfaces; when that
+  // changed them, their emission is fitted again (the albedo held) before the materials.
+  const bool redecide = c.emitterParameterisation && c.lightTest == LightTest::Reflector && c.lightRedecide && c.lights.empty();
+  s.back().redecideAfter = redecide;
+  // The fill belongs to the reflector test's light estimate (with the hint too, so the two compare).
+  s.front().fillUnobservedAfter = s.back().fillUnobservedAfter = c.lightTest == LightTest::Reflector;
+  const size_t refitStage = s.size();
+  if (redecide && c.emissionRefitIterations > 0)
+    s.push_back({"emission_refit", emission, resolutions.front(), c.emissionRefitIterations});
+  // With material_stage_settles, roughness and specular settle in their own stage and the finer
+  // albedo stages fit the albedo alone: the material texels make the 1K room's albedo@1024
+  // iterations 1.3x dearer, but without them its albedo came out worse.
+  const ParamMask materials = ParamMask::only({K::Albedo, K::Roughness, K::Specular});
+  const ParamMask afterMaterials = c.materialStageSettles ? albedo : materials;
+  const size_t materialStage = s.size();
+  s.push_back({"materials", materials, resolutions.front(), c.materialIterations});
+  for (size_t i = 1; i < resolutions.size(); ++i)
+    s.push_back({fmt::format("albedo@{}", resolutions[i]), afterMaterials, resolutions[i], albedoIterations(resolutions[i])});
+  s.back().settles = s.back().active;
+  if (c.materialStageSettles) {
+    s[materialStage].settles.set(K::Roughness, true);
+    s[materialStage].settles.set(K::Specular, true);
+  }
+  if (c.emitterParameterisation && c.emissionTextures && c.emissionTextureIterations > 0) {
+    const ParamMask textures = ParamMask::only({K::EmissionTexture});
+    s.push_back({"emission_texture", textures, finalRes, c.emissionTextureIterations, false, true, textures});
+  }
+  for (size_t i = 1; i < s.size(); ++i) s[i].footprint = rays;  // every stage after the emission stage
+  s[0].focusEmitters = c.emitterParameterisation;
+  if (refitStage < s.size() && s[refitStage].name == "emission_refit") {
+    s[refitStage].refit = s[refitStage].focusEmitters = true;
+    s[refitStage].footprint = s[0].footprint;
+  }
+  return s;
+}
+
+}  // namespace relume

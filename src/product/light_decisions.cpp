@@ -1,0 +1,274 @@
+#include "product/light_decisions.h"
+
+#include <spdlog/spdlog.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <map>
+
+#include "core/error.h"
+#include "core/random_streams.h"
+#include "core/rng.h"
+#include "render/lights.h"
+#include "sampling/highlight_evidence.h"
+#include "sampling/samplers.h"
+
+namespace relume {
+namespace {
+constexpr uint64_t kHighlightProbeBatches = 16;
+}  // namespace
+
+ObjectRoles::ObjectRoles(int objects)
+    : emitter(objects, 1), outOfModel(objects, 0), highlight(objects, 0), highlightPairs(objects, 0),
+      highlightContrast(objects, 0.0), observedSum(objects, 0.0), observedCount(objects, 0) {}
+
+void ObjectRoles::serialise(CheckpointIo& io) {
+  io.json("light_decisions", lightDecisions);
+  io.array("emitter", emitter);
+  io.array("out_of_model", outOfModel);
+  io.single("refit_emission", refitEmission);
+  io.array("highlight", highlight);
+  io.array("highlight_pairs", highlightPairs);
+  io.array("highlight_contrast", highlightContrast);
+  io.array("observed.sum", observedSum);
+  io.array("observed.count", observedCount);
+}
+
+void LightDecisions::observe(const Batch& batch) {
+  for (size_t j = 0; j < batch.rays.size(); ++j)
+    r_.observedSum[batch.object[j]] += luminance(batch.rays[j].reference), ++r_.observedCount[batch.object[j]];
+}
+
+std::vector<uint8_t> LightDecisions::albedoHeld() const {
+  std::vector<uint8_t> held(r_.emitter.size(), 0);
+  if (c_.lightAlbedoZero && lightsDecided())
+    for (size_t o = 0; o < held.size(); ++o) held[o] = r_.emitter[o];
+  return held;
+}
+
+// An object no kept frame sees is not a light-source candidate: nothing of its own radiance is
+// observed, so its emission is constrained only by the light it throws on other surfaces, which
+// trades off against their albedo. Fitted anyway, the 16-frame test room's never-seen painting
+// came out a blue emitter in one seed of three, and relighting with the ceiling lights off lost 5 dB.
+void LightDecisions::excludeUnseen(const TexelSpace& space) {
+  std::vector<uint8_t> seen(a_.objectCount(), 0);
+  for (uint32_t t : space.sampleable) seen[space.objectOf(t, w_.mesh)] = 1;
+  for (int o = 0; o < a_.objectCount(); ++o)
+    if (!seen[o]) {
+      r_.emitter[o] = 0;
+      spdlog::info("fit: object {} ({}) is seen by no frame: not a light-source candidate", o, a_.names[o]);
+    }
+}
+// The `lights` hint: exactly the objects it names are light-source candidates, and they stay
+// lights (no decision is taken).
+void LightDecisions::applyHint() {
+  if (c_.lights.empty()) return;
+  std::vector<uint8_t> hinted(a_.objectCount(), 0);
+  for (const std::string& name : c_.lights) {
+    const auto it = std::find(a_.names.begin(), a_.names.end(), name);
+    if (it == a_.names.end()) fail("fit config: 'lights' names '{}', which is no object of {}", name, w_.dir.string());
+    hinted[it - a_.names.begin()] = 1;
+  }
+  for (int o = 0; o < a_.objectCount(); ++o) {
+    if (hinted[o] && !r_.emitter[o]) spdlog::warn("fit: object {} ({}) is named a light but no frame sees it: its emission stays 0", o, a_.names[o]);
+    r_.emitter[o] = r_.emitter[o] && hinted[o];
+  }
+}
+// Light sources show their radiance as emission alone (light_albedo_zero): albedo 0 on their texels.
+void LightDecisions::zeroLightAlbedo(const TexelSpace& space) {
+  if (!c_.lightAlbedoZero) return;
+  for (size_t t = 0; t < space.map.texelCount(); ++t)
+    if (space.map.valid(t) && r_.emitter[space.objectOf(t, w_.mesh)])
+      std::fill_n(a_.albedo.rgb.begin() + 3 * static_cast<ptrdiff_t>(t), 3, 0.0f);
+}
+// The light sources, decided from the evidence of their own pixels (light_evidence.h). First
+// (after the emission stage): among the emission stage's candidates, with the albedo still its
+// init; again after the first albedo stage: among every object with texels, under the fitted
+// albedo. An object that becomes a light starts from the emission its evidence implies, one that
+// stops goes to 0, and either change makes the emission_refit stage run. Objects a mirror
+// explains better than an emission (out of model) leave the emission and the albedo for good.
+bool LightDecisions::decide(const TexelSpace& space, const std::string& after, bool first) {
+  if (!c_.lights.empty()) return false;  // the user named them
+  if (c_.lightTest == LightTest::RadianceFraction) {
+    if (first) prune();
+    return false;
+  }
+  const int objects = a_.objectCount();
+  std::vector<std::vector<uint32_t>> texels(objects);
+  for (uint32_t t : space.sampleable) texels[space.objectOf(t, w_.mesh)].push_back(t);
+  std::vector<uint8_t> candidate(objects, 0);
+  for (int o = 0; o < objects; ++o) candidate[o] = !texels[o].empty() && !r_.outOfModel[o] && (first ? r_.emitter[o] != 0 : true);
+  // Each candidate's own texels, the same number for each, through their centres (point rays).
+  const uint64_t stream = hashTuple({c_.seed, streamTag(RandomStream::LightDecision), r_.lightDecisions.size()});
+  Batch batch;
+  for (int o = 0; o < objects; ++o) {
+    if (!candidate[o]) continue;
+    const TextureSpaceSampler own(*w_.scene, space.map, texels[o], w_.vis, w_.trainingFrames());
+    batch.append(own.sample(hashTuple({stream, static_cast<uint64_t>(o)}), 0,
+                            {c_.lightEvidenceTexels, c_.framesPerTexel, RayFootprint::Point, 1}));
+  }
+  // Each ray's camera, found by its origin (the sampler's rays start at the camera).
+  std::map<std::array<float, 3>, const Camera*> byPosition;
+  for (uint32_t k : w_.kept) {
+    const Vec3& p = w_.frames[k].camera.position;
+    byPosition.emplace(std::array<float, 3>{p.x(), p.y(), p.z()}, &w_.frames[k].camera);
+  }
+  std::vector<const Camera*> cameras(batch.rays.size());
+  for (size_t j = 0; j < batch.rays.size(); ++j) {
+    const Vec3& o = batch.rays[j].origin;
+    const auto it = byPosition.find({o.x(), o.y(), o.z()});
+    cameras[j] = it != byPosition.end() ? it->second : nullptr;
+  }
+  const LightSampler lights(*w_.scene, a_);
+  std::vector<LightEvidence> evidence =
+      gatherLightEvidence(*w_.scene, w_.mesh, a_, lights, batch.rays, batch.object, path_, stream, &cameras);
+  const LightTestSettings test{c_.lightMinUnexplained, c_.lightSignificance, c_.pruneFraction, c_.lightMinContrast};
+  const std::vector<LightDecision> decisions = decideLights(evidence, candidate, test);
+  // Under-lit surfaces are reported at the last decision only: before the albedo is fitted, the
+  // init darkens the light every surface receives (the White Room: 12 under-lit reflectors after
+  // the emission stage, none after the first albedo stage).
+  const bool last = !first || !c_.lightRedecide;
+  std::vector<uint8_t> dropped(objects, 0);
+  bool changed = false;
+  for (int o = 0; o < objects; ++o) {
+    if (!candidate[o]) continue;
+    const LightDecision& d = decisions[o];
+    const bool light = d.verdict == LightVerdict::Light;
+    spdlog::info("fit: after {}: object {} ({}) is {}: {}", after, o, a_.names[o], lightVerdictName(d.verdict), d.why);
+    if (const UnderLit u = underLit(evidence[o], test); last && u.underLit && d.verdict == LightVerdict::Reflector)
+      spdlog::warn("fit: after {}: object {} ({}) is under-lit: {:.3g} of its radiance no light in view explains; the missing light "
+                   "lands around ({:.2f}, {:.2f}, {:.2f}) and comes from direction ({:.2f}, {:.2f}, {:.2f}) (a light seen only from "
+                   "behind, outside the frames or under a shade?)",
+                   after, o, a_.names[o], u.missing, u.centre[0], u.centre[1], u.centre[2], u.from[0], u.from[1], u.from[2]);
+    if (d.verdict == LightVerdict::OutOfModel) r_.outOfModel[o] = 1;
+    r_.emitter[o] = light;
+    if (!light) {
+      dropped[o] = !first && a_.isEmissive(o);
+      a_.emission[o] = Color::Zero();
+    } else {
+      // A light's emission is set when it becomes one (and, with light_albedo_zero, at the
+      // first decision, where its albedo goes to 0); a re-decision that agrees changes nothing.
+      const bool wasEmitting = a_.isEmissive(o);
+      if (c_.lightAlbedoZero && (first || !wasEmitting)) a_.emission[o] = evidence[o].meanObservedColor();
+      else if (!wasEmitting) a_.emission[o] = evidence[o].emissionEstimate();
+      changed |= !first && !wasEmitting;
+    }
+  }
+  changed |= std::count(dropped.begin(), dropped.end(), 1) > 0;
+  zeroLightAlbedo(space);
+  if (changed) {
+    r_.refitEmission = 1;
+    restartAlbedo(space, evidence, dropped);
+  }
+  r_.lightDecisions.push_back({{"after", after}, {"objects", lightDecisionsJson(evidence, decisions, a_.names, test, last)}});
+  return changed;
+}
+// Texels no frame saw are never updated; they light the rest of the scene all the same (a
+// capture that faces one way leaves most of a room unseen: 78% of the White Room's texels). They
+// take their object's mean albedo over its observed texels, or 0.5 on an object no frame saw,
+// instead of the init's radiance-scaled guess (an unseen wall's mean radiance x the white-point
+// scale: 0.07 for a wall of albedo 0.6 there, which darkens the light every surface receives).
+void LightDecisions::fillUnobservedAlbedo(const TexelSpace& space) {
+  const int objects = a_.objectCount();
+  std::vector<Eigen::Array4d> mean(objects, Eigen::Array4d::Zero());
+  const std::vector<float>& a = a_.albedo.rgb;
+  for (uint32_t t : space.sampleable)
+    mean[space.objectOf(t, w_.mesh)] += Eigen::Array4d(a[3 * t], a[3 * t + 1], a[3 * t + 2], 1.0);
+  size_t filled = 0;
+  for (size_t t = 0; t < space.map.texelCount(); ++t) {
+    if (!space.map.valid(t) || space.updatable[t] || r_.outOfModel[space.objectOf(t, w_.mesh)]) continue;
+    const Eigen::Array4d& m = mean[space.objectOf(t, w_.mesh)];
+    const Color fill = m[3] > 0 ? Color((m.head<3>() / m[3]).cast<float>()) : Color::Constant(0.5f);
+    for (int c = 0; c < 3; ++c) a_.albedo.rgb[3 * t + c] = fill[c];
+    ++filled;
+  }
+  spdlog::debug("fit: {} unobserved texels take their object's mean albedo", filled);
+}
+// The lights changed, so every albedo was fitted under the wrong light: the running fits start
+// over (their averages hold residuals of the old lights; the caller restarts the optimiser), and
+// an object that stopped being a light, whose albedo had collapsed while its emission made up its radiance, is rescaled to the
+// albedo its evidence implies (what it shows over what albedo 1 returns).
+void LightDecisions::restartAlbedo(const TexelSpace& space, const std::vector<LightEvidence>& evidence, const std::vector<uint8_t>& dropped) {
+  const int objects = a_.objectCount();
+  std::vector<Eigen::Array3d> sum(objects, Eigen::Array3d::Zero());
+  std::vector<size_t> count(objects, 0);
+  for (uint32_t t : space.sampleable) {
+    const int o = space.objectOf(t, w_.mesh);
+    if (!dropped[o]) continue;
+    sum[o] += Eigen::Array3d(a_.albedo.rgb[3 * t], a_.albedo.rgb[3 * t + 1], a_.albedo.rgb[3 * t + 2]);
+    ++count[o];
+  }
+  // Each channel scaled so that its mean is the estimate; set to it where the albedo is ~0 (held
+  // at 0 while the object was a light).
+  std::vector<Color> target(objects, Color::Zero()), scale(objects, Color::Zero());
+  for (int o = 0; o < objects; ++o)
+    if (dropped[o] && count[o] > 0) {
+      target[o] = evidence[o].albedoEstimate();
+      for (int c = 0; c < 3; ++c) scale[o][c] = sum[o][c] > 1e-3 * count[o] ? static_cast<float>(target[o][c] * count[o] / sum[o][c]) : 0.0f;
+      spdlog::info("fit: object {} ({}) is no light: its albedo restarts at {:.3g} {:.3g} {:.3g}", o, a_.names[o],
+                   target[o][0], target[o][1], target[o][2]);
+    }
+  for (size_t t = 0; t < space.map.texelCount(); ++t) {
+    if (!space.map.valid(t)) continue;
+    const int o = space.objectOf(t, w_.mesh);
+    if (!dropped[o] || count[o] == 0) continue;
+    for (int c = 0; c < 3; ++c) {
+      float& a = a_.albedo.rgb[3 * t + c];
+      a = std::clamp(scale[o][c] > 0 ? a * scale[o][c] : target[o][c], 0.0f, 1.0f);
+    }
+  }
+}
+// light_test radiance_fraction: light sources are the objects whose own emission explains most of how they look (at least
+// r_.emitterradiance_fraction of their mean observed radiance) and that carry at least
+// prune_fraction of the total emitted power. The rest go to 0 and stay frozen. The radiance test
+// matters because during this stage the albedo is the median radiance, darker than the true
+// albedo by the irradiance factor, so lit walls make up for it with a weak emission of their own.
+void LightDecisions::prune() {
+  std::vector<double> area(a_.objectCount(), 0.0);
+  for (size_t f = 0; f < w_.mesh.triangles.size(); ++f) {
+    const auto& t = w_.mesh.triangles[f];
+    area[w_.mesh.faceObject[f]] +=
+        0.5 * (w_.mesh.positions[t[1]] - w_.mesh.positions[t[0]]).cross(w_.mesh.positions[t[2]] - w_.mesh.positions[t[0]]).norm();
+  }
+  std::vector<double> power(a_.objectCount());
+  double totalPower = 0;
+  for (int o = 0; o < a_.objectCount(); ++o) totalPower += power[o] = luminance(a_.emission[o]) * area[o];
+  for (int o = 0; o < a_.objectCount(); ++o) {
+    const double observed = r_.observedCount[o] ? r_.observedSum[o] / r_.observedCount[o] : 0.0;
+    r_.emitter[o] = r_.emitter[o] && totalPower > 0 && power[o] >= c_.pruneFraction * totalPower &&
+                  luminance(a_.emission[o]) >= c_.emitterRadianceFraction * observed;
+    if (power[o] >= c_.pruneFraction * totalPower && !r_.emitter[o])
+      spdlog::info("fit: object {} ({}) emits {:.3g} but looks {:.3g}: lit, not a light source", o, a_.names[o],
+                   luminance(a_.emission[o]), observed);
+    if (!r_.emitter[o]) a_.emission[o] = Color::Zero();
+    else spdlog::info("fit: object {} ({}) is a light source: emission {:.3g} {:.3g} {:.3g}, {:.1f}% of the power", o,
+                      a_.names[o], a_.emission[o][0], a_.emission[o][1], a_.emission[o][2],
+                      100 * power[o] / totalPower);
+  }
+}
+
+void LightDecisions::decideHighlights(const TexelSpace& space, const FitBatches& batches) {
+  const int objects = a_.objectCount();
+  HighlightEvidence evidence(objects);
+  for (uint64_t probe = 0; probe < kHighlightProbeBatches; ++probe) {
+    const Batch batch = batches.sample(space, (uint64_t{1} << 40) + probe, c_.rayFootprint);
+    std::vector<int8_t> sawLight(batch.rays.size(), -1);
+    std::vector<float> lum(batch.rays.size(), 0.0f);
+    tbb::parallel_for(size_t{0}, batch.rays.size(), [&](size_t j) {
+      sawLight[j] = seesLightReflected(*w_.scene, a_, r_.emitter, batch.rays[j]);
+      if (sawLight[j] >= 0) lum[j] = luminance(batch.rays[j].reference);
+    });
+    evidence.addBatch(batch.slot, batch.object, lum, sawLight);
+  }
+  for (int o = 0; o < objects; ++o) {
+    r_.highlightPairs[o] = evidence.texels(o), r_.highlightContrast[o] = evidence.contrast(o);
+    r_.highlight[o] = !r_.emitter[o] && evidence.observed(o, c_.highlightMinPairs, c_.highlightMinContrast);
+    spdlog::info("fit: object {} ({}): {} texels seen with and without a light reflected, {:+.1f}% +- {:.1f}% brighter with it -> "
+                 "roughness/specular {}",
+                 o, a_.names[o], evidence.texels(o), 100 * evidence.contrast(o), 100 * evidence.standardError(o),
+                 r_.highlight[o] ? "fitted" : "unconstrained (kept at init)");
+  }
+}
+
+}  // namespace relume

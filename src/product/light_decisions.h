@@ -1,0 +1,79 @@
+// What each object is: a light source, a reflector, out of the model (a mirror), and whether the
+// frames show highlights on it; and the decisions that say so (docs/design/light-sources.md):
+// objects no frame sees are no candidates, the `lights` hint, the reflector test after the
+// emission stage and again after the first albedo stage (light_evidence.h), the radiance-fraction
+// pruning of the ablation, and the highlight test before the material stage.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "io/json.h"
+#include "params/parameters.h"
+#include "product/fit_batches.h"
+#include "product/fit_checkpoint.h"
+#include "product/fit_config.h"
+#include "product/fit_workspace.h"
+#include "product/light_evidence.h"
+
+namespace relume {
+
+struct ObjectRoles {
+  std::vector<uint8_t> emitter;     // a light-source candidate, or a light once decided
+  std::vector<uint8_t> outOfModel;  // excluded from emission and albedo (light_evidence.h)
+  std::vector<uint8_t> highlight;   // roughness and specular fitted
+  uint8_t refitEmission = 0;        // the re-decision changed the light sources: run emission_refit
+  Json lightDecisions = Json::array();  // each decision's evidence (result/lights.json)
+  std::vector<uint64_t> highlightPairs;   // texels compared with and without a light reflected
+  std::vector<double> highlightContrast;  // their mean contrast
+  std::vector<double> observedSum;        // luminance of the references seen in the emission stage
+  std::vector<uint64_t> observedCount;
+
+  explicit ObjectRoles(int objects);
+  void serialise(CheckpointIo& io);
+};
+
+class LightDecisions {
+ public:
+  LightDecisions(const FitConfig& c, const Workspace& w, Appearance& a, ObjectRoles& roles, const PathSettings& path)
+      : c_(c), w_(w), a_(a), r_(roles), path_(path) {}
+
+  // An object no kept frame sees is no light-source candidate: nothing of its own radiance is
+  // observed, so its emission trades off against the albedo of what it lights.
+  void excludeUnseen(const TexelSpace& space);
+  // The `lights` hint: exactly the objects it names are candidates, and they stay lights.
+  void applyHint();
+  // With light_albedo_zero, the light sources' texels take albedo 0.
+  void zeroLightAlbedo(const TexelSpace& space);
+  // Decides the light sources after stage `after` (`first`: the first decision). Returns whether
+  // they changed, in which case the emission is refitted and the albedo's running fits restart.
+  bool decide(const TexelSpace& space, const std::string& after, bool first);
+  // Unobserved texels take their object's mean albedo (or 0.5 on an object no frame saw).
+  void fillUnobservedAlbedo(const TexelSpace& space);
+  // Which objects the frames show a highlight on. Probe connections either see a light reflected
+  // or not (seesLightReflected); for each texel with connections of both kinds, contrast = mean
+  // radiance seeing a light / mean radiance not - 1 (the same texel from other frames, so albedo
+  // and irradiance cancel). Roughness and specular are fitted on objects whose mean contrast,
+  // less two standard errors, reaches highlight_min_contrast over at least highlight_min_pairs
+  // texels; elsewhere nothing in the data constrains them (a rough wall reflecting a lamp at a
+  // grazing angle is no brighter for it), so they keep their init and are reported unconstrained.
+  void decideHighlights(const TexelSpace& space, const FitBatches& batches);
+
+  // The emission stage's references, per object (the radiance-fraction test compares with them).
+  void observe(const Batch& batch);
+  bool lightsDecided() const { return !c_.lights.empty() || !r_.lightDecisions.empty(); }
+  // Per object: whether its albedo is held (light_albedo_zero, once the lights are decided).
+  std::vector<uint8_t> albedoHeld() const;
+
+ private:
+  void prune();
+  void restartAlbedo(const TexelSpace& space, const std::vector<LightEvidence>& evidence, const std::vector<uint8_t>& dropped);
+
+  const FitConfig& c_;
+  const Workspace& w_;
+  Appearance& a_;
+  ObjectRoles& r_;
+  const PathSettings& path_;
+};
+
+}  // namespace relume

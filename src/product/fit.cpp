@@ -14,6 +14,7 @@
 #include "optim/upsample.h"
 #include "product/fit_batches.h"
 #include "product/fit_checkpoint.h"
+#include "product/fit_result.h"
 #include "product/fit_schedule.h"
 #include "product/fit_workspace.h"
 #include "product/group_optimiser.h"
@@ -22,11 +23,6 @@
 namespace relume {
 namespace fs = std::filesystem;
 namespace {
-
-Json statsJson(const SamplerStats& s) {
-  return {{"slots", s.slots}, {"candidates", s.candidates}, {"not_seen", s.notSeen},
-          {"first_hit_elsewhere", s.firstHitElsewhere}, {"masked", s.masked}, {"rays", s.rays}};
-}
 
 // One fit: the stages of the schedule, each a loop of iterations
 //   batch (FitBatches) -> gradient (adjoint solver) -> masks and step (GroupOptimiser),
@@ -66,11 +62,15 @@ class Fit {
     return c_.emissionTextureResolution > 0 ? std::min(albedoResolution, c_.emissionTextureResolution) : albedoResolution;
   }
   double fitSeconds() const { return total_.seconds() - hookSeconds_; }
-  Json memoryBreakdown(const TexelSpace& space, Gradients& grads, const Batch& batch, const AdjointSettings& settings);
+  Json memoryBreakdown(Gradients& grads, const Batch& batch, const AdjointSettings& settings, const TexelSpace& space) {
+    return fitMemory(w_, appearance_, space, grads, batch, settings, optimiser_, lights_ ? &*lights_ : nullptr);
+  }
   void appendMetrics(const Json& j) const;
   void serialiseState(CheckpointIo& io);
   void writeCheckpoint(size_t stage, int iteration, const TexelSpace& space);
-  fs::path writeResult(const TexelSpace& space) const;
+  fs::path writeResult(const TexelSpace& space) const {
+    return writeFitResult(w_, appearance_, space, roles_, c_, {globalIteration_, lastLoss_, stats_, peakMemory_});
+  }
 
   FitConfig c_;
   FitHooks hooks_;
@@ -296,7 +296,7 @@ void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const
     const bool lightsGrew = lightBytes > lightSamplerBytesPeak_;
     lightSamplerBytesPeak_ = std::max(lightSamplerBytesPeak_, lightBytes);
     if (it == firstIteration || averagesStart || lightsGrew) {
-      const Json memory = memoryBreakdown(space, grads, batch, settings);
+      const Json memory = memoryBreakdown(grads, batch, settings, space);
       spdlog::log(lightsGrew && !(it == firstIteration || averagesStart) ? spdlog::level::debug : spdlog::level::info,
                   "fit: stage {} holds {:.1f} MiB", st.name, memory["total"].get<double>() / (1 << 20));
       spdlog::debug("fit: bytes by part: {}", memory.dump());
@@ -321,7 +321,7 @@ void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const
     if (hooks_.writeFiles && ((it + 1) % c_.metricsEvery == 0 || it + 1 == st.iterations)) {
       Json line = {{"stage", st.name}, {"iteration", globalIteration_}, {"stage_iteration", it + 1}, {"loss", gr.loss},
                    {"rays", batch.rays.size()}, {"lr_scale", st.settles.bits != 0 ? st.settleScale(it, c_.lrFinalFraction) : 1.0f},
-                   {"sampler", statsJson(batch.stats)}, {"seconds", times.toJson()}};
+                   {"sampler", batch.stats.toJson()}, {"seconds", times.toJson()}};
       if (st.active.active(ParamKind::Roughness))  // the fitted objects' trajectories: how settled they are
         for (int o = 0; o < appearance_.objectCount(); ++o)
           if (roles_.highlight[o]) line["materials"][appearance_.names[o]] = {appearance_.roughness[o], appearance_.specular[o]};
@@ -355,30 +355,6 @@ void Fit::finishStage(const Stage& st, size_t stageIndex, const TexelSpace& spac
   if (hooks_.writeFiles) writeCheckpoint(stageIndex + 1, 0, space);
 }
 
-// Bytes the fit holds, by part, once a stage's buffers are allocated. The frame cache is a
-// mapping of frames.bin: only the pages the sampler touches become resident.
-Json Fit::memoryBreakdown(const TexelSpace& space, Gradients& grads, const Batch& batch, const AdjointSettings& settings) {
-  auto floats = [](size_t n) { return static_cast<double>(n * sizeof(float)); };
-  double parameters = 0, gradients = floats(grads.albedoCurvature.size()) + grads.bookkeepingBytes();
-  for (ParamGroup& g : paramGroups(appearance_, &grads)) parameters += floats(g.values.size()), gradients += floats(g.grads.size());
-  const double texels = space.map.bytes() + space.sampleable.size() * sizeof(uint32_t) + space.updatable.size();
-  const TriangleMesh& m = w_.mesh;  // its arrays; Embree's BVH and the shading records not counted
-  const double mesh = (m.positions.size() + m.normals.size()) * sizeof(Vec3) + m.uvs.size() * sizeof(Vec2) +
-                      m.triangles.size() * (sizeof(Eigen::Vector3i) + sizeof(int32_t));
-  const double batchBytes = batch.rays.size() * (sizeof(BatchRay) + sizeof(uint32_t) + sizeof(int) + 3 * sizeof(Color));
-  const double records = double(threadCount()) * adjointRecordBytesPerThread(settings.path.maxDepth);
-  Json j = {{"parameters", parameters}, {"gradients", gradients}, {"optimiser_state", optimiser_.stateBytes()},
-            {"averages", optimiser_.averageBytes()}, {"texel_map", texels}, {"mesh", mesh},
-            {"visibility_index", static_cast<double>(w_.vis.bytes())},
-            {"frame_cache_mapped", static_cast<double>(w_.store->mappedBytes())}, {"batch", batchBytes}, {"path_records", records},
-            {"gradient_logs", static_cast<double>(grads.logBytes())},
-            {"light_sampler", lights_ ? static_cast<double>(lights_->bytes()) : 0.0}};
-  double total = 0;
-  for (const auto& [k, v] : j.items())
-    if (k != "frame_cache_mapped") total += v.get<double>();
-  j["total"] = total;  // without the frame cache, which is file-backed and mostly not resident
-  return j;
-}
 
 void Fit::appendMetrics(const Json& j) const {
   std::ofstream out(w_.dir / "metrics.jsonl", std::ios::app);
@@ -405,42 +381,6 @@ void Fit::writeCheckpoint(size_t stage, int iteration, const TexelSpace& space) 
   ck.write(w_.dir / "checkpoint.bin");
 }
 
-fs::path Fit::writeResult(const TexelSpace& space) const {
-  const fs::path result = w_.dir / "result", staging = w_.dir / "result.partial";
-  fs::remove_all(staging);
-  fs::create_directories(staging);
-  SceneDescription desc{w_.dir / "atlas_mesh.ply", w_.mesh, appearance_};
-  saveSceneFile(staging / "scene.json", desc);
-  Image albedo(space.resolution, space.resolution);
-  albedo.rgb = appearance_.albedo.rgb;
-  writePng(staging / "albedo.png", albedo);
-  Json materials = Json::array();
-  std::vector<size_t> observed(appearance_.objectCount(), 0), total(appearance_.objectCount(), 0);
-  for (size_t t = 0; t < space.map.texelCount(); ++t)
-    if (space.map.covered(t)) {
-      const int o = space.objectOf(t, w_.mesh);
-      ++total[o];
-      observed[o] += space.updatable[t];
-    }
-  for (int o = 0; o < appearance_.objectCount(); ++o) {
-    const Color e = appearance_.meanEmission(o);
-    materials.push_back({{"id", o}, {"name", appearance_.names[o]}, {"roughness", appearance_.roughness[o]},
-                         {"specular", appearance_.specular[o]}, {"emission", {e[0], e[1], e[2]}},
-                         {"is_emitter", appearance_.isEmissive(o)}, {"out_of_model", roles_.outOfModel[o] != 0},
-                         {"highlight_observed", roles_.highlight[o] != 0}, {"highlight_texels", roles_.highlightPairs[o]},
-                         {"highlight_contrast", roles_.highlightContrast[o]},
-                         {"observed_texel_fraction", total[o] ? double(observed[o]) / total[o] : 0.0}});
-  }
-  Json summary = {{"objects", materials}, {"albedo_resolution", space.resolution}, {"iterations", globalIteration_},
-                  {"final_loss", lastLoss_}, {"sampler", statsJson(stats_)}, {"config", c_.toJson()},
-                  {"peak_rss_mib", peakRssMiB()}, {"memory_bytes", peakMemory_}};
-  writeJson(staging / "materials.json", summary);
-  writeJson(staging / "lights.json", {{"light_test", enumName(c_.lightTest)}, {"hint", c_.lights}, {"decisions", roles_.lightDecisions}});
-  fs::remove_all(result);
-  fs::rename(staging, result);
-  spdlog::info("fit: result in {}", result.string());
-  return result;
-}
 
 }  // namespace
 

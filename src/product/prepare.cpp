@@ -71,6 +71,238 @@ Image falseColour(const std::vector<uint32_t>& counts, int res) {
   return img;
 }
 
+
+// The phases, in order; each returns what prepare.json records of it.
+
+// Atlas: the mesh charted and packed into one uv atlas (scene/atlas.h), with the object names
+// from objects.json, else from the mesh file (OBJ groups).
+Json atlasPhase(const fs::path& capture, const fs::path& meshPath, const fs::path& work, const PrepareOptions& o) {
+  TriangleMesh mesh = loadMesh(meshPath);
+  AtlasReport ar;
+  const TriangleMesh atlas = buildAtlas(mesh, o.atlas, &ar);
+  writePly(work / "atlas_mesh.ply", atlas.toData());
+  spdlog::info("atlas: {}", ar.summary());
+  // Names from objects.json, else from the mesh file (OBJ groups).
+  Json names = Json::object();
+  for (size_t id = 0; id < mesh.objectNames.size(); ++id) names[std::to_string(id)] = mesh.objectNames[id];
+  if (fs::exists(capture / "objects.json"))
+    for (const auto& [id, name] : readObjectNames(capture / "objects.json")) names[std::to_string(id)] = name;
+  return Json{{"triangles", atlas.triangles.size()}, {"objects", atlas.objectCount}, {"dropped_degenerate", mesh.droppedDegenerate},
+              {"dropped_coincident", mesh.droppedCoincident},
+              {"kept_input_uv", ar.keptInputUv}, {"charts", ar.charts}, {"lscm_charts", ar.lscmCharts},
+              {"split_charts", ar.splitCharts}, {"merged_charts", ar.mergedCharts}, {"hollow_charts", ar.hollowCharts},
+              {"shared_blocks", ar.sharedBlocks}, {"charts_in_shared_blocks", ar.blockedCharts},
+              {"surface_in_shared_blocks", ar.blockedSurface}, {"packing_efficiency", ar.packingEfficiency},
+              {"texels_per_metre", ar.texelsPerMetre}, {"gutter_resolution", o.atlas.gutterResolution},
+              {"stretch_p05_median_p95", {ar.stretchP05, ar.stretchMedian, ar.stretchP95}},
+              {"uv_overlaps", ar.uvOverlaps}, {"atlas_seconds", ar.seconds},
+              {"object_names", names}};
+}
+
+// Why frame i is dropped, or "" to keep it: too many saturated or dark pixels, or motion blur
+// (camera motion to the nearer neighbour: a fast frame moves far from both neighbours, whereas a
+// frame next to a jump still has one close neighbour).
+std::string dropReason(const Capture& cap, size_t i, const FrameStats& stats, const PrepareOptions& o) {
+  std::string reason;
+  const Camera& c = cap.frames[i].camera;
+  float speed = INFINITY, angle = INFINITY;
+  for (long j : {static_cast<long>(i) - 1, static_cast<long>(i) + 1}) {
+    if (j < 0 || j >= static_cast<long>(cap.frames.size())) continue;
+    const Camera& d = cap.frames[j].camera;
+    speed = std::min(speed, (c.position - d.position).norm());
+    angle = std::min(angle, std::acos(std::clamp(((c.rotation.transpose() * d.rotation).trace() - 1.0f) / 2.0f, -1.0f, 1.0f)) * 180.0f / kPi);
+  }
+  if (!std::isfinite(speed)) speed = angle = 0;
+  if (stats.overexposed > o.maxOverexposed) reason = fmt::format("overexposed ({:.0f}% saturated)", 100 * stats.overexposed);
+  else if (stats.underexposed > o.maxUnderexposed) reason = fmt::format("underexposed ({:.0f}% dark)", 100 * stats.underexposed);
+  else if (speed > o.maxSpeed) reason = fmt::format("motion blur (moved {:.2f} m per frame)", speed);
+  else if (angle > o.maxAngularSpeed) reason = fmt::format("motion blur (turned {:.1f} deg per frame)", angle);
+  return reason;
+}
+
+// Frames: every frame converted into the cache (half floats, one memory-mapped file), then
+// filtered.
+Json framesPhase(const Capture& cap, const fs::path& work, const PrepareOptions& o) {
+  Progress progress("frame cache", cap.frames.size());
+  const std::vector<FrameStats> stats = writeFrameStore(work / "frames.bin", cap.frames, o.downscale, [&] { progress.advance(); });
+  Json kept = Json::array(), dropped = Json::array();
+  std::map<std::string, int> reasons;
+  for (size_t i = 0; i < cap.frames.size(); ++i) {
+    const std::string reason = dropReason(cap, i, stats[i], o);
+    if (reason.empty()) {
+      kept.push_back(i);
+    } else {
+      spdlog::warn("frame {} ({}) dropped: {}", i, cap.frames[i].image.filename().string(), reason);
+      dropped.push_back({{"frame", i}, {"image", cap.frames[i].image.filename().string()}, {"reason", reason}});
+      ++reasons[reason.substr(0, reason.find(' '))];
+    }
+  }
+  Json masked = Json::object();  // frames with NaN/Inf pixels (masked, never used)
+  for (size_t i = 0; i < stats.size(); ++i)
+    if (stats[i].masked > 0) masked[std::to_string(i)] = stats[i].masked;
+  return Json{{"frames", cap.frames.size()}, {"kept", kept}, {"dropped", dropped}, {"dropped_by_reason", reasons},
+              {"masked_pixel_fraction", masked},
+              {"bytes", fs::file_size(work / "frames.bin")}};
+}
+
+// Visibility: which kept frames see which tile of the init-resolution atlas.
+Json visibilityPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, const std::vector<size_t>& kept,
+                     const fs::path& work, const PrepareOptions& o) {
+  const size_t skippedBefore = scene.skippedRays();
+  const VisibilityIndex vis = buildVisibilityIndex(scene, initMap, cap.frames, kept, o.tileTexels, o.samplesPerTile);
+  const size_t tiles = vis.offsets.size() - 1;
+  vis.write(work / "visibility.bin");
+  size_t seen = 0;
+  for (size_t t = 0; t < tiles; ++t) seen += vis.offsets[t + 1] > vis.offsets[t];
+  std::vector<char> frameSees(cap.frames.size(), 0);
+  for (uint32_t f : vis.frames) frameSees[f] = 1;
+  Json blind = Json::array();
+  for (size_t k : kept)
+    if (!frameSees[k]) {
+      spdlog::warn("frame {} ({}) sees no surface of the mesh: skipped", k, cap.frames[k].image.filename().string());
+      blind.push_back(k);
+    }
+  return Json{{"tiles", tiles}, {"tiles_seen", seen}, {"entries", vis.frames.size()}, {"bytes", vis.bytes()},
+              {"frames_seeing_nothing", blind}, {"skipped_rays", scene.skippedRays() - skippedBefore},
+              {"mean_frames_per_seen_tile", seen ? double(vis.frames.size()) / seen : 0.0}};
+}
+
+// Every observation of every init-resolution texel by the kept frames, visited frame by frame:
+// the first pass traces each (texel, frame) pair for occlusion and remembers the unoccluded ones
+// in one bit each, so later passes re-project without tracing again.
+class TexelObservations {
+ public:
+  TexelObservations(const Scene& scene, const TexelMap& initMap, const Capture& cap, const std::vector<size_t>& kept,
+                    const VisibilityIndex& vis, const FrameStore& store, int tileTexels)
+      : scene_(scene), map_(initMap), cap_(cap), kept_(kept), store_(store), tileTexels_(tileTexels),
+        tileArea_(static_cast<size_t>(tileTexels) * tileTexels), tilesOf_(cap.frames.size()), seenBits_(vis.offsets.size() - 1),
+        texelPoint_(initMap.texelCount()), texelNormal_(initMap.texelCount()) {
+    // For each frame, its tiles and its position in each tile's frame list.
+    for (size_t t = 0; t + 1 < vis.offsets.size(); ++t)
+      for (uint32_t k = vis.offsets[t]; k < vis.offsets[t + 1]; ++k)
+        tilesOf_[vis.frames[k]].push_back({static_cast<uint32_t>(t), k - vis.offsets[t]});
+    for (size_t t = 0; t + 1 < vis.offsets.size(); ++t)
+      seenBits_[t].assign((tileArea_ * (vis.offsets[t + 1] - vis.offsets[t]) + 63) / 64, 0);
+    // Each texel's surface point and normal, computed once rather than once per frame.
+    tbb::parallel_for(size_t{0}, initMap.texelCount(), [&](size_t t) {
+      if (!initMap.valid(t)) return;
+      bool geometric = false;
+      texelPoint_[t] = initMap.point(scene.mesh(), t);
+      texelNormal_[t] = initMap.normal(scene.mesh(), t, &geometric);
+      if (geometric) fellBack_.fetch_add(1, std::memory_order_relaxed);
+    });
+  }
+
+  // Calls add(texel, radiance) for every observation. Frames in order and, inside a frame, its
+  // tiles in parallel: a texel (and its tile's bits) is only ever updated by one thread at a
+  // time, so nothing needs atomics.
+  void pass(const char* label, const std::function<void(size_t, const Color&)>& add) {
+    const bool traced = passes_++ > 0;
+    const int initRes = map_.resolution(), tilesPerSide = initRes / tileTexels_;
+    Progress progress(label, kept_.size());
+    for (size_t k : kept_) {
+      tbb::parallel_for(size_t{0}, tilesOf_[k].size(), [&](size_t i) {
+        const auto [tile, slot] = tilesOf_[k][i];
+        std::vector<uint64_t>& bits = seenBits_[tile];
+        const int tx = static_cast<int>(tile) % tilesPerSide, ty = static_cast<int>(tile) / tilesPerSide;
+        for (int y = ty * tileTexels_; y < (ty + 1) * tileTexels_; ++y)
+          for (int x = tx * tileTexels_; x < (tx + 1) * tileTexels_; ++x) {
+            const size_t texel = static_cast<size_t>(y) * initRes + x;
+            if (!map_.valid(texel)) continue;
+            const size_t bit = (static_cast<size_t>(y - ty * tileTexels_) * tileTexels_ + (x - tx * tileTexels_)) + tileArea_ * slot;
+            std::optional<Vec2> px;
+            if (traced) {
+              if (!(bits[bit / 64] >> (bit % 64) & 1)) continue;
+              px = cap_.frames[k].camera.project(texelPoint_[texel]);
+            } else {
+              px = observe(scene_, cap_.frames[k].camera, texelPoint_[texel], texelNormal_[texel]);
+            }
+            if (!px) continue;
+            const auto c = store_.bilinear(k, *px);
+            if (!c) continue;
+            if (!traced) bits[bit / 64] |= uint64_t{1} << (bit % 64);
+            add(texel, *c);
+          }
+      });
+      progress.advance();
+    }
+  }
+  size_t texelsWithGeometricNormal() const { return fellBack_.load(); }
+
+ private:
+  const Scene& scene_;
+  const TexelMap& map_;
+  const Capture& cap_;
+  const std::vector<size_t>& kept_;
+  const FrameStore& store_;
+  const int tileTexels_;
+  const size_t tileArea_;
+  std::vector<std::vector<std::pair<uint32_t, uint32_t>>> tilesOf_;
+  std::vector<std::vector<uint64_t>> seenBits_;  // per tile: one bit per (texel, frame of the tile)
+  std::vector<Vec3> texelPoint_, texelNormal_;
+  std::atomic<size_t> fellBack_{0};
+  int passes_ = 0;
+};
+
+// Initial albedo: the streaming median (or mean) of each texel's observed radiance, and how many
+// observations each texel had (coverage).
+Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, const std::vector<size_t>& kept,
+               const fs::path& work, const PrepareOptions& o) {
+  const TriangleMesh& mesh = scene.mesh();
+  const int initRes = initMap.resolution();
+  const size_t skippedBefore = scene.skippedRays();
+  const VisibilityIndex vis = VisibilityIndex::read(work / "visibility.bin", cap.frames.size());
+  const FrameStore store(work / "frames.bin");
+  if (store.frameCount() != cap.frames.size())
+    fail("{}: holds {} frames, the capture has {} (rerun with --force)", (work / "frames.bin").string(), store.frameCount(),
+         cap.frames.size());
+  TexelObservations observations(scene, initMap, cap, kept, vis, store, o.tileTexels);
+  const size_t texels = initMap.texelCount();
+  MedianSketch sketch(texels);
+  std::vector<Eigen::Array3d> sum(o.init == InitStatistic::Mean ? texels : 0, Eigen::Array3d::Zero());
+  std::vector<uint32_t> coverage(texels, 0);
+  if (o.init == InitStatistic::Median) {
+    observations.pass("median (coarse)", [&](size_t t, const Color& c) { sketch.addCoarse(t, c); });
+    sketch.startFine();
+    observations.pass("median (fine)", [&](size_t t, const Color& c) { sketch.addFine(t, c); });
+    for (size_t t = 0; t < texels; ++t) coverage[t] = sketch.count(t);
+  } else {
+    observations.pass("mean", [&](size_t t, const Color& c) { sum[t] += c.cast<double>(), ++coverage[t]; });
+  }
+  Image albedo(initRes, initRes), cov(initRes, initRes);
+  size_t valid = 0, unobserved = 0;
+  std::vector<Eigen::Array4d> objectMean(mesh.objectCount, Eigen::Array4d::Zero());
+  for (size_t t = 0; t < texels; ++t) {
+    if (!initMap.valid(t)) continue;
+    ++valid;
+    cov.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes), Color::Constant(static_cast<float>(coverage[t])));
+    if (coverage[t] == 0) {
+      ++unobserved;
+      continue;
+    }
+    const Color v = o.init == InitStatistic::Median ? sketch.median(t) : Color((sum[t] / coverage[t]).cast<float>());
+    albedo.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes), v);
+    const Eigen::Array3d vd = v.cast<double>();
+    objectMean[mesh.faceObject[initMap.triangle(t)]] += Eigen::Array4d(vd[0], vd[1], vd[2], 1.0);
+  }
+  // Texels no frame saw start from their object's average (or mid-grey).
+  for (size_t t = 0; t < texels; ++t) {
+    if (!initMap.valid(t) || coverage[t] > 0) continue;
+    const Eigen::Array4d& m = objectMean[mesh.faceObject[initMap.triangle(t)]];
+    albedo.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes),
+               m[3] > 0 ? Color((m.head<3>() / m[3]).cast<float>()) : Color::Constant(0.5f));
+  }
+  writeExr(work / "albedo_init.exr", albedo);
+  writePng(work / "albedo_init.png", albedo);  // preview
+  writeExr(work / "coverage.exr", cov);
+  writePng(work / "coverage.png", falseColour(coverage, initRes));
+  const double fraction = valid ? double(unobserved) / valid : 0.0;
+  spdlog::info("init: {} valid texels at {}^2, {:.2f}% never observed", valid, initRes, 100 * fraction);
+  return Json{{"resolution", initRes}, {"statistic", o.init == InitStatistic::Median ? "median" : "mean"},
+              {"valid_texels", valid}, {"unobserved_texels", unobserved}, {"fraction_unobserved", fraction},
+              {"texels_geometric_normal", observations.texelsWithGeometricNormal()}, {"skipped_rays", scene.skippedRays() - skippedBefore}};
+}
+
 }  // namespace
 
 PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, const PrepareOptions& o) {
@@ -112,28 +344,7 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   // "atlas2": the charting/packing version, so work folders made by an older atlas are re-charted.
   const std::string atlasPrint = fingerprintOf({meshPath}, fmt::format("atlas2 {} {} {} {}", o.atlas.gutterResolution,
                                                                        o.atlas.gutterTexels, o.atlas.coneDegrees, o.atlas.planarDegrees));
-  runPhase("atlas", atlasPrint, {work / "atlas_mesh.ply"}, [&] {
-    TriangleMesh mesh = loadMesh(meshPath);
-    AtlasReport ar;
-    const TriangleMesh atlas = buildAtlas(mesh, o.atlas, &ar);
-    writePly(work / "atlas_mesh.ply", atlas.toData());
-    spdlog::info("atlas: {}", ar.summary());
-    // Names from objects.json, else from the mesh file (OBJ groups).
-    Json names = Json::object();
-    for (size_t id = 0; id < mesh.objectNames.size(); ++id) names[std::to_string(id)] = mesh.objectNames[id];
-    if (fs::exists(capture / "objects.json"))
-      for (const auto& [id, name] : readObjectNames(capture / "objects.json")) names[std::to_string(id)] = name;
-    return Json{{"triangles", atlas.triangles.size()}, {"objects", atlas.objectCount}, {"dropped_degenerate", mesh.droppedDegenerate},
-                {"dropped_coincident", mesh.droppedCoincident},
-                {"kept_input_uv", ar.keptInputUv}, {"charts", ar.charts}, {"lscm_charts", ar.lscmCharts},
-                {"split_charts", ar.splitCharts}, {"merged_charts", ar.mergedCharts}, {"hollow_charts", ar.hollowCharts},
-                {"shared_blocks", ar.sharedBlocks}, {"charts_in_shared_blocks", ar.blockedCharts},
-                {"surface_in_shared_blocks", ar.blockedSurface}, {"packing_efficiency", ar.packingEfficiency},
-                {"texels_per_metre", ar.texelsPerMetre}, {"gutter_resolution", o.atlas.gutterResolution},
-                {"stretch_p05_median_p95", {ar.stretchP05, ar.stretchMedian, ar.stretchP95}},
-                {"uv_overlaps", ar.uvOverlaps}, {"atlas_seconds", ar.seconds},
-                {"object_names", names}};
-  });
+  runPhase("atlas", atlasPrint, {work / "atlas_mesh.ply"}, [&] { return atlasPhase(capture, meshPath, work, o); });
   const TriangleMesh mesh = loadMesh(work / "atlas_mesh.ply");
   const Scene scene(mesh);
 
@@ -142,179 +353,20 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   for (const Frame& f : cap.frames) imagePaths.push_back(f.image);
   const std::string framesPrint = fingerprintOf(imagePaths, fmt::format("frames {} {} {} {} {}", o.maxOverexposed, o.maxUnderexposed,
                                                                          o.maxSpeed, o.maxAngularSpeed, o.downscale));
-  runPhase("frames", framesPrint, {work / "frames.bin"}, [&] {
-    Progress progress("frame cache", cap.frames.size());
-    const std::vector<FrameStats> stats = writeFrameStore(work / "frames.bin", cap.frames, o.downscale, [&] { progress.advance(); });
-    Json kept = Json::array(), dropped = Json::array();
-    std::map<std::string, int> reasons;
-    for (size_t i = 0; i < cap.frames.size(); ++i) {
-      std::string reason;
-      const Camera& c = cap.frames[i].camera;
-      // Camera motion to the nearer neighbour: a fast frame moves far from both neighbours,
-      // whereas a frame next to a jump still has one close neighbour.
-      float speed = INFINITY, angle = INFINITY;
-      for (long j : {static_cast<long>(i) - 1, static_cast<long>(i) + 1}) {
-        if (j < 0 || j >= static_cast<long>(cap.frames.size())) continue;
-        const Camera& d = cap.frames[j].camera;
-        speed = std::min(speed, (c.position - d.position).norm());
-        angle = std::min(angle, std::acos(std::clamp(((c.rotation.transpose() * d.rotation).trace() - 1.0f) / 2.0f, -1.0f, 1.0f)) * 180.0f / kPi);
-      }
-      if (!std::isfinite(speed)) speed = angle = 0;
-      if (stats[i].overexposed > o.maxOverexposed) reason = fmt::format("overexposed ({:.0f}% saturated)", 100 * stats[i].overexposed);
-      else if (stats[i].underexposed > o.maxUnderexposed) reason = fmt::format("underexposed ({:.0f}% dark)", 100 * stats[i].underexposed);
-      else if (speed > o.maxSpeed) reason = fmt::format("motion blur (moved {:.2f} m per frame)", speed);
-      else if (angle > o.maxAngularSpeed) reason = fmt::format("motion blur (turned {:.1f} deg per frame)", angle);
-      if (reason.empty()) {
-        kept.push_back(i);
-      } else {
-        spdlog::warn("frame {} ({}) dropped: {}", i, cap.frames[i].image.filename().string(), reason);
-        dropped.push_back({{"frame", i}, {"image", cap.frames[i].image.filename().string()}, {"reason", reason}});
-        ++reasons[reason.substr(0, reason.find(' '))];
-      }
-    }
-    Json masked = Json::object();  // frames with NaN/Inf pixels (masked, never used)
-    for (size_t i = 0; i < stats.size(); ++i)
-      if (stats[i].masked > 0) masked[std::to_string(i)] = stats[i].masked;
-    return Json{{"frames", cap.frames.size()}, {"kept", kept}, {"dropped", dropped}, {"dropped_by_reason", reasons},
-                {"masked_pixel_fraction", masked},
-                {"bytes", fs::file_size(work / "frames.bin")}};
-  });
+  runPhase("frames", framesPrint, {work / "frames.bin"}, [&] { return framesPhase(cap, work, o); });
   const std::vector<size_t> kept = phases["frames"]["kept"].get<std::vector<size_t>>();
   if (kept.empty()) fail("prepare: every frame was dropped (see {})", (work / "prepare.json").string());
 
   // Visibility index over tiles of the init resolution.
   const TexelMap initMap(mesh, initRes);
-  const int tilesPerSide = initRes / o.tileTexels;
   const std::string visPrint = fingerprintOf({}, fmt::format("vis {} {} {} {} {}", atlasPrint, framesPrint, initRes, o.tileTexels,
                                                              o.samplesPerTile));
-  runPhase("visibility", visPrint, {work / "visibility.bin"}, [&] {
-    const size_t skippedBefore = scene.skippedRays();
-    const VisibilityIndex vis = buildVisibilityIndex(scene, initMap, cap.frames, kept, o.tileTexels, o.samplesPerTile);
-    const size_t tiles = vis.offsets.size() - 1;
-    vis.write(work / "visibility.bin");
-    size_t seen = 0;
-    for (size_t t = 0; t < tiles; ++t) seen += vis.offsets[t + 1] > vis.offsets[t];
-    std::vector<char> frameSees(cap.frames.size(), 0);
-    for (uint32_t f : vis.frames) frameSees[f] = 1;
-    Json blind = Json::array();
-    for (size_t k : kept)
-      if (!frameSees[k]) {
-        spdlog::warn("frame {} ({}) sees no surface of the mesh: skipped", k, cap.frames[k].image.filename().string());
-        blind.push_back(k);
-      }
-    return Json{{"tiles", tiles}, {"tiles_seen", seen}, {"entries", vis.frames.size()}, {"bytes", vis.bytes()},
-                {"frames_seeing_nothing", blind}, {"skipped_rays", scene.skippedRays() - skippedBefore},
-                {"mean_frames_per_seen_tile", seen ? double(vis.frames.size()) / seen : 0.0}};
-  });
+  runPhase("visibility", visPrint, {work / "visibility.bin"}, [&] { return visibilityPhase(scene, initMap, cap, kept, work, o); });
 
   // Initial albedo (streaming median of observed radiance) and coverage.
   const std::string initPrint = fingerprintOf({}, fmt::format("init {} {}", visPrint, static_cast<int>(o.init)));
-  runPhase("init", initPrint, {work / "albedo_init.exr", work / "coverage.exr", work / "coverage.png"}, [&] {
-    const size_t skippedBefore = scene.skippedRays();
-    const VisibilityIndex vis = VisibilityIndex::read(work / "visibility.bin", cap.frames.size());
-    const FrameStore store(work / "frames.bin");
-    if (store.frameCount() != cap.frames.size())
-      fail("{}: holds {} frames, the capture has {} (rerun with --force)", (work / "frames.bin").string(), store.frameCount(),
-           cap.frames.size());
-    // For each frame, its tiles and its position in each tile's frame list.
-    std::vector<std::vector<std::pair<uint32_t, uint32_t>>> tilesOf(cap.frames.size());
-    for (size_t t = 0; t + 1 < vis.offsets.size(); ++t)
-      for (uint32_t k = vis.offsets[t]; k < vis.offsets[t + 1]; ++k)
-        tilesOf[vis.frames[k]].push_back({static_cast<uint32_t>(t), k - vis.offsets[t]});
-    // One bit per (texel, frame of its tile) remembers which observations the first pass found
-    // unoccluded, so a second pass re-projects without tracing again.
-    const size_t tileArea = static_cast<size_t>(o.tileTexels) * o.tileTexels;
-    std::vector<std::vector<uint64_t>> seenBits(vis.offsets.size() - 1);
-    for (size_t t = 0; t + 1 < vis.offsets.size(); ++t) seenBits[t].assign((tileArea * (vis.offsets[t + 1] - vis.offsets[t]) + 63) / 64, 0);
-    const size_t texels = initMap.texelCount();
-    // Each texel's surface point and normal, computed once rather than once per frame.
-    std::vector<Vec3> texelPoint(texels), texelNormal(texels);
-    std::atomic<size_t> fellBack{0};
-    tbb::parallel_for(size_t{0}, texels, [&](size_t t) {
-      if (!initMap.valid(t)) return;
-      bool geometric = false;
-      texelPoint[t] = initMap.point(mesh, t);
-      texelNormal[t] = initMap.normal(mesh, t, &geometric);
-      if (geometric) fellBack.fetch_add(1, std::memory_order_relaxed);
-    });
-    MedianSketch sketch(texels);
-    std::vector<Eigen::Array3d> sum(o.init == InitStatistic::Mean ? texels : 0, Eigen::Array3d::Zero());
-    std::vector<uint32_t> coverage(texels, 0);
-    // Each pass visits frames in order and, inside a frame, its tiles in parallel: a texel (and
-    // its tile's bits) is only ever updated by one thread at a time, so nothing needs atomics.
-    int passIndex = 0;
-    auto pass = [&](const char* label, const std::function<void(size_t, const Color&)>& add) {
-      const bool traced = passIndex++ > 0;
-      Progress progress(label, kept.size());
-      for (size_t k : kept) {
-        tbb::parallel_for(size_t{0}, tilesOf[k].size(), [&](size_t i) {
-          const auto [tile, slot] = tilesOf[k][i];
-          std::vector<uint64_t>& bits = seenBits[tile];
-          const int tx = static_cast<int>(tile) % tilesPerSide, ty = static_cast<int>(tile) / tilesPerSide;
-          for (int y = ty * o.tileTexels; y < (ty + 1) * o.tileTexels; ++y)
-            for (int x = tx * o.tileTexels; x < (tx + 1) * o.tileTexels; ++x) {
-              const size_t texel = static_cast<size_t>(y) * initRes + x;
-              if (!initMap.valid(texel)) continue;
-              const size_t bit = (static_cast<size_t>(y - ty * o.tileTexels) * o.tileTexels + (x - tx * o.tileTexels)) +
-                                 tileArea * slot;
-              std::optional<Vec2> px;
-              if (traced) {
-                if (!(bits[bit / 64] >> (bit % 64) & 1)) continue;
-                px = cap.frames[k].camera.project(texelPoint[texel]);
-              } else {
-                px = observe(scene, cap.frames[k].camera, texelPoint[texel], texelNormal[texel]);
-              }
-              if (!px) continue;
-              const auto c = store.bilinear(k, *px);
-              if (!c) continue;
-              if (!traced) bits[bit / 64] |= uint64_t{1} << (bit % 64);
-              add(texel, *c);
-            }
-        });
-        progress.advance();
-      }
-    };
-    if (o.init == InitStatistic::Median) {
-      pass("median (coarse)", [&](size_t t, const Color& c) { sketch.addCoarse(t, c); });
-      sketch.startFine();
-      pass("median (fine)", [&](size_t t, const Color& c) { sketch.addFine(t, c); });
-      for (size_t t = 0; t < texels; ++t) coverage[t] = sketch.count(t);
-    } else {
-      pass("mean", [&](size_t t, const Color& c) { sum[t] += c.cast<double>(), ++coverage[t]; });
-    }
-    Image albedo(initRes, initRes), cov(initRes, initRes);
-    size_t valid = 0, unobserved = 0;
-    std::vector<Eigen::Array4d> objectMean(mesh.objectCount, Eigen::Array4d::Zero());
-    for (size_t t = 0; t < texels; ++t) {
-      if (!initMap.valid(t)) continue;
-      ++valid;
-      cov.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes), Color::Constant(static_cast<float>(coverage[t])));
-      if (coverage[t] == 0) {
-        ++unobserved;
-        continue;
-      }
-      const Color v = o.init == InitStatistic::Median ? sketch.median(t) : Color((sum[t] / coverage[t]).cast<float>());
-      albedo.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes), v);
-      const Eigen::Array3d vd = v.cast<double>();
-      objectMean[mesh.faceObject[initMap.triangle(t)]] += Eigen::Array4d(vd[0], vd[1], vd[2], 1.0);
-    }
-    // Texels no frame saw start from their object's average (or mid-grey).
-    for (size_t t = 0; t < texels; ++t) {
-      if (!initMap.valid(t) || coverage[t] > 0) continue;
-      const Eigen::Array4d& m = objectMean[mesh.faceObject[initMap.triangle(t)]];
-      albedo.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes),
-                 m[3] > 0 ? Color((m.head<3>() / m[3]).cast<float>()) : Color::Constant(0.5f));
-    }
-    writeExr(work / "albedo_init.exr", albedo);
-    writePng(work / "albedo_init.png", albedo);  // preview
-    writeExr(work / "coverage.exr", cov);
-    writePng(work / "coverage.png", falseColour(coverage, initRes));
-    const double fraction = valid ? double(unobserved) / valid : 0.0;
-    spdlog::info("init: {} valid texels at {}^2, {:.2f}% never observed", valid, initRes, 100 * fraction);
-    return Json{{"resolution", initRes}, {"statistic", o.init == InitStatistic::Median ? "median" : "mean"},
-                {"valid_texels", valid}, {"unobserved_texels", unobserved}, {"fraction_unobserved", fraction},
-                {"texels_geometric_normal", fellBack.load()}, {"skipped_rays", scene.skippedRays() - skippedBefore}};
-  });
+  runPhase("init", initPrint, {work / "albedo_init.exr", work / "coverage.exr", work / "coverage.png"},
+           [&] { return initPhase(scene, initMap, cap, kept, work, o); });
 
   PrepareSummary s;
   s.frames = cap.frames.size();

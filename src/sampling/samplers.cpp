@@ -15,6 +15,11 @@ void SamplerStats::add(const SamplerStats& o) {
   masked += o.masked, rays += o.rays;
 }
 
+Json SamplerStats::toJson() const {
+  return {{"slots", slots}, {"candidates", candidates}, {"not_seen", notSeen}, {"first_hit_elsewhere", firstHitElsewhere},
+          {"masked", masked}, {"rays", rays}};
+}
+
 void Batch::append(const Batch& other) {
   const auto slotOffset = static_cast<uint32_t>(texel.size());
   rays.insert(rays.end(), other.rays.begin(), other.rays.end());

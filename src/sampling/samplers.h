@@ -13,6 +13,7 @@
 #include "capture/frame_store.h"
 #include "core/enum_names.h"
 #include "core/rng.h"
+#include "io/json.h"
 #include "sampling/batch.h"
 #include "sampling/visibility.h"
 
@@ -34,6 +35,7 @@ struct SamplerStats {
   size_t masked = 0;           // reference pixel masked (NaN/Inf in the input)
   size_t rays = 0;             // training rays produced
   void add(const SamplerStats& o);
+  Json toJson() const;
 };
 
 // A batch and, per ray, the surface it was aimed at (texture space: the texel slot it came from).

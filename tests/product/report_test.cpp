@@ -23,8 +23,9 @@ TEST(Report, FitWritesASelfContainedPageWithCurvesImagesAndMaterials) {
   fc.batchTexels = 256, fc.maxDepth = 2, fc.emissionIterations = 20, fc.materialIterations = 10, fc.albedoPasses = 1;
   fc.emissionTextureIterations = 0, fc.checkpointEvery = 1000, fc.metricsEvery = 2;
   runFit(dir / "work", fc, false);
-
-  const fs::path page = dir / "work" / "report" / "index.html";
+  EXPECT_FALSE(fs::exists(dir / "work" / "report")) << "the fit writes its result; the report is the command's";
+  const fs::path page = writeFitReport(dir / "work");
+  EXPECT_EQ(page, dir / "work" / "report" / "index.html");
   ASSERT_TRUE(fs::exists(page));
   std::stringstream ss;
   ss << std::ifstream(page).rdbuf();

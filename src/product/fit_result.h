@@ -1,0 +1,32 @@
+// What a fit writes and reports besides its checkpoints: WORK/result/ (scene.json, albedo
+// textures, materials.json, lights.json), and the bytes it holds by part.
+#pragma once
+#include <filesystem>
+
+#include "adjoint/solver.h"
+#include "io/json.h"
+#include "params/gradients.h"
+#include "product/fit_config.h"
+#include "product/fit_workspace.h"
+#include "product/group_optimiser.h"
+#include "product/light_decisions.h"
+
+namespace relume {
+
+struct FitProgress {
+  int iterations = 0;
+  double loss = 0;          // the last iteration's
+  const SamplerStats& sampler;  // summed over the fit
+  const Json& peakMemory;   // the largest fitMemory seen
+};
+
+// Writes WORK/result/ atomically (WORK/result.partial/, then renamed); returns its path.
+std::filesystem::path writeFitResult(const Workspace& w, const Appearance& appearance, const TexelSpace& space,
+                                     const ObjectRoles& roles, const FitConfig& c, const FitProgress& progress);
+
+// Bytes the fit holds, by part, once a stage's buffers are allocated; "total" leaves out the
+// frame cache, a mapping of frames.bin of which only the pages the sampler touches are resident.
+Json fitMemory(const Workspace& w, Appearance& appearance, const TexelSpace& space, Gradients& grads, const Batch& batch,
+               const AdjointSettings& settings, const GroupOptimiser& optimiser, const LightSampler* lights);
+
+}  // namespace relume

@@ -114,22 +114,55 @@ int findProperty(const Element& e, std::initializer_list<const char*> names) {
   return -1;
 }
 
-}  // namespace
+// The parsed header: the body's encoding, its elements in file order, and where the body starts.
+struct Header {
+  Format format = Format::Ascii;
+  std::vector<Element> elements;
+  size_t bodyStart = 0;
+};
 
-MeshData readPly(const std::filesystem::path& path) {
-  const std::string file = path.string();
-  const std::string data = readRegularFile(path, "a PLY mesh");
-  const size_t headerEnd = data.find("end_header");
+// Finds the header's extent: checks the magic and the 'end_header' line, so the body's first byte
+// is known before any line is read.
+size_t findBodyStart(const std::string& data, const std::string& file, size_t& headerEnd) {
+  headerEnd = data.find("end_header");
   if (data.rfind("ply", 0) != 0) fail("{}: not a PLY file (missing 'ply' magic)", file);
   if (headerEnd == std::string::npos) fail("{}: PLY header has no 'end_header'", file);
   size_t bodyStart = data.find('\n', headerEnd);
   if (bodyStart == std::string::npos) fail("{}: PLY header not terminated by a newline", file);
-  ++bodyStart;
+  return bodyStart + 1;
+}
 
+// One 'property' line (after the keyword): a scalar or a list, with known types and a name.
+Property parseProperty(std::istringstream& ls, const std::string& line, const std::string& file, int lineNo) {
+  Property p;
+  std::string t;
+  ls >> t;
+  if (t == "list") {
+    std::string ct, vt;
+    ls >> ct >> vt >> p.name;
+    const auto c = parseType(ct), v = parseType(vt);
+    if (!c || !v || p.name.empty()) fail("{}: line {}: malformed list property '{}'", file, lineNo, line);
+    p.isList = true;
+    p.countType = *c;
+    p.type = *v;
+  } else {
+    const auto v = parseType(t);
+    ls >> p.name;
+    if (!v || p.name.empty()) fail("{}: line {}: unknown property type in '{}'", file, lineNo, line);
+    p.type = *v;
+  }
+  return p;
+}
+
+// Header parsing: the format line and the element and property declarations, line by line;
+// anything else but comments is refused so a malformed file fails here, not in the body.
+Header parseHeader(const std::string& data, const std::string& file) {
+  size_t headerEnd = 0;
+  Header h;
+  h.bodyStart = findBodyStart(data, file, headerEnd);
   std::istringstream header(data.substr(0, headerEnd));
   std::string line;
   std::optional<Format> format;
-  std::vector<Element> elements;
   int lineNo = 0;
   while (std::getline(header, line)) {
     ++lineNo;
@@ -152,125 +185,165 @@ MeshData readPly(const std::filesystem::path& path) {
       const auto [ptr, ec] = std::from_chars(count.data(), count.data() + count.size(), e.count);
       if (e.name.empty() || ec != std::errc() || ptr != count.data() + count.size())
         fail("{}: line {}: malformed element declaration '{}'", file, lineNo, line);
-      elements.push_back(e);
+      h.elements.push_back(e);
     } else if (key == "property") {
-      if (elements.empty()) fail("{}: line {}: property before any element", file, lineNo);
-      Property p;
-      std::string t;
-      ls >> t;
-      if (t == "list") {
-        std::string ct, vt;
-        ls >> ct >> vt >> p.name;
-        const auto c = parseType(ct), v = parseType(vt);
-        if (!c || !v || p.name.empty()) fail("{}: line {}: malformed list property '{}'", file, lineNo, line);
-        p.isList = true;
-        p.countType = *c;
-        p.type = *v;
-      } else {
-        const auto v = parseType(t);
-        ls >> p.name;
-        if (!v || p.name.empty()) fail("{}: line {}: unknown property type in '{}'", file, lineNo, line);
-        p.type = *v;
-      }
-      elements.back().properties.push_back(p);
+      if (h.elements.empty()) fail("{}: line {}: property before any element", file, lineNo);
+      h.elements.back().properties.push_back(parseProperty(ls, line, file, lineNo));
     } else {
       fail("{}: line {}: unexpected header keyword '{}'", file, lineNo, key);
     }
   }
   if (!format) fail("{}: PLY header has no format line", file);
+  h.format = *format;
+  return h;
+}
 
-  const char* body = data.data() + bodyStart;
-  const char* bodyEnd = data.data() + data.size();
-  Cursor cur(file, body, bodyEnd, *format);
-  MeshData mesh;
-  bool haveVertices = false;
-  for (const Element& e : elements) {
-    // Each element needs at least one byte per scalar (binary) or two chars (ascii): refuse
-    // absurd counts before reserving memory.
-    size_t minBytes = 0;
-    for (const Property& p : e.properties) minBytes += p.isList ? typeSize(p.countType) : typeSize(p.type);
-    if (*format == Format::Ascii) minBytes = 2 * e.properties.size();
-    if (e.properties.empty() && e.count > 0)
-      fail("{}: element '{}' declares {} entries but no properties", file, e.name, e.count);
-    if (minBytes > 0 && e.count > cur.remaining() / minBytes)
-      fail("{}: element '{}' declares {} entries but the file holds at most {}", file, e.name, e.count,
-           cur.remaining() / minBytes);
+// Element layout check: each entry needs at least one byte per scalar (binary) or two chars
+// (ascii), so absurd counts are refused before anything is reserved for them.
+void checkElementFits(const Element& e, Format format, const Cursor& cur, const std::string& file) {
+  size_t minBytes = 0;
+  for (const Property& p : e.properties) minBytes += p.isList ? typeSize(p.countType) : typeSize(p.type);
+  if (format == Format::Ascii) minBytes = 2 * e.properties.size();
+  if (e.properties.empty() && e.count > 0)
+    fail("{}: element '{}' declares {} entries but no properties", file, e.name, e.count);
+  if (minBytes > 0 && e.count > cur.remaining() / minBytes)
+    fail("{}: element '{}' declares {} entries but the file holds at most {}", file, e.name, e.count,
+         cur.remaining() / minBytes);
+}
 
-    if (e.name == "vertex") {
-      haveVertices = true;
-      const int px = findProperty(e, {"x"}), py = findProperty(e, {"y"}), pz = findProperty(e, {"z"});
-      if (px < 0 || py < 0 || pz < 0) fail("{}: vertex element lacks x/y/z", file);
-      const int nx = findProperty(e, {"nx"}), ny = findProperty(e, {"ny"}), nz = findProperty(e, {"nz"});
-      const int pu = findProperty(e, {"s", "u", "texture_u"}), pv = findProperty(e, {"t", "v", "texture_v"});
-      const bool hasN = nx >= 0 && ny >= 0 && nz >= 0, hasUv = pu >= 0 && pv >= 0;
-      mesh.positions.resize(e.count);
-      if (hasN) mesh.normals.resize(e.count);
-      if (hasUv) mesh.uvs.resize(e.count);
-      std::vector<double> vals(e.properties.size());
-      for (uint64_t i = 0; i < e.count; ++i) {
-        for (size_t k = 0; k < e.properties.size(); ++k) {
-          const Property& p = e.properties[k];
-          if (p.isList) {
-            const size_t n = listLength(cur.read(p.countType, "vertex list count"), file, "vertex", i);
-            for (size_t j = 0; j < n; ++j) cur.read(p.type, "vertex list item");
-          } else {
-            vals[k] = cur.read(p.type, "vertex property");
-          }
-        }
-        mesh.positions[i] = Vec3(vals[px], vals[py], vals[pz]);
-        if (!mesh.positions[i].allFinite()) fail("{}: vertex {} has a non-finite position", file, i);
-        if (hasN) mesh.normals[i] = Vec3(vals[nx], vals[ny], vals[nz]);
-        if (hasUv) mesh.uvs[i] = Vec2(vals[pu], vals[pv]);
+// Where the vertex element keeps what relume reads: position (required), normal and uv (optional,
+// under their common names); -1 where absent.
+struct VertexLayout {
+  int px, py, pz, nx, ny, nz, pu, pv;
+  bool hasN, hasUv;
+};
+
+VertexLayout vertexLayout(const Element& e, const std::string& file) {
+  VertexLayout l;
+  l.px = findProperty(e, {"x"}), l.py = findProperty(e, {"y"}), l.pz = findProperty(e, {"z"});
+  if (l.px < 0 || l.py < 0 || l.pz < 0) fail("{}: vertex element lacks x/y/z", file);
+  l.nx = findProperty(e, {"nx"}), l.ny = findProperty(e, {"ny"}), l.nz = findProperty(e, {"nz"});
+  l.pu = findProperty(e, {"s", "u", "texture_u"}), l.pv = findProperty(e, {"t", "v", "texture_v"});
+  l.hasN = l.nx >= 0 && l.ny >= 0 && l.nz >= 0, l.hasUv = l.pu >= 0 && l.pv >= 0;
+  return l;
+}
+
+// Vertex read: every property of every vertex is consumed (lists skipped) to stay in step with the
+// body; positions must be finite.
+void readVertices(const Element& e, Cursor& cur, const std::string& file, MeshData& mesh) {
+  const VertexLayout l = vertexLayout(e, file);
+  mesh.positions.resize(e.count);
+  if (l.hasN) mesh.normals.resize(e.count);
+  if (l.hasUv) mesh.uvs.resize(e.count);
+  std::vector<double> vals(e.properties.size());
+  for (uint64_t i = 0; i < e.count; ++i) {
+    for (size_t k = 0; k < e.properties.size(); ++k) {
+      const Property& p = e.properties[k];
+      if (p.isList) {
+        const size_t n = listLength(cur.read(p.countType, "vertex list count"), file, "vertex", i);
+        for (size_t j = 0; j < n; ++j) cur.read(p.type, "vertex list item");
+      } else {
+        vals[k] = cur.read(p.type, "vertex property");
       }
-    } else if (e.name == "face") {
-      if (!haveVertices) fail("{}: face element before vertex element", file);
-      int listIdx = -1;
-      for (size_t k = 0; k < e.properties.size(); ++k)
-        if (e.properties[k].isList && (e.properties[k].name == "vertex_indices" || e.properties[k].name == "vertex_index"))
-          listIdx = static_cast<int>(k);
-      if (listIdx < 0) fail("{}: face element lacks a vertex_indices list", file);
-      const int label = findProperty(e, {"object_id", "segment_id", "label", "instance", "objectId"});
-      mesh.triangles.reserve(e.count);
-      if (label >= 0) mesh.faceObject.reserve(e.count);
-      std::vector<int64_t> poly;
-      for (uint64_t i = 0; i < e.count; ++i) {
-        double labelValue = 0;
-        for (size_t k = 0; k < e.properties.size(); ++k) {
-          const Property& p = e.properties[k];
-          if (p.isList) {
-            const size_t n = listLength(cur.read(p.countType, "face vertex count"), file, "face", i);
-            if (static_cast<int>(k) == listIdx) poly.resize(n);
-            for (size_t j = 0; j < n; ++j) {
-              const double idx = cur.read(p.type, "face vertex index");
-              if (static_cast<int>(k) != listIdx) continue;
-              if (idx < 0 || idx >= static_cast<double>(mesh.positions.size()) || idx != std::floor(idx))
-                fail("{}: face {}: vertex index {} out of range [0,{})", file, i, idx, mesh.positions.size());
-              poly[j] = static_cast<int64_t>(idx);
-            }
-          } else {
-            const double v = cur.read(p.type, "face property");
-            if (static_cast<int>(k) == label) labelValue = v;
-          }
+    }
+    mesh.positions[i] = Vec3(vals[l.px], vals[l.py], vals[l.pz]);
+    if (!mesh.positions[i].allFinite()) fail("{}: vertex {} has a non-finite position", file, i);
+    if (l.hasN) mesh.normals[i] = Vec3(vals[l.nx], vals[l.ny], vals[l.nz]);
+    if (l.hasUv) mesh.uvs[i] = Vec2(vals[l.pu], vals[l.pv]);
+  }
+}
+
+// Where the face element keeps its vertex index list (required) and its object label (optional,
+// under the names scanners use); -1 where absent.
+struct FaceLayout {
+  int indices = -1, label = -1;
+};
+
+FaceLayout faceLayout(const Element& e, const std::string& file) {
+  FaceLayout l;
+  for (size_t k = 0; k < e.properties.size(); ++k)
+    if (e.properties[k].isList && (e.properties[k].name == "vertex_indices" || e.properties[k].name == "vertex_index"))
+      l.indices = static_cast<int>(k);
+  if (l.indices < 0) fail("{}: face element lacks a vertex_indices list", file);
+  l.label = findProperty(e, {"object_id", "segment_id", "label", "instance", "objectId"});
+  return l;
+}
+
+// Face read: polygons fan-triangulated from their first corner, every index checked against the
+// vertices read so far, labels checked to be small non-negative integers.
+void readFaces(const Element& e, Cursor& cur, const std::string& file, MeshData& mesh) {
+  const FaceLayout l = faceLayout(e, file);
+  const int listIdx = l.indices, label = l.label;
+  mesh.triangles.reserve(e.count);
+  if (label >= 0) mesh.faceObject.reserve(e.count);
+  std::vector<int64_t> poly;
+  for (uint64_t i = 0; i < e.count; ++i) {
+    double labelValue = 0;
+    for (size_t k = 0; k < e.properties.size(); ++k) {
+      const Property& p = e.properties[k];
+      if (p.isList) {
+        const size_t n = listLength(cur.read(p.countType, "face vertex count"), file, "face", i);
+        if (static_cast<int>(k) == listIdx) poly.resize(n);
+        for (size_t j = 0; j < n; ++j) {
+          const double idx = cur.read(p.type, "face vertex index");
+          if (static_cast<int>(k) != listIdx) continue;
+          if (idx < 0 || idx >= static_cast<double>(mesh.positions.size()) || idx != std::floor(idx))
+            fail("{}: face {}: vertex index {} out of range [0,{})", file, i, idx, mesh.positions.size());
+          poly[j] = static_cast<int64_t>(idx);
         }
-        if (poly.size() < 3) fail("{}: face {} has {} vertices (need >= 3)", file, i, poly.size());
-        if (label >= 0 && (labelValue < 0 || labelValue > 1e7 || labelValue != std::floor(labelValue)))
-          fail("{}: face {}: object id {} is not a non-negative integer", file, i, labelValue);
-        if (poly.size() > 3) ++mesh.polygonsTriangulated;
-        for (size_t j = 1; j + 1 < poly.size(); ++j) {
-          mesh.triangles.emplace_back(poly[0], poly[j], poly[j + 1]);
-          if (label >= 0) mesh.faceObject.push_back(static_cast<int32_t>(labelValue));
-        }
+      } else {
+        const double v = cur.read(p.type, "face property");
+        if (static_cast<int>(k) == label) labelValue = v;
       }
-    } else {
-      for (uint64_t i = 0; i < e.count; ++i)
-        for (const Property& p : e.properties) {
-          const size_t n = p.isList ? listLength(cur.read(p.countType, "list count"), file, "element '" + e.name + "'", i) : 1;
-          for (size_t j = 0; j < n; ++j) cur.read(p.type, e.name.c_str());
-        }
+    }
+    if (poly.size() < 3) fail("{}: face {} has {} vertices (need >= 3)", file, i, poly.size());
+    if (label >= 0 && (labelValue < 0 || labelValue > 1e7 || labelValue != std::floor(labelValue)))
+      fail("{}: face {}: object id {} is not a non-negative integer", file, i, labelValue);
+    if (poly.size() > 3) ++mesh.polygonsTriangulated;
+    for (size_t j = 1; j + 1 < poly.size(); ++j) {
+      mesh.triangles.emplace_back(poly[0], poly[j], poly[j + 1]);
+      if (label >= 0) mesh.faceObject.push_back(static_cast<int32_t>(labelValue));
     }
   }
+}
+
+// Any other element is read and dropped, its list lengths still checked, to reach the next one.
+void skipElement(const Element& e, Cursor& cur, const std::string& file) {
+  for (uint64_t i = 0; i < e.count; ++i)
+    for (const Property& p : e.properties) {
+      const size_t n = p.isList ? listLength(cur.read(p.countType, "list count"), file, "element '" + e.name + "'", i) : 1;
+      for (size_t j = 0; j < n; ++j) cur.read(p.type, e.name.c_str());
+    }
+}
+
+// Validation: a mesh needs vertices and at least one face.
+void checkMesh(const MeshData& mesh, bool haveVertices, const std::string& file) {
   if (!haveVertices) fail("{}: PLY has no vertex element", file);
   if (mesh.triangles.empty()) fail("{}: PLY has no faces", file);
+}
+
+}  // namespace
+
+MeshData readPly(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  const std::string data = readRegularFile(path, "a PLY mesh");
+  const Header h = parseHeader(data, file);
+  Cursor cur(file, data.data() + h.bodyStart, data.data() + data.size(), h.format);
+  MeshData mesh;
+  bool haveVertices = false;
+  for (const Element& e : h.elements) {
+    checkElementFits(e, h.format, cur, file);
+    if (e.name == "vertex") {
+      haveVertices = true;
+      readVertices(e, cur, file, mesh);
+    } else if (e.name == "face") {
+      if (!haveVertices) fail("{}: face element before vertex element", file);
+      readFaces(e, cur, file, mesh);
+    } else {
+      skipElement(e, cur, file);
+    }
+  }
+  checkMesh(mesh, haveVertices, file);
   return mesh;
 }
 

@@ -8,10 +8,6 @@
 #include <numeric>
 #include <unordered_map>
 
-#include <tbb/parallel_for.h>
-
-#include "core/check.h"
-#include "core/error.h"
 #include "core/system.h"
 #include "scene/atlas_internal.h"
 
@@ -21,11 +17,6 @@ namespace {
 using namespace atlas_detail;
 
 using Vec2d = Eigen::Vector2d;
-
-// Twice the signed area of a 2D triangle.
-double cross2(const Vec2d& a, const Vec2d& b, const Vec2d& c) {
-  return (b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x());
-}
 
 // Separating-axis test on the 6 edge normals; touching triangles do not overlap.
 bool trianglesOverlap(const std::array<Vec2d, 3>& a, const std::array<Vec2d, 3>& b, double eps) {
@@ -82,15 +73,6 @@ size_t countOverlaps(const std::vector<uint32_t>& faces, const UvOf& uvOf, size_
   }
   return found;
 }
-
-struct Chart {
-  std::vector<uint32_t> faces;
-  std::vector<int> vertices;                 // original vertex ids
-  std::unordered_map<int, int> local;        // original vertex -> index in vertices
-  std::vector<Vec2d> uv;                     // per local vertex, metres
-  bool lscm = false;
-  float cone = 0;                            // the normal cone it was grown with
-};
 
 void collectVertices(const TriangleMesh& m, Chart& c) {
   c.vertices.clear();
@@ -209,6 +191,10 @@ bool lscm(const TriangleMesh& m, Chart& c) {
   return true;
 }
 
+}  // namespace
+
+namespace atlas_detail {
+
 // Maps a chart to the plane in metres: projection on its mean plane when it is near-planar by area
 // (noisy scans have a few steep faces on flat walls, which a projection handles with less
 // distortion than a conformal map with two pins), a least-squares conformal map otherwise, and the
@@ -284,6 +270,8 @@ Chart subChart(const TriangleMesh& m, const Chart& parent, std::vector<uint32_t>
   return c;
 }
 
+namespace {
+
 double uvArea(const TriangleMesh& m, const Chart& c) {
   double a = 0;
   for (uint32_t f : c.faces) {
@@ -292,6 +280,8 @@ double uvArea(const TriangleMesh& m, const Chart& c) {
   }
   return a;
 }
+
+}  // namespace
 
 // A chart filling less than kMinHollowFill of its (oriented) box wastes the rest: the packer places
 // footprints on a height map, so nothing fills a frame's inside. Real interiors are full of such
@@ -346,59 +336,73 @@ std::vector<Chart> splitHollow(const TriangleMesh& m, const Topology& topo, cons
   return out;
 }
 
-double shiftOf(int ring) { return ring + 0.25; }  // the ring, then a quarter texel off the grid lines
-
-// The footprint of a group of charts (each at its offset) whose box is `box`. A group larger than
-// `limit` texels gets a stand-in footprint wider than the strip (no bits).
-Footprint footprintOf(const TriangleMesh& m, const std::vector<Chart>& charts, const Group& g, const Eigen::AlignedBox2d& box, double density,
-                      int ring, int limit) {
-  const double shift = shiftOf(ring);
-  Footprint fp;
-  if (!(std::max(box.sizes().x(), box.sizes().y()) * density < limit)) {  // cannot fit: say so without allocating it
-    fp.w = fp.h = limit + 1;
-    fp.bottom.assign(1, 0), fp.top.assign(1, 1);
-    return fp;
-  }
-  fp.w = static_cast<int>(std::floor(shift + box.sizes().x() * density + 1e-3)) + 1 + ring;
-  fp.h = static_cast<int>(std::floor(shift + box.sizes().y() * density + 1e-3)) + 1 + ring;
-  std::vector<uint8_t> touched(static_cast<size_t>(fp.w) * fp.h, 0);
-  auto touch = [&](const Vec2d (&v)[3]) {
-    const double orient = cross2(v[0], v[1], v[2]) >= 0 ? 1.0 : -1.0;
-    const int x0 = static_cast<int>(std::floor(std::min({v[0].x(), v[1].x(), v[2].x()}) - 1e-3));
-    const int x1 = static_cast<int>(std::floor(std::max({v[0].x(), v[1].x(), v[2].x()}) + 1e-3));
-    const int y0 = static_cast<int>(std::floor(std::min({v[0].y(), v[1].y(), v[2].y()}) - 1e-3));
-    const int y1 = static_cast<int>(std::floor(std::max({v[0].y(), v[1].y(), v[2].y()}) + 1e-3));
-    for (int y = y0; y <= y1; ++y)
-      for (int x = x0; x <= x1; ++x) {
-        bool touches = true;  // separating axis with a 1e-3-texel margin: conservative for float uvs
-        for (int e = 0; e < 3 && touches; ++e) {
-          const Vec2d d = v[(e + 1) % 3] - v[e];
-          const Vec2d inward = orient * Vec2d(-d.y(), d.x());
-          const Vec2d corner(inward.x() >= 0 ? x + 1.0 : double(x), inward.y() >= 0 ? y + 1.0 : double(y));
-          touches = inward.dot(corner - v[e]) >= -1e-3 * inward.norm();
-        }
-        if (touches) touched[static_cast<size_t>(y) * fp.w + x] = 1;
-      }
-  };
-  for (size_t j = 0; j < g.charts.size(); ++j) {
-    const Chart& c = charts[g.charts[j]];
-    for (uint32_t f : c.faces) {
-      Vec2d v[3];
-      for (int k = 0; k < 3; ++k) v[k] = Vec2d(shift, shift) + (g.offset[j] + c.uv[c.local.at(m.triangles[f][k])]) * density;
-      touch(v);
-    }
-  }
-  fp.bits.assign(touched.size(), 0);
-  for (int y = 0; y < fp.h; ++y)
-    for (int x = 0; x < fp.w; ++x) {
-      if (!touched[static_cast<size_t>(y) * fp.w + x]) continue;
-      for (int dy = -ring; dy <= ring; ++dy)
-        for (int dx = -ring; dx <= ring; ++dx) fp.bits[static_cast<size_t>(y + dy) * fp.w + x + dx] = 1;
-    }
-  return fp;
+// The fold test on a chart's stored uvs: its faces must all keep one orientation and not overlap.
+bool foldsInFloat(const TriangleMesh& m, const Chart& c, const std::vector<Vec2>& uv) {
+  if (c.faces.size() == 1) return false;
+  auto uvOf = [&](uint32_t f, int k) { return Vec2d(uv[c.local.at(m.triangles[f][k])].cast<double>()); };
+  int positive = 0;
+  for (uint32_t f : c.faces) positive += cross2(uvOf(f, 0), uvOf(f, 1), uvOf(f, 2)) > 0;
+  return (positive != 0 && positive != static_cast<int>(c.faces.size())) || countOverlaps(c.faces, uvOf, 1) > 0;
 }
 
-}  // namespace
+// Report of the charting and packing: chart counts, the shared blocks and the share of the surface
+// in them, the density.
+void reportCharts(AtlasState& s, const Packing& p) {
+  AtlasReport& r = s.r;
+  for (const Group& g : p.groups)
+    if (g.charts.size() > 1) {
+      ++r.sharedBlocks, r.blockedCharts += g.charts.size();
+      for (uint32_t i : g.charts)
+        for (uint32_t f : s.charts[i].faces) r.blockedSurface += s.mesh.faceArea[f] / s.meshArea;
+    }
+  r.charts = s.charts.size();
+  for (const Chart& c : s.charts) r.lscmCharts += c.lscm;
+  r.texelsPerMetre = p.density;
+}
+
+// Emission of the atlas mesh: each chart's vertices duplicated with their stored uvs (a vertex on
+// a seam belongs to every chart it borders), faces renumbered in place; the report gets the
+// packing efficiency, the stretch percentiles, the time and the overlap count of the result.
+TriangleMesh emitAtlasMesh(AtlasState& s, const std::vector<std::vector<Vec2>>& chartUv, double density, const Timer& timer) {
+  const TriangleMesh& mesh = s.mesh;
+  const std::vector<Chart>& charts = s.charts;
+  AtlasReport& r = s.r;
+  TriangleMesh out = mesh;
+  out.positions.clear();
+  out.normals.clear();
+  out.uvs.clear();
+  const double R = s.o.gutterResolution;
+  std::vector<double> stretch;
+  double uvArea = 0;
+  for (size_t i = 0; i < charts.size(); ++i) {
+    const Chart& c = charts[i];
+    const int base = static_cast<int>(out.positions.size());
+    for (size_t v = 0; v < c.vertices.size(); ++v) {
+      out.positions.push_back(mesh.positions[c.vertices[v]]);
+      if (!mesh.normals.empty()) out.normals.push_back(mesh.normals[c.vertices[v]]);
+      out.uvs.push_back(chartUv[i][v]);
+    }
+    for (uint32_t f : c.faces) {
+      for (int k = 0; k < 3; ++k) out.triangles[f][k] = base + c.local.at(mesh.triangles[f][k]);
+      const auto& t = out.triangles[f];
+      const double a = 0.5 * std::abs(cross2(out.uvs[t[0]].cast<double>(), out.uvs[t[1]].cast<double>(), out.uvs[t[2]].cast<double>()));
+      uvArea += a;
+      stretch.push_back(std::sqrt(a * R * R / (density * density) / std::max<double>(mesh.faceArea[f], 1e-30)));
+    }
+  }
+  r.packingEfficiency = uvArea;
+  std::sort(stretch.begin(), stretch.end());
+  if (!stretch.empty()) {
+    r.stretchP05 = stretch[stretch.size() / 20];
+    r.stretchMedian = stretch[stretch.size() / 2];
+    r.stretchP95 = stretch[stretch.size() * 19 / 20];
+  }
+  r.seconds = timer.seconds();
+  r.uvOverlaps = countUvOverlaps(out, SIZE_MAX);
+  return out;
+}
+
+}  // namespace atlas_detail
 
 size_t countUvOverlaps(const TriangleMesh& mesh, size_t stopAfter) {
   std::vector<uint32_t> faces(mesh.triangles.size());
@@ -434,285 +438,29 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
     r.keptInputUv = true;
     return mesh;
   }
-  std::vector<Vec3> normals(mesh.triangles.size());
-  for (size_t f = 0; f < normals.size(); ++f) normals[f] = mesh.faceNormal(f);
-  const Topology topo = buildTopology(mesh);
-  std::vector<int32_t> state(mesh.triangles.size(), -2);
-
-  // Chart, parameterise, and re-chart any chart whose map overlaps itself (or has no valid map)
-  // with half the cone. Below kMinConeDegrees its faces become one chart each, which always map
-  // (a single non-degenerate triangle), so this terminates on any input.
-  constexpr float kMinConeDegrees = 1.0f;
-  const float cosPlanar = std::cos(o.planarDegrees * kPi / 180.0f);
-  std::vector<Chart> charts;
-  auto chartRegion = [&](std::vector<uint32_t> faces, float startCone) {
-    std::vector<std::pair<std::vector<uint32_t>, float>> work;
-    work.push_back({std::move(faces), startCone});
-    while (!work.empty()) {
-      auto [region, cone] = std::move(work.back());
-      work.pop_back();
-      std::vector<std::vector<uint32_t>> grown;
-      if (cone < kMinConeDegrees)
-        for (uint32_t f : region) grown.push_back({f});
-      else
-        grown = growCharts(mesh, normals, topo, region, cone, state);
-      for (auto& g : grown) {
-        Chart c;
-        c.faces = std::move(g);
-        c.cone = cone;
-        if (!parameterise(mesh, normals, cosPlanar, c)) {
-          ++r.splitCharts;
-          work.push_back({std::move(c.faces), cone * 0.5f});
-          continue;
-        }
-        orientChart(c);
-        charts.push_back(std::move(c));
-      }
-    }
-  };
-  {
-    std::vector<uint32_t> all(mesh.triangles.size());
-    std::iota(all.begin(), all.end(), 0);
-    chartRegion(std::move(all), o.coneDegrees);
-  }
-  spdlog::debug("atlas: {} charts grown and mapped at {:.1f}s", charts.size(), timer.seconds());
-
-  const int G = o.gutterResolution;
-  double meshArea = 0;
-  for (float a : mesh.faceArea) meshArea += a;
-  const double maxDensity = std::sqrt(static_cast<double>(G) * G / std::max(meshArea, 1e-12));  // every texel covered
-  // Small charts (under kSmallChartTexels at maxDensity) each pay a whole footprint: merge each,
-  // smallest first, into the neighbour it shares the longest border with, when the union still maps
-  // (no flip or overlap, conformal stretch p95 <= kMaxStretch) and none of its faces is stretched
-  // below kMinMergedStretch. Targets above kMaxMergeTarget faces are left alone (each attempt
-  // re-maps the whole union).
-  {
-    constexpr double kSmallChartTexels = 16, kMinMergedStretch = 0.5;
-    constexpr size_t kMaxMergeTarget = 500;
-    std::sort(charts.begin(), charts.end(), [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
-    std::vector<int32_t> chartOf(mesh.triangles.size());
-    std::vector<double> chartArea(charts.size(), 0);
-    for (size_t i = 0; i < charts.size(); ++i)
-      for (uint32_t f : charts[i].faces) chartOf[f] = static_cast<int32_t>(i), chartArea[i] += mesh.faceArea[f];
-    std::vector<size_t> order;
-    for (size_t i = 0; i < charts.size(); ++i)
-      if (chartArea[i] * maxDensity * maxDensity < kSmallChartTexels) order.push_back(i);
-    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return chartArea[a] != chartArea[b] ? chartArea[a] < chartArea[b] : a < b; });
-    for (size_t small : order) {
-      if (charts[small].faces.empty() || chartArea[small] * maxDensity * maxDensity >= kSmallChartTexels) continue;
-      std::map<int32_t, float> border;
-      for (uint32_t f : charts[small].faces)
-        for (int k = 0; k < 3; ++k)
-          if (const int32_t g = topo.neighbour[f][k]; g >= 0 && chartOf[g] != static_cast<int32_t>(small)) border[chartOf[g]] += topo.edgeLength[f][k];
-      int32_t target = -1;
-      float longest = 0;
-      for (const auto& [c, length] : border)
-        if (length > longest) longest = length, target = c;
-      if (target < 0 || charts[target].faces.size() > kMaxMergeTarget) continue;
-      Chart merged;
-      merged.faces = charts[target].faces;
-      merged.faces.insert(merged.faces.end(), charts[small].faces.begin(), charts[small].faces.end());
-      merged.cone = charts[target].cone;
-      if (!parameterise(mesh, normals, cosPlanar, merged)) continue;
-      bool squashed = false;
-      for (uint32_t f : merged.faces) {
-        const auto& t = mesh.triangles[f];
-        const double a = 0.5 * std::abs(cross2(merged.uv[merged.local.at(t[0])], merged.uv[merged.local.at(t[1])], merged.uv[merged.local.at(t[2])]));
-        squashed = squashed || !(std::sqrt(a / mesh.faceArea[f]) >= kMinMergedStretch);
-      }
-      if (squashed) continue;
-      orientChart(merged);
-      for (uint32_t f : charts[small].faces) chartOf[f] = target;
-      chartArea[target] += chartArea[small];
-      charts[target] = std::move(merged);
-      charts[small].faces.clear();
-      ++r.mergedCharts;
-    }
-    std::erase_if(charts, [](const Chart& c) { return c.faces.empty(); });
-  }
-  {
-    std::vector<Chart> parts;
-    for (Chart& c : charts)
-      if (std::vector<Chart> split = splitHollow(mesh, topo, c, maxDensity); !split.empty()) {
-        c.faces.clear();
-        for (Chart& p : split) parts.push_back(std::move(p));
-        ++r.hollowCharts;
-      }
-    for (Chart& p : parts) charts.push_back(std::move(p));
-    std::erase_if(charts, [](const Chart& c) { return c.faces.empty(); });
-  }
-  // Faces narrower in uv than 1/1000 texel at the largest density possible (every texel covered),
-  // 16 float roundings at 1024^2, could fold when their uvs are stored as float: they become charts
-  // of their own before packing.
-  {
-    std::vector<Chart> singles;
-    for (Chart& c : charts) {
-      if (c.faces.size() == 1) continue;
-      std::vector<uint32_t> keep;
-      for (uint32_t f : c.faces) {
-        Vec2d p[3];
-        for (int k = 0; k < 3; ++k) p[k] = c.uv[c.local.at(mesh.triangles[f][k])];
-        const double longest = std::max({(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()});
-        const double altitude = std::abs(cross2(p[0], p[1], p[2])) / std::max(longest, 1e-300);
-        if (altitude * maxDensity < 1e-3) singles.emplace_back().faces = {f};
-        else keep.push_back(f);
-      }
-      if (keep.size() == c.faces.size()) continue;
-      c = keep.empty() ? Chart{} : subChart(mesh, c, std::move(keep));
-    }
-    for (Chart& c : singles) {
-      [[maybe_unused]] const bool mapped = parameterise(mesh, normals, cosPlanar, c);
-      DCHECK(mapped && "a single triangle projects on its own plane");
-      orientChart(c);
-      charts.push_back(std::move(c));
-    }
-    std::erase_if(charts, [](const Chart& c) { return c.faces.empty(); });
-  }
-  spdlog::debug("atlas: {} charts after merging and cutting at {:.1f}s", charts.size(), timer.seconds());
+  AtlasState s = analyseMesh(mesh, o, r);
+  chartMesh(s);
+  spdlog::debug("atlas: {} charts grown and mapped at {:.1f}s", s.charts.size(), timer.seconds());
+  mergeSmallCharts(s);
+  cutHollowCharts(s);
+  isolateSlivers(s);
+  spdlog::debug("atlas: {} charts after merging and cutting at {:.1f}s", s.charts.size(), timer.seconds());
   // Disjoint footprints grown by r texels leave 2r >= gutterTexels empty texels between two charts.
   const int ring = (o.gutterTexels + 1) / 2;
-  std::vector<Group> groups;
-  std::vector<std::array<Footprint, 4>> fps;  // per group
-  std::vector<Placement> placement;           // per group
-  std::vector<std::vector<Vec2>> chartUv;     // per chart and local vertex: the atlas uv as stored (float)
-  double density = 0, lastMiss = 0;
-  for (;;) {
-    // Deterministic order whatever the work-queue order was: by first face.
-    std::sort(charts.begin(), charts.end(), [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
-    // Charts under sharedBlockTexels or narrower than sharedBlockWidth at maxDensity share blocks
-    // per object, a tenth of a texel apart (at any density the packing ends at: far above float
-    // rounding), each block at most 1/64 of the atlas. Sharing costs lookup isolation, so only when
-    // it buys texture: when their own footprints would take over 1% of the atlas.
-    {
-      std::vector<Vec2d> size(charts.size());
-      std::vector<int32_t> object(charts.size());
-      std::vector<char> tiny(charts.size());
-      double tinyFootprints = 0;  // texels at maxDensity
-      for (size_t i = 0; i < charts.size(); ++i) {
-        Eigen::AlignedBox2d box;
-        double area = 0;
-        for (const Vec2d& p : charts[i].uv) box.extend(p);
-        for (uint32_t f : charts[i].faces) area += mesh.faceArea[f];
-        size[i] = box.sizes();
-        object[i] = mesh.faceObject[charts[i].faces.front()];
-        tiny[i] = area * maxDensity * maxDensity < o.sharedBlockTexels || size[i].minCoeff() * maxDensity < o.sharedBlockWidth;
-        if (tiny[i]) tinyFootprints += (size[i].x() * maxDensity + 1 + 2 * ring) * (size[i].y() * maxDensity + 1 + 2 * ring);
-      }
-      if (tinyFootprints < 0.01 * G * G) std::fill(tiny.begin(), tiny.end(), 0);
-      groups = shareBlocks(size, object, tiny, 0.1 / maxDensity, 1.0 / 64 * G * G / (maxDensity * maxDensity));
-    }
-    std::vector<Eigen::AlignedBox2d> extent(groups.size());
-    std::vector<size_t> groupOf(charts.size());
-    std::vector<Vec2d> offsetOf(charts.size());
-    for (size_t g = 0; g < groups.size(); ++g)
-      for (size_t j = 0; j < groups[g].charts.size(); ++j) {
-        const size_t i = groups[g].charts[j];
-        groupOf[i] = g, offsetOf[i] = groups[g].offset[j];
-        for (const Vec2d& p : charts[i].uv) extent[g].extend(offsetOf[i] + p);
-      }
-    fps.assign(groups.size(), {});
-    std::vector<Placement> trial;
-    auto packAt = [&](double d) {
-      tbb::parallel_for(size_t{0}, groups.size(), [&](size_t g) {
-        const Footprint base = footprintOf(mesh, charts, groups[g], extent[g], d, ring, G);
-        for (int k = 0; k < 4; ++k) fps[g][k] = rotated(base, k);
-      });
-      return profilePack(fps, G, trial);
-    };
-    // Largest density (texels per metre at the gutter resolution) at which everything packs:
-    // secant-like steps while packings fit (a fitting pass reports its height), bisection once one
-    // has failed (a failing pass stops early, so its height says little), to 0.5%. A repack after
-    // re-charting the few charts that folded starts at the density found before and takes its miss
-    // as the bound: they add little, so that density mostly still fits and one pass settles it.
-    const bool repack = density > 0;
-    double fit = 0, miss = repack ? lastMiss : maxDensity;
-    double d = repack ? density : miss * 0.9;
-    for (int it = 0; it < 30 && miss > fit * 1.005; ++it) {
-      const int used = packAt(d);
-      if (used <= G) {
-        fit = d, placement = trial;
-        const double next = d * std::sqrt(static_cast<double>(G) / std::max(used, 1));
-        d = next > d * 1.001 && next < miss ? next : 0.5 * (fit + miss);
-      } else {
-        miss = d;
-        d = fit > 0 ? 0.5 * (fit + miss) : (repack ? 0.95 : 0.7) * miss;
-      }
-    }
-    lastMiss = miss;
-    if (!(fit > 0)) fail("uv atlas: {} charts do not fit a {}^2 atlas with {}-texel gutters", charts.size(), G, o.gutterTexels);
-    packAt(fit);  // footprints at the chosen density (the same placement as `placement`)
-    density = fit;
-    // The uvs as they will be stored, in float: a chart of micro-triangles that maps without
-    // overlap in double can fold by a rounding; such charts are re-charted and everything repacked.
-    chartUv.assign(charts.size(), {});
-    std::vector<char> bad(charts.size(), 0);
-    tbb::parallel_for(size_t{0}, charts.size(), [&](size_t i) {
-      const Chart& c = charts[i];
-      const size_t g = groupOf[i];
-      for (const Vec2d& p : c.uv) {
-        const Vec2d q = turn(Vec2d::Constant(shiftOf(ring)) + (offsetOf[i] + p) * density, placement[g].turns, fps[g][0].w, fps[g][0].h);
-        chartUv[i].push_back(((Vec2d(placement[g].x, placement[g].y) + q) / G).cast<float>());
-      }
-      if (c.faces.size() == 1) return;
-      auto uvOf = [&](uint32_t f, int k) { return Vec2d(chartUv[i][c.local.at(mesh.triangles[f][k])].cast<double>()); };
-      int positive = 0;
-      for (uint32_t f : c.faces) positive += cross2(uvOf(f, 0), uvOf(f, 1), uvOf(f, 2)) > 0;
-      bad[i] = (positive != 0 && positive != static_cast<int>(c.faces.size())) || countOverlaps(c.faces, uvOf, 1) > 0;
-    });
-    spdlog::debug("atlas: {} groups packed at {:.1f} texels/m at {:.1f}s, {} charts fold in float", groups.size(), density, timer.seconds(),
-                  std::count(bad.begin(), bad.end(), 1));
-    if (std::find(bad.begin(), bad.end(), 1) == bad.end()) break;
-    std::vector<Chart> keep;
-    std::vector<std::pair<std::vector<uint32_t>, float>> redo;
-    for (size_t i = 0; i < charts.size(); ++i)
-      if (bad[i]) ++r.splitCharts, redo.push_back({std::move(charts[i].faces), 0.0f});
-      else keep.push_back(std::move(charts[i]));
-    charts = std::move(keep);
-    for (auto& [faces, cone] : redo) chartRegion(std::move(faces), cone);  // one chart per face: rounding cannot fold those
+  Packing p;
+  std::vector<std::vector<Vec2>> chartUv;  // per chart and local vertex: the atlas uv as stored (float)
+  for (;;) {  // until no chart folds in float
+    sortByFirstFace(s.charts);
+    p.groups = groupCharts(s, ring);
+    packGroups(s, ring, p);
+    const std::vector<char> folded = storeUvs(s, ring, p, chartUv);
+    spdlog::debug("atlas: {} groups packed at {:.1f} texels/m at {:.1f}s, {} charts fold in float", p.groups.size(), p.density, timer.seconds(),
+                  std::count(folded.begin(), folded.end(), 1));
+    if (std::find(folded.begin(), folded.end(), 1) == folded.end()) break;
+    rechartFolded(s, folded);
   }
-  for (const Group& g : groups)
-    if (g.charts.size() > 1) {
-      ++r.sharedBlocks, r.blockedCharts += g.charts.size();
-      for (uint32_t i : g.charts)
-        for (uint32_t f : charts[i].faces) r.blockedSurface += mesh.faceArea[f] / meshArea;
-    }
-  r.charts = charts.size();
-  for (const Chart& c : charts) r.lscmCharts += c.lscm;
-  r.texelsPerMetre = density;
-
-  TriangleMesh out = mesh;
-  out.positions.clear();
-  out.normals.clear();
-  out.uvs.clear();
-  const double R = o.gutterResolution;
-  std::vector<double> stretch;
-  double uvArea = 0;
-  for (size_t i = 0; i < charts.size(); ++i) {
-    const Chart& c = charts[i];
-    const int base = static_cast<int>(out.positions.size());
-    for (size_t v = 0; v < c.vertices.size(); ++v) {
-      out.positions.push_back(mesh.positions[c.vertices[v]]);
-      if (!mesh.normals.empty()) out.normals.push_back(mesh.normals[c.vertices[v]]);
-      out.uvs.push_back(chartUv[i][v]);
-    }
-    for (uint32_t f : c.faces) {
-      for (int k = 0; k < 3; ++k) out.triangles[f][k] = base + c.local.at(mesh.triangles[f][k]);
-      const auto& t = out.triangles[f];
-      const double a = 0.5 * std::abs(cross2(out.uvs[t[0]].cast<double>(), out.uvs[t[1]].cast<double>(), out.uvs[t[2]].cast<double>()));
-      uvArea += a;
-      stretch.push_back(std::sqrt(a * R * R / (density * density) / std::max<double>(mesh.faceArea[f], 1e-30)));
-    }
-  }
-  r.packingEfficiency = uvArea;
-  std::sort(stretch.begin(), stretch.end());
-  if (!stretch.empty()) {
-    r.stretchP05 = stretch[stretch.size() / 20];
-    r.stretchMedian = stretch[stretch.size() / 2];
-    r.stretchP95 = stretch[stretch.size() * 19 / 20];
-  }
-  r.seconds = timer.seconds();
-  r.uvOverlaps = countUvOverlaps(out, SIZE_MAX);
-  return out;
+  reportCharts(s, p);
+  return emitAtlasMesh(s, chartUv, p.density, timer);
 }
 
 }  // namespace relume

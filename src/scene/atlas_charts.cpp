@@ -1,10 +1,15 @@
 #include <algorithm>
+#include <cmath>
+#include <map>
 #include <numeric>
 #include <queue>
 
+#include "core/check.h"
 #include "scene/atlas_internal.h"
 
 namespace relume::atlas_detail {
+
+using Vec2d = Eigen::Vector2d;
 
 Topology buildTopology(const TriangleMesh& m) {
   const size_t nv = m.positions.size(), nf = m.triangles.size();
@@ -103,6 +108,176 @@ std::vector<std::vector<uint32_t>> growCharts(const TriangleMesh& m, const std::
   }
   for (uint32_t f : region) state[f] = -2;
   return charts;
+}
+
+// Mesh analysis: per-face normals and the welded adjacency every charting phase reads, and the
+// largest density the atlas could have (every texel covered), which says what "small" and "tiny" are.
+AtlasState analyseMesh(const TriangleMesh& mesh, const AtlasOptions& o, AtlasReport& r) {
+  AtlasState s(mesh, o, r);
+  s.normals.resize(mesh.triangles.size());
+  for (size_t f = 0; f < s.normals.size(); ++f) s.normals[f] = mesh.faceNormal(f);
+  s.topo = buildTopology(mesh);
+  s.state.assign(mesh.triangles.size(), -2);
+  s.cosPlanar = std::cos(o.planarDegrees * kPi / 180.0f);
+  const int G = o.gutterResolution;
+  for (float a : mesh.faceArea) s.meshArea += a;
+  s.maxDensity = std::sqrt(static_cast<double>(G) * G / std::max(s.meshArea, 1e-12));  // every texel covered
+  return s;
+}
+
+// Charting of a region: charts grown within `startCone` and mapped; a chart whose map overlaps
+// itself (or has no valid map) is re-grown with half the cone. Below kMinConeDegrees its faces
+// become one chart each, which always map (a single non-degenerate triangle), so this terminates
+// on any input.
+void chartRegion(AtlasState& s, std::vector<uint32_t> faces, float startCone) {
+  constexpr float kMinConeDegrees = 1.0f;
+  std::vector<std::pair<std::vector<uint32_t>, float>> work;
+  work.push_back({std::move(faces), startCone});
+  while (!work.empty()) {
+    auto [region, cone] = std::move(work.back());
+    work.pop_back();
+    std::vector<std::vector<uint32_t>> grown;
+    if (cone < kMinConeDegrees)
+      for (uint32_t f : region) grown.push_back({f});
+    else
+      grown = growCharts(s.mesh, s.normals, s.topo, region, cone, s.state);
+    for (auto& g : grown) {
+      Chart c;
+      c.faces = std::move(g);
+      c.cone = cone;
+      if (!parameterise(s.mesh, s.normals, s.cosPlanar, c)) {
+        ++s.r.splitCharts;
+        work.push_back({std::move(c.faces), cone * 0.5f});
+        continue;
+      }
+      orientChart(c);
+      s.charts.push_back(std::move(c));
+    }
+  }
+}
+
+// Charting of the whole mesh at the options' cone: the first set of mapped charts.
+void chartMesh(AtlasState& s) {
+  std::vector<uint32_t> all(s.mesh.triangles.size());
+  std::iota(all.begin(), all.end(), 0);
+  chartRegion(s, std::move(all), s.o.coneDegrees);
+}
+
+// Merging of small charts, which each pay a whole footprint: each chart under kSmallChartTexels at
+// maxDensity, smallest first, joins the neighbour it shares the longest border with, when the
+// union still maps (no flip or overlap, conformal stretch p95 <= kMaxStretch) and none of its faces
+// is stretched below kMinMergedStretch. Targets above kMaxMergeTarget faces are left alone (each
+// attempt re-maps the whole union).
+void mergeSmallCharts(AtlasState& s) {
+  const TriangleMesh& mesh = s.mesh;
+  const Topology& topo = s.topo;
+  std::vector<Chart>& charts = s.charts;
+  const double maxDensity = s.maxDensity;
+  constexpr double kSmallChartTexels = 16, kMinMergedStretch = 0.5;
+  constexpr size_t kMaxMergeTarget = 500;
+  std::sort(charts.begin(), charts.end(), [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
+  std::vector<int32_t> chartOf(mesh.triangles.size());
+  std::vector<double> chartArea(charts.size(), 0);
+  for (size_t i = 0; i < charts.size(); ++i)
+    for (uint32_t f : charts[i].faces) chartOf[f] = static_cast<int32_t>(i), chartArea[i] += mesh.faceArea[f];
+  std::vector<size_t> order;
+  for (size_t i = 0; i < charts.size(); ++i)
+    if (chartArea[i] * maxDensity * maxDensity < kSmallChartTexels) order.push_back(i);
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return chartArea[a] != chartArea[b] ? chartArea[a] < chartArea[b] : a < b; });
+  for (size_t small : order) {
+    if (charts[small].faces.empty() || chartArea[small] * maxDensity * maxDensity >= kSmallChartTexels) continue;
+    std::map<int32_t, float> border;
+    for (uint32_t f : charts[small].faces)
+      for (int k = 0; k < 3; ++k)
+        if (const int32_t g = topo.neighbour[f][k]; g >= 0 && chartOf[g] != static_cast<int32_t>(small)) border[chartOf[g]] += topo.edgeLength[f][k];
+    int32_t target = -1;
+    float longest = 0;
+    for (const auto& [c, length] : border)
+      if (length > longest) longest = length, target = c;
+    if (target < 0 || charts[target].faces.size() > kMaxMergeTarget) continue;
+    Chart merged;
+    merged.faces = charts[target].faces;
+    merged.faces.insert(merged.faces.end(), charts[small].faces.begin(), charts[small].faces.end());
+    merged.cone = charts[target].cone;
+    if (!parameterise(mesh, s.normals, s.cosPlanar, merged)) continue;
+    bool squashed = false;
+    for (uint32_t f : merged.faces) {
+      const auto& t = mesh.triangles[f];
+      const double a = 0.5 * std::abs(cross2(merged.uv[merged.local.at(t[0])], merged.uv[merged.local.at(t[1])], merged.uv[merged.local.at(t[2])]));
+      squashed = squashed || !(std::sqrt(a / mesh.faceArea[f]) >= kMinMergedStretch);
+    }
+    if (squashed) continue;
+    orientChart(merged);
+    for (uint32_t f : charts[small].faces) chartOf[f] = target;
+    chartArea[target] += chartArea[small];
+    charts[target] = std::move(merged);
+    charts[small].faces.clear();
+    ++s.r.mergedCharts;
+  }
+  std::erase_if(charts, [](const Chart& c) { return c.faces.empty(); });
+}
+
+// Cutting of hollow (frame-like) charts into straight parts (splitHollow), so the packer is not
+// left with their empty insides; the parts go after the charts kept whole.
+void cutHollowCharts(AtlasState& s) {
+  std::vector<Chart>& charts = s.charts;
+  std::vector<Chart> parts;
+  for (Chart& c : charts)
+    if (std::vector<Chart> split = splitHollow(s.mesh, s.topo, c, s.maxDensity); !split.empty()) {
+      c.faces.clear();
+      for (Chart& p : split) parts.push_back(std::move(p));
+      ++s.r.hollowCharts;
+    }
+  for (Chart& p : parts) charts.push_back(std::move(p));
+  std::erase_if(charts, [](const Chart& c) { return c.faces.empty(); });
+}
+
+// Isolation of slivers: faces narrower in uv than 1/1000 texel at the largest density possible
+// (every texel covered), 16 float roundings at 1024^2, could fold when their uvs are stored as
+// float, so they become charts of their own before packing.
+void isolateSlivers(AtlasState& s) {
+  const TriangleMesh& mesh = s.mesh;
+  std::vector<Chart>& charts = s.charts;
+  const double maxDensity = s.maxDensity;
+  std::vector<Chart> singles;
+  for (Chart& c : charts) {
+    if (c.faces.size() == 1) continue;
+    std::vector<uint32_t> keep;
+    for (uint32_t f : c.faces) {
+      Vec2d p[3];
+      for (int k = 0; k < 3; ++k) p[k] = c.uv[c.local.at(mesh.triangles[f][k])];
+      const double longest = std::max({(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()});
+      const double altitude = std::abs(cross2(p[0], p[1], p[2])) / std::max(longest, 1e-300);
+      if (altitude * maxDensity < 1e-3) singles.emplace_back().faces = {f};
+      else keep.push_back(f);
+    }
+    if (keep.size() == c.faces.size()) continue;
+    c = keep.empty() ? Chart{} : subChart(mesh, c, std::move(keep));
+  }
+  for (Chart& c : singles) {
+    [[maybe_unused]] const bool mapped = parameterise(mesh, s.normals, s.cosPlanar, c);
+    DCHECK(mapped && "a single triangle projects on its own plane");
+    orientChart(c);
+    charts.push_back(std::move(c));
+  }
+  std::erase_if(charts, [](const Chart& c) { return c.faces.empty(); });
+}
+
+// Charts by first face: a deterministic order whatever the work-queue order was.
+void sortByFirstFace(std::vector<Chart>& charts) {
+  std::sort(charts.begin(), charts.end(), [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
+}
+
+// Re-charting of the charts whose stored uvs fold: one chart per face (cone 0), which rounding
+// cannot fold; the packing then starts again.
+void rechartFolded(AtlasState& s, const std::vector<char>& folded) {
+  std::vector<Chart> keep;
+  std::vector<std::pair<std::vector<uint32_t>, float>> redo;
+  for (size_t i = 0; i < s.charts.size(); ++i)
+    if (folded[i]) ++s.r.splitCharts, redo.push_back({std::move(s.charts[i].faces), 0.0f});
+    else keep.push_back(std::move(s.charts[i]));
+  s.charts = std::move(keep);
+  for (auto& [faces, cone] : redo) chartRegion(s, std::move(faces), cone);
 }
 
 }  // namespace relume::atlas_detail

@@ -1,10 +1,14 @@
-// Internals of the uv atlas (atlas.cpp), split by stage: chart growth on the welded mesh
-// (atlas_charts.cpp) and footprint packing (atlas_pack.cpp). Not a public interface.
+// Internals of the uv atlas (atlas.cpp), split by stage: charts and their maps (atlas.cpp), chart
+// growth and the charting phases on the welded mesh (atlas_charts.cpp), footprint packing and the
+// packing phases (atlas_pack.cpp). Not a public interface.
 #pragma once
 #include <array>
 #include <cstdint>
+#include <unordered_map>
 #include <vector>
 
+#include "core/system.h"
+#include "scene/atlas.h"
 #include "scene/mesh.h"
 
 namespace relume::atlas_detail {
@@ -72,5 +76,77 @@ struct Group {
 // the origin, metres).
 std::vector<Group> shareBlocks(const std::vector<Eigen::Vector2d>& size, const std::vector<int32_t>& object,
                                const std::vector<char>& tiny, double margin, double maxBlockArea);
+
+
+// Twice the signed area of a 2D triangle.
+inline double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
+  return (b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x());
+}
+
+// A connected set of faces mapped to the plane without flips or overlaps, in metres.
+struct Chart {
+  std::vector<uint32_t> faces;
+  std::vector<int> vertices;                 // original vertex ids
+  std::unordered_map<int, int> local;        // original vertex -> index in vertices
+  std::vector<Eigen::Vector2d> uv;           // per local vertex, metres
+  bool lscm = false;
+  float cone = 0;                            // the normal cone it was grown with
+};
+
+// Maps a chart (atlas.cpp): false when it has no map without flips or overlaps.
+bool parameterise(const TriangleMesh& m, const std::vector<Vec3>& normals, float cosPlanar, Chart& c);
+// Turns a mapped chart to its minimum-area box at the origin, wider than tall.
+void orientChart(Chart& c);
+// The chart of some of `parent`'s faces, keeping the parent's map.
+Chart subChart(const TriangleMesh& m, const Chart& parent, std::vector<uint32_t> faces);
+// A hollow (frame-like) chart cut into straight parts; empty when it is not hollow.
+std::vector<Chart> splitHollow(const TriangleMesh& m, const Topology& topo, const Chart& c, double density);
+// Whether a chart's stored (float) uvs fold: flip a face or overlap (never for a single face).
+bool foldsInFloat(const TriangleMesh& m, const Chart& c, const std::vector<Vec2>& uv);
+
+// Offset of a chart's footprint inside its footprint box, in texels.
+double shiftOf(int ring);
+
+// What the phases of buildAtlas pass along: the input, its per-face normals and adjacency, the
+// report being filled, and the charts so far.
+struct AtlasState {
+  AtlasState(const TriangleMesh& mesh, const AtlasOptions& o, AtlasReport& r) : mesh(mesh), o(o), r(r) {}
+  const TriangleMesh& mesh;
+  const AtlasOptions& o;
+  AtlasReport& r;
+  std::vector<Vec3> normals;   // per face
+  Topology topo;
+  std::vector<int32_t> state;  // growCharts' scratch: -2 for every face between calls
+  float cosPlanar = 0;         // charts flatter than o.planarDegrees are projected
+  double meshArea = 0;         // square metres
+  double maxDensity = 0;       // texels per metre at which the atlas is full: every texel covered
+  std::vector<Chart> charts;
+};
+
+// The packing of the charts: groups (a chart, or a shared block of tiny ones), their footprints
+// and placements at `density`, and each chart's group and offset in it.
+struct Packing {
+  std::vector<Group> groups;
+  std::vector<std::array<Footprint, 4>> fps;  // per group
+  std::vector<Placement> placement;           // per group
+  std::vector<size_t> groupOf;                // per chart
+  std::vector<Eigen::Vector2d> offsetOf;      // per chart
+  double density = 0, lastMiss = 0;           // texels per metre at the gutter resolution
+};
+
+// Phases of buildAtlas, in order (atlas_charts.cpp, then atlas_pack.cpp, then atlas.cpp).
+AtlasState analyseMesh(const TriangleMesh& mesh, const AtlasOptions& o, AtlasReport& r);
+void chartRegion(AtlasState& s, std::vector<uint32_t> faces, float startCone);
+void chartMesh(AtlasState& s);
+void mergeSmallCharts(AtlasState& s);
+void cutHollowCharts(AtlasState& s);
+void isolateSlivers(AtlasState& s);
+void sortByFirstFace(std::vector<Chart>& charts);
+std::vector<Group> groupCharts(const AtlasState& s, int ring);
+void packGroups(const AtlasState& s, int ring, Packing& p);
+std::vector<char> storeUvs(const AtlasState& s, int ring, const Packing& p, std::vector<std::vector<Vec2>>& chartUv);
+void rechartFolded(AtlasState& s, const std::vector<char>& folded);
+void reportCharts(AtlasState& s, const Packing& p);
+TriangleMesh emitAtlasMesh(AtlasState& s, const std::vector<std::vector<Vec2>>& chartUv, double density, const Timer& timer);
 
 }  // namespace relume::atlas_detail

@@ -51,19 +51,32 @@ double ViewError::beyondNoiseRms() const { return std::sqrt(std::max(0.0, errorR
 
 namespace {
 
-// `difference(i)` and `noise(i)` per pixel channel, where `reference` keeps the pixel.
+// `difference(i)` and `noise(i)` of pixel channel i, averaged over the blocks where `reference` keeps pixels.
 template <class Difference, class Noise>
-ViewError viewError(const Image& reference, const Difference& difference, const Noise& noise) {
-  ViewError v{Image(reference.width, reference.height), Image(reference.width, reference.height)};
+ViewError viewError(const Image& reference, int block, const Difference& difference, const Noise& noise) {
+  if (block < 1) fail("view error: block {} must be at least 1 pixel", block);
+  const int W = (reference.width + block - 1) / block, H = (reference.height + block - 1) / block;
+  ViewError v{Image(W, H), Image(W, H)};
   double errorSquares = 0, noiseSquares = 0;
-  for (size_t i = 0; i < reference.rgb.size(); ++i) {
-    if (reference.rgb[i] < 0) continue;  // masked
-    const float e = std::abs(difference(i)), n = std::abs(noise(i));
-    v.error.rgb[i] = e, v.noise.rgb[i] = n;
-    v.errorMean += e, v.noiseMean += n, errorSquares += double(e) * e, noiseSquares += double(n) * n;
-    v.referenceMean += reference.rgb[i];
-    ++v.samples;
-  }
+  for (int by = 0; by < H; ++by)
+    for (int bx = 0; bx < W; ++bx)
+      for (int c = 0; c < 3; ++c) {
+        double d = 0, n = 0, ref = 0;
+        int kept = 0;
+        for (int y = by * block; y < std::min((by + 1) * block, reference.height); ++y)
+          for (int x = bx * block; x < std::min((bx + 1) * block, reference.width); ++x) {
+            const size_t i = 3 * (static_cast<size_t>(y) * reference.width + x) + c;
+            if (reference.rgb[i] < 0) continue;  // masked
+            d += difference(i), n += noise(i), ref += reference.rgb[i];
+            ++kept;
+          }
+        if (kept == 0) continue;
+        const double e = std::abs(d / kept), en = std::abs(n / kept);
+        const size_t o = 3 * (static_cast<size_t>(by) * W + bx) + c;
+        v.error.rgb[o] = static_cast<float>(e), v.noise.rgb[o] = static_cast<float>(en);
+        v.errorMean += e, v.noiseMean += en, errorSquares += e * e, noiseSquares += en * en, v.referenceMean += ref / kept;
+        ++v.samples;
+      }
   const double count = static_cast<double>(std::max<size_t>(v.samples, 1));
   v.errorMean /= count, v.noiseMean /= count, v.referenceMean /= count;
   v.errorRms = std::sqrt(errorSquares / count), v.noiseRms = std::sqrt(noiseSquares / count);
@@ -72,15 +85,15 @@ ViewError viewError(const Image& reference, const Difference& difference, const 
 
 }  // namespace
 
-ViewError errorAgainstTruth(const SplitRender& fit, const SplitRender& truth, const Image& reference) {
+ViewError errorAgainstTruth(const SplitRender& fit, const SplitRender& truth, const Image& reference, int block) {
   return viewError(
-      reference, [&](size_t i) { return fit.mean.rgb[i] - truth.mean.rgb[i]; },
+      reference, block, [&](size_t i) { return fit.mean.rgb[i] - truth.mean.rgb[i]; },
       [&](size_t i) { return fit.noise.rgb[i] - truth.noise.rgb[i]; });
 }
 
-ViewError errorAgainstPhoto(const SplitRender& render, const Image& photo) {
+ViewError errorAgainstPhoto(const SplitRender& render, const Image& photo, int block) {
   return viewError(
-      photo, [&](size_t i) { return render.mean.rgb[i] - photo.rgb[i]; }, [&](size_t i) { return render.noise.rgb[i]; });
+      photo, block, [&](size_t i) { return render.mean.rgb[i] - photo.rgb[i]; }, [&](size_t i) { return render.noise.rgb[i]; });
 }
 
 ViewComparison compareViews(const SceneDescription& desc, const std::filesystem::path& cameras, const RenderOptions& render,

@@ -92,6 +92,10 @@ float viewExposure(const std::vector<Image>& references) {
   return p95 > 0 ? 0.8f / p95 : 1.0f;
 }
 
+// The views' error and noise are shown per block x block pixels: at 4, the noise is 4 times
+// smaller than per pixel, and the picture (64x48 of a 256x192 frame) still shows which surface is off.
+constexpr int kErrorBlock = 4;
+
 std::string percentOf(double value, double scale) { return fmt::format("{:.2f}%", 100.0 * value / std::max(scale, 1e-12)); }
 
 // Reference, re-render, error and the noise in that error for a few kept frames. With a ground
@@ -121,20 +125,20 @@ std::string viewsSection(const fs::path& out, const SceneDescription& fit, const
     const uint32_t f = kept[k * kept.size() / n];
     RenderOptions ro;
     ro.spp = o.spp, ro.seed = f;
-    Shown v{f, loadFrameImage(frames[f])};
+    Shown v{f, loadFrameImage(frames[f]), {}, {}, 0.0};
     const SplitRender render = renderSplit(scene, fit.appearance, lights, frames[f].camera, ro);
     if (truth) {
       const SplitRender truthRender = renderSplit(*truthScene, truth->appearance, *truthLights, frames[f].camera, ro);
-      v.error = errorAgainstTruth(render, truthRender, v.reference);
-      v.truthVsFrame = errorAgainstPhoto(truthRender, v.reference).errorMean;
+      v.error = errorAgainstTruth(render, truthRender, v.reference, kErrorBlock);
+      v.truthVsFrame = errorAgainstPhoto(truthRender, v.reference, kErrorBlock).errorMean;
     } else {
-      v.error = errorAgainstPhoto(render, v.reference);
+      v.error = errorAgainstPhoto(render, v.reference, kErrorBlock);
     }
     v.render = render.mean;
     shown.push_back(std::move(v));
     progress.advance();
   }
-  // The frames pooled: means weighted by pixel count, RMS over every pixel.
+  // The frames pooled: means weighted by block count, RMS over every block.
   std::vector<Image> refs;
   ViewError all;
   double truthVsFrame = 0;
@@ -158,22 +162,24 @@ std::string viewsSection(const fs::path& out, const SceneDescription& fit, const
         "<p>Kept frames re-rendered from the result and from the capture's ground truth with the same random numbers ({} spp "
         "each, as two halves of {}). Where the two scenes agree their Monte Carlo noise is the same and cancels, so the error "
         "|fit - truth| is the reconstruction's; the noise left in it (paths the two scenes scatter differently), estimated from "
-        "the halves, is shown beside it. One exposure ({:.3g}) for all; error and noise x 4; masked pixels black.</p>"
-        "<p>Over these frames, as a share of the frames' mean value: |fit - truth| {} on average, of which noise {}; RMS {}, "
-        "noise RMS {}, so the reconstruction's own RMS error is about {}. For comparison, the truth itself re-rendered "
-        "differs from the frames by {} on average: the frames' and the re-render's noise, which an error against the frames "
-        "would mostly show.</p>",
-        o.spp, half, exposure, pct(all.errorMean), pct(all.noiseMean), pct(all.errorRms), pct(all.noiseRms),
+        "the halves, is shown beside it. Both are averaged over {}x{}-pixel blocks before their magnitude is taken, which "
+        "divides the noise by {} and keeps what is off at that scale. One exposure ({:.3g}) for all; error and noise x 4; "
+        "masked pixels black.</p><p>Over these frames, as a share of the frames' mean value: |fit - truth| {} on average, of "
+        "which noise {}; RMS {}, noise RMS {}, so the reconstruction's own RMS error is about {}. For comparison, the truth "
+        "itself re-rendered differs from the frames by {} on average at the same scale: the frames' and the re-render's "
+        "noise, which an error against the frames would mostly show.</p>",
+        o.spp, half, kErrorBlock, kErrorBlock, kErrorBlock, exposure, pct(all.errorMean), pct(all.noiseMean), pct(all.errorRms), pct(all.noiseRms),
         pct(all.beyondNoiseRms()), pct(truthVsFrame));
   else
     s = fmt::format(
         "<p>Kept frames re-rendered from the result ({} spp, as two halves of {}). Error = |re-render - frame|; noise = the "
         "re-render's own Monte Carlo noise, estimated from its halves' difference (the frame's noise is not known, so not "
-        "shown): error that the noise does not explain is the reconstruction's, or the frame's noise. One exposure ({:.3g}) "
-        "for all; error and noise x 4; masked pixels black.</p><p>Over these frames, as a share of the frames' mean value: "
-        "error {} on average, the re-render's noise {}; RMS {}, noise RMS {}, so the error beyond the re-render's noise has "
-        "an RMS of about {}.</p>",
-        o.spp, half, exposure, pct(all.errorMean), pct(all.noiseMean), pct(all.errorRms), pct(all.noiseRms),
+        "shown): error that the noise does not explain is the reconstruction's, or the frame's noise. Both are averaged over "
+        "{}x{}-pixel blocks before their magnitude is taken, which divides the noise by {} and keeps what is off at that "
+        "scale. One exposure ({:.3g}) for all; error and noise x 4; masked pixels black.</p><p>Over these frames, as a share "
+        "of the frames' mean value: error {} on average, the re-render's noise {}; RMS {}, noise RMS {}, so the error beyond "
+        "the re-render's noise has an RMS of about {}.</p>",
+        o.spp, half, kErrorBlock, kErrorBlock, kErrorBlock, exposure, pct(all.errorMean), pct(all.noiseMean), pct(all.errorRms), pct(all.noiseRms),
         pct(all.beyondNoiseRms()));
   s += fmt::format("<table><tr><th>frame</th><th>reference</th><th>re-render</th><th>{}</th><th>noise in that error</th></tr>",
                    truth ? "error |fit - truth|" : "error |re-render - frame|");

@@ -97,6 +97,30 @@ TEST(Evaluate, TheNoiseEstimateExplainsIndependentRendersAndNotAReconstructionEr
   EXPECT_GT(e.beyondNoiseRms(), 0.9 * e.errorRms);
 }
 
+TEST(Evaluate, BlocksAverageTheNoiseDownAndKeepSmoothErrors) {
+  const Rendered truth(makeSynthScene(SynthSceneKind::Cornell, 64).scene);
+  const SplitRender r = truth.render(cornellCamera(), 4, 3);
+  Image photo = r.mean;  // 0.05 brighter everywhere, the first pixel masked
+  for (float& v : photo.rgb) v += 0.05f;
+  for (int k = 0; k < 3; ++k) photo.rgb[k] = -1.0f;
+  const ViewError pixels = errorAgainstPhoto(r, photo), blocks = errorAgainstPhoto(r, photo, 4), odd = errorAgainstPhoto(r, photo, 5);
+  EXPECT_EQ(pixels.samples, 32u * 24 * 3 - 3);
+  EXPECT_EQ(blocks.error.width, 8);
+  EXPECT_EQ(blocks.error.height, 6);
+  EXPECT_EQ(odd.error.width, 7);  // partial blocks at the edges
+  EXPECT_EQ(odd.error.height, 5);
+  EXPECT_EQ(blocks.samples, 8u * 6 * 3);
+  for (const ViewError* v : {&pixels, &blocks, &odd}) {
+    EXPECT_NEAR(v->errorMean, 0.05, 1e-5);
+    EXPECT_NEAR(v->errorRms, 0.05, 1e-5);
+  }
+  // Independent pixels: the noise of a 4x4 block's mean is a quarter of a pixel's.
+  EXPECT_GT(pixels.noiseRms, 0.0);
+  EXPECT_GT(blocks.noiseRms / pixels.noiseRms, 0.15);
+  EXPECT_LT(blocks.noiseRms / pixels.noiseRms, 0.4);
+  EXPECT_THROW(errorAgainstPhoto(r, photo, 0), Error);
+}
+
 TEST(Evaluate, MaskedPixelsAreLeftOutOfScoresAndErrors) {
   Image reference(2, 1), estimate(2, 1);
   std::fill(reference.rgb.begin(), reference.rgb.end(), 0.5f);

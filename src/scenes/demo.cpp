@@ -57,6 +57,12 @@ void addScore(ViewComparison& v, const ImageScore& s) {
   v.psnr += (s.psnr - v.psnr) / n, v.msre += (s.msre - v.msre) / n;  // running means
 }
 
+// A PSNR with the squared error of an independent noise that alone scores `noisePsnr` taken out.
+double psnrWithout(double psnr, double noisePsnr) {
+  const double mse = std::pow(10.0, -psnr / 10), noiseMse = std::pow(10.0, -noisePsnr / 10);
+  return -10.0 * std::log10(std::max(mse - noiseMse, 1e-12));
+}
+
 // Writes OUT/reference_views, OUT/test_views (the fit's re-renders) and OUT/error_views
 // (|fit - truth| x 4 per 2x2 pixels, which halves the noise left in it), PNG at exposure 1 (and the
 // re-renders as EXR).
@@ -83,8 +89,7 @@ HeldOut scoreHeldOut(const SceneDescription& fitted, const SceneDescription& tru
     Image noisy = tru.mean;
     for (size_t k = 0; k < noisy.rgb.size(); ++k) noisy.rgb[k] += fit.noise.rgb[k] - tru.noise.rgb[k];
     addScore(h.noiseVsTruth, scoreImage(noisy, tru.mean, name));
-    const double mse = std::pow(10.0, -h.fitVsTruth.framePsnr.back() / 10), noiseMse = std::pow(10.0, -h.noiseVsTruth.framePsnr.back() / 10);
-    h.beyondNoisePsnr += -10.0 * std::log10(std::max(mse - noiseMse, 1e-12)) / static_cast<double>(cap.frames.size());
+    h.beyondNoisePsnr += psnrWithout(h.fitVsTruth.framePsnr.back(), h.noiseVsTruth.framePsnr.back()) / static_cast<double>(cap.frames.size());
     const ViewError e = errorAgainstTruth(fit, tru, reference, 2);
     writePng(out / "reference_views" / (stem + ".png"), reference);
     writeExr(out / "test_views" / (stem + ".exr"), fit.mean);

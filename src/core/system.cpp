@@ -8,6 +8,7 @@
 #include <xmmintrin.h>
 
 #include <atomic>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <mutex>
@@ -43,24 +44,58 @@ double processCpuSeconds() {
   return seconds(u.ru_utime) + seconds(u.ru_stime);
 }
 
+std::optional<double> etaSeconds(double elapsedSeconds, double done, double total) {
+  if (done <= 0) return std::nullopt;
+  return elapsedSeconds / done * std::max(0.0, total - done);
+}
+
+std::string formatDuration(double seconds) {
+  const long s = std::lround(std::max(0.0, seconds));
+  if (s < 60) return fmt::format("{}s", s);
+  if (s < 3600) return fmt::format("{}m{:02d}s", s / 60, s % 60);
+  return fmt::format("{}h{:02d}m", s / 3600, s % 3600 / 60);
+}
+
+namespace {
+thread_local Progress* innermostProgress = nullptr;  // the bar a new bar on this thread nests in
+}  // namespace
+
 Progress::Progress(std::string label, size_t total)
-    : label_(std::move(label)), total_(std::max<size_t>(total, 1)), enabled_(isatty(STDERR_FILENO)) {}
+    : label_(std::move(label)), total_(std::max<size_t>(total, 1)), outer_(innermostProgress),
+      enabled_(!outer_ && isatty(STDERR_FILENO)) {
+  innermostProgress = this;
+}
 
 Progress::~Progress() {
+  innermostProgress = outer_;
+  if (outer_) outer_->inner_ = 0.0;  // the unit it carried is the outer's to count
   if (enabled_) draw(true);
 }
 
 void Progress::advance(size_t n) {
   done_ += n;
-  if (!enabled_) return;
-  const long now = static_cast<long>(timer_.seconds() * 1000.0);
-  long last = lastDrawMs_.load();
-  if (now - last >= 200 && lastDrawMs_.compare_exchange_strong(last, now)) draw(false);
+  refresh();
 }
 
 void Progress::note(std::string text) {
   std::lock_guard lock(noteMutex_);
   note_ = std::move(text);
+}
+
+double Progress::fraction() const {
+  return std::min(1.0, (static_cast<double>(done_) + inner_) / static_cast<double>(total_));
+}
+
+void Progress::refresh() {
+  if (outer_) {
+    outer_->inner_ = fraction();
+    outer_->refresh();
+    return;
+  }
+  if (!enabled_) return;
+  const long now = static_cast<long>(timer_.seconds() * 1000.0);
+  long last = lastDrawMs_.load();
+  if (now - last >= 200 && lastDrawMs_.compare_exchange_strong(last, now)) draw(false);
 }
 
 void Progress::draw(bool final) {
@@ -71,13 +106,13 @@ void Progress::draw(bool final) {
     std::lock_guard noteLock(noteMutex_);
     note = note_.empty() ? "" : "  " + note_;
   }
-  const double frac = std::min(1.0, static_cast<double>(done_) / static_cast<double>(total_));
-  const double elapsed = timer_.seconds();
-  const double eta = frac > 0 ? elapsed * (1.0 - frac) / frac : 0.0;
+  const double frac = fraction(), elapsed = timer_.seconds();
+  const std::optional<double> eta = etaSeconds(elapsed, frac, 1.0);
   const int width = 30, filled = static_cast<int>(frac * width);
-  std::fprintf(stderr, "\r%-18s [%s%s] %5.1f%% %6.1fs ETA %5.1fs%s\033[K%s", label_.c_str(),
-               std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(), 100.0 * frac,
-               elapsed, eta, note.c_str(), final ? "\n" : "");
+  const std::string count = fmt::format("{}/{}", std::min<size_t>(done_, total_), total_);
+  std::fprintf(stderr, "\r%-18s [%s%s] %5.1f%% %9s %7s ETA %7s%s\033[K%s", label_.c_str(), std::string(filled, '#').c_str(),
+               std::string(width - filled, '.').c_str(), 100.0 * frac, count.c_str(), formatDuration(elapsed).c_str(),
+               eta ? formatDuration(*eta).c_str() : "--", note.c_str(), final ? "\n" : "");
   std::fflush(stderr);
 }
 

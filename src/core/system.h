@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstddef>
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace relume {
@@ -32,22 +33,38 @@ class Timer {
   std::chrono::steady_clock::time_point start_;
 };
 
-// Thread-safe progress bar on stderr with ETA; silent when stderr is not a terminal unless forced.
+// Seconds left at the pace so far: elapsed / done * (total - done). Empty before any progress
+// (no pace yet); 0 once done reaches total.
+std::optional<double> etaSeconds(double elapsedSeconds, double done, double total);
+// "42s", "3m05s", "1h02m": a duration as a person reads it.
+std::string formatDuration(double seconds);
+
+// Thread-safe progress bar on stderr: label, bar, units done, elapsed time and ETA; silent when
+// stderr is not a terminal. A bar created while another bar created on the same thread is alive
+// is nested in it: it draws nothing itself and carries its outer bar through the outer's current
+// unit, so a phase bar over frames moves while each frame renders (its own bar nested).
 class Progress {
  public:
   Progress(std::string label, size_t total);
   ~Progress();
+  Progress(const Progress&) = delete;
+  Progress& operator=(const Progress&) = delete;
   void advance(size_t n = 1);
   void note(std::string text);  // shown after the bar (e.g. loss, rays/s)
+  // Fraction done in [0, 1], a nested bar's share of the current unit included.
+  double fraction() const;
 
  private:
+  void refresh();  // after a change: this bar's outer bar takes it into account, or this bar draws
   void draw(bool final);
   std::string label_, note_;
   std::mutex noteMutex_;
   size_t total_;
   std::atomic<size_t> done_{0};
+  std::atomic<double> inner_{0.0};  // the nested bar's fraction of the current unit
   std::atomic<long> lastDrawMs_{-1000};
   Timer timer_;
+  Progress* outer_;
   bool enabled_;
 };
 

@@ -6,6 +6,7 @@
 
 #include "capture/transforms.h"
 #include "core/error.h"
+#include "core/system.h"
 #include "io/atomic_file.h"
 #include "io/image.h"
 #include "scene/texel_map.h"
@@ -16,12 +17,96 @@ Json ViewComparison::toJson() const {
   return {{"psnr", psnr}, {"msre", msre}, {"frame_psnr", framePsnr}, {"frame_msre", frameMsre}};
 }
 
+ImageScore scoreImage(const Image& estimate, const Image& reference, const std::string& what) {
+  double se = 0, rel = 0;
+  size_t n = 0;
+  for (size_t i = 0; i < reference.rgb.size(); ++i) {
+    const float ref = reference.rgb[i], est = estimate.rgb[i];
+    if (ref < 0 || !std::isfinite(est)) continue;  // masked pixel
+    const double d = linearToSrgb(std::clamp(est, 0.0f, 1.0f)) - linearToSrgb(std::clamp(ref, 0.0f, 1.0f));
+    se += d * d;
+    rel += double(est - ref) * (est - ref) / (double(ref) * ref + 1e-2);
+    ++n;
+  }
+  if (n == 0) fail("{}: every pixel is masked", what);
+  return {10.0 * std::log10(1.0 / std::max(se / n, 1e-12)), rel / n};
+}
+
+SplitRender renderSplit(const Scene& scene, const Appearance& appearance, const LightSampler& lights, const Camera& camera,
+                        const RenderOptions& render) {
+  RenderOptions first = render, second = render;
+  first.spp = std::max(1, render.spp / 2), second.spp = std::max(1, render.spp - first.spp);
+  first.seed = 2 * render.seed, second.seed = 2 * render.seed + 1;
+  const Image a = renderImage(scene, appearance, lights, camera, first).color;
+  const Image b = renderImage(scene, appearance, lights, camera, second).color;
+  // Halves of n1 and n2 samples: mean = (n1 a + n2 b) / (n1 + n2) has variance s^2 / (n1 + n2);
+  // (a - b) has s^2 (1/n1 + 1/n2), so k (a - b) with k = sqrt(n1 n2) / (n1 + n2) matches it.
+  const float n1 = static_cast<float>(first.spp), n2 = static_cast<float>(second.spp);
+  const float k = std::sqrt(n1 * n2) / (n1 + n2);
+  SplitRender r{Image(a.width, a.height), Image(a.width, a.height)};
+  for (size_t i = 0; i < a.rgb.size(); ++i) {
+    r.mean.rgb[i] = (n1 * a.rgb[i] + n2 * b.rgb[i]) / (n1 + n2);
+    r.noise.rgb[i] = k * (a.rgb[i] - b.rgb[i]);
+  }
+  return r;
+}
+
+double ViewError::beyondNoiseRms() const { return std::sqrt(std::max(0.0, errorRms * errorRms - noiseRms * noiseRms)); }
+
+namespace {
+
+// `difference(i)` and `noise(i)` of pixel channel i, averaged over the blocks where `reference` keeps pixels.
+template <class Difference, class Noise>
+ViewError viewError(const Image& reference, int block, const Difference& difference, const Noise& noise) {
+  if (block < 1) fail("view error: block {} must be at least 1 pixel", block);
+  const int W = (reference.width + block - 1) / block, H = (reference.height + block - 1) / block;
+  ViewError v{Image(W, H), Image(W, H)};
+  double errorSquares = 0, noiseSquares = 0;
+  for (int by = 0; by < H; ++by)
+    for (int bx = 0; bx < W; ++bx)
+      for (int c = 0; c < 3; ++c) {
+        double d = 0, n = 0, ref = 0;
+        int kept = 0;
+        for (int y = by * block; y < std::min((by + 1) * block, reference.height); ++y)
+          for (int x = bx * block; x < std::min((bx + 1) * block, reference.width); ++x) {
+            const size_t i = 3 * (static_cast<size_t>(y) * reference.width + x) + c;
+            if (reference.rgb[i] < 0) continue;  // masked
+            d += difference(i), n += noise(i), ref += reference.rgb[i];
+            ++kept;
+          }
+        if (kept == 0) continue;
+        const double e = std::abs(d / kept), en = std::abs(n / kept);
+        const size_t o = 3 * (static_cast<size_t>(by) * W + bx) + c;
+        v.error.rgb[o] = static_cast<float>(e), v.noise.rgb[o] = static_cast<float>(en);
+        v.errorMean += e, v.noiseMean += en, errorSquares += e * e, noiseSquares += en * en, v.referenceMean += ref / kept;
+        ++v.samples;
+      }
+  const double count = static_cast<double>(std::max<size_t>(v.samples, 1));
+  v.errorMean /= count, v.noiseMean /= count, v.referenceMean /= count;
+  v.errorRms = std::sqrt(errorSquares / count), v.noiseRms = std::sqrt(noiseSquares / count);
+  return v;
+}
+
+}  // namespace
+
+ViewError errorAgainstTruth(const SplitRender& fit, const SplitRender& truth, const Image& reference, int block) {
+  return viewError(
+      reference, block, [&](size_t i) { return fit.mean.rgb[i] - truth.mean.rgb[i]; },
+      [&](size_t i) { return fit.noise.rgb[i] - truth.noise.rgb[i]; });
+}
+
+ViewError errorAgainstPhoto(const SplitRender& render, const Image& photo, int block) {
+  return viewError(
+      photo, block, [&](size_t i) { return render.mean.rgb[i] - photo.rgb[i]; }, [&](size_t i) { return render.noise.rgb[i]; });
+}
+
 ViewComparison compareViews(const SceneDescription& desc, const std::filesystem::path& cameras, const RenderOptions& render,
                             const std::filesystem::path& out) {
   const Capture cap = readTransforms(cameras);
   const Scene scene(desc.mesh);
   const LightSampler lights(scene, desc.appearance);
   ViewComparison v;
+  Progress progress("re-render", cap.frames.size());
   for (const Frame& frame : cap.frames) {
     const Image reference = loadFrameImage(frame);
     const RenderResult r = renderImage(scene, desc.appearance, lights, frame.camera, render);
@@ -30,19 +115,10 @@ ViewComparison compareViews(const SceneDescription& desc, const std::filesystem:
       writeExr(out / (stem + ".exr"), r.color);
       writePng(out / (stem + ".png"), r.color);
     }
-    double se = 0, rel = 0;
-    size_t n = 0;
-    for (size_t i = 0; i < reference.rgb.size(); ++i) {
-      const float ref = reference.rgb[i], est = r.color.rgb[i];
-      if (ref < 0 || !std::isfinite(est)) continue;  // masked pixel
-      const double d = linearToSrgb(std::clamp(est, 0.0f, 1.0f)) - linearToSrgb(std::clamp(ref, 0.0f, 1.0f));
-      se += d * d;
-      rel += double(est - ref) * (est - ref) / (double(ref) * ref + 1e-2);
-      ++n;
-    }
-    if (n == 0) fail("{}: every pixel is masked", frame.image.string());
-    v.framePsnr.push_back(10.0 * std::log10(1.0 / std::max(se / n, 1e-12)));
-    v.frameMsre.push_back(rel / n);
+    const ImageScore s = scoreImage(r.color, reference, frame.image.string());
+    v.framePsnr.push_back(s.psnr);
+    v.frameMsre.push_back(s.msre);
+    progress.advance();
   }
   for (size_t i = 0; i < v.framePsnr.size(); ++i) v.psnr += v.framePsnr[i] / v.framePsnr.size(), v.msre += v.frameMsre[i] / v.frameMsre.size();
   return v;

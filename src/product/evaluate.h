@@ -4,6 +4,7 @@
 // roughness/specular error where highlights were observed, emitter set and emission error.
 #pragma once
 #include <filesystem>
+#include <string>
 #include <vector>
 
 #include "io/json.h"
@@ -17,6 +18,46 @@ struct ViewComparison {
   std::vector<double> framePsnr, frameMsre;
   Json toJson() const;
 };
+
+// One image against a reference: PSNR on tone-mapped values ([0,1]-clamped, sRGB) and MSRE,
+// pixels the reference masks (negative) skipped. Throws when every pixel is masked (`what` names
+// the reference in the message).
+struct ImageScore {
+  double psnr = 0, msre = 0;
+};
+ImageScore scoreImage(const Image& estimate, const Image& reference, const std::string& what);
+
+// A render made of two independent halves (seeds 2 * seed and 2 * seed + 1, half the samples
+// each), so that it carries an estimate of its own Monte Carlo noise.
+struct SplitRender {
+  Image mean;   // the render: both halves' samples
+  Image noise;  // the halves' difference, scaled to have the variance of `mean`'s noise
+};
+SplitRender renderSplit(const Scene& scene, const Appearance& appearance, const LightSampler& lights, const Camera& camera,
+                        const RenderOptions& render);
+
+// What separates a re-render from what it should show, with the Monte Carlo noise that is part
+// of it, per block x block pixels: the signed difference and its noise are averaged over each
+// block before their magnitudes are taken, so the noise falls by `block` while errors smooth at
+// that scale (an albedo, a light, a material off) stay. Pixels the reference masks (negative) are
+// left out; a block with none left is 0 in both images and out of the means.
+struct ViewError {
+  Image error, noise;            // |difference| and |its noise|, a pixel per block
+  double errorMean = 0, noiseMean = 0, errorRms = 0, noiseRms = 0;
+  double referenceMean = 0;      // the reference's mean over the same pixels: the scale of the others
+  size_t samples = 0;            // block channels counted
+  // The RMS of the difference without its noise: sqrt(errorRms^2 - noiseRms^2), as the noise is
+  // independent of what the two images differ by (0 when the noise explains it all).
+  double beyondNoiseRms() const;
+};
+// The fitted and the true scene rendered with the same options, seed included (renderSplit): where
+// they agree their noise is the same and cancels, so |fit - truth| is the reconstruction's error;
+// what noise remains (paths the two scenes scatter differently) is measured from the halves.
+// `reference` (the frame) only masks pixels.
+ViewError errorAgainstTruth(const SplitRender& fit, const SplitRender& truth, const Image& reference, int block = 1);
+// A re-render against a photograph: |render - photo| and the re-render's own noise (the photo's
+// is unknown, so not counted).
+ViewError errorAgainstPhoto(const SplitRender& render, const Image& photo, int block = 1);
 
 // Renders `scene` at every frame of `cameras` and compares with the frames' images (masked
 // pixels skipped). Writes the renders (EXR + PNG) into `out` when it is not empty.

@@ -9,6 +9,7 @@
 
 #include "capture/transforms.h"
 #include "core/error.h"
+#include "core/system.h"
 #include "io/atomic_file.h"
 #include "io/image.h"
 #include "io/json.h"
@@ -91,39 +92,107 @@ float viewExposure(const std::vector<Image>& references) {
   return p95 > 0 ? 0.8f / p95 : 1.0f;
 }
 
-std::string viewsSection(const fs::path& out, const SceneDescription& fit, const Json& prepare, const ReportOptions& o) {
+// The views' error and noise are shown per block x block pixels: at 4, the noise is 4 times
+// smaller than per pixel, and the picture (64x48 of a 256x192 frame) still shows which surface is off.
+constexpr int kErrorBlock = 4;
+
+std::string percentOf(double value, double scale) { return fmt::format("{:.2f}%", 100.0 * value / std::max(scale, 1e-12)); }
+
+// Reference, re-render, error and the noise in that error for a few kept frames. With a ground
+// truth the fit and the truth are rendered with the same random numbers and the error is
+// |fit - truth| (the reconstruction's); without, |re-render - frame| beside the re-render's noise.
+std::string viewsSection(const fs::path& out, const SceneDescription& fit, const SceneDescription* truth, const Json& prepare,
+                         const ReportOptions& o) {
   const fs::path capture = prepare.at("capture").get<std::string>();
   const std::vector<Frame> frames = readTransforms(capture / "transforms.json").frames;
   const auto kept = prepare.at("phases").at("frames").at("kept").get<std::vector<uint32_t>>();
   if (kept.empty() || o.frames <= 0) return "<p>No frames.</p>";
   const Scene scene(fit.mesh);
   const LightSampler lights(scene, fit.appearance);
-  RenderOptions ro;
-  ro.spp = o.spp;
-  std::vector<Image> refs, renders;
-  std::vector<uint32_t> shown;
+  std::optional<Scene> truthScene;
+  std::optional<LightSampler> truthLights;
+  if (truth) truthScene.emplace(truth->mesh), truthLights.emplace(*truthScene, truth->appearance);
+  struct Shown {
+    uint32_t frame;
+    Image reference, render;
+    ViewError error;
+    double truthVsFrame = 0;  // mean |truth re-render - frame|: the noise an error against the frame shows
+  };
+  std::vector<Shown> shown;
   const size_t n = std::min<size_t>(o.frames, kept.size());
+  Progress progress("report views", n);
   for (size_t k = 0; k < n; ++k) {
     const uint32_t f = kept[k * kept.size() / n];
-    shown.push_back(f);
-    refs.push_back(loadFrameImage(frames[f]));
-    renders.push_back(renderImage(scene, fit.appearance, lights, frames[f].camera, ro).color);
+    RenderOptions ro;
+    ro.spp = o.spp, ro.seed = f;
+    Shown v{f, loadFrameImage(frames[f]), {}, {}, 0.0};
+    const SplitRender render = renderSplit(scene, fit.appearance, lights, frames[f].camera, ro);
+    if (truth) {
+      const SplitRender truthRender = renderSplit(*truthScene, truth->appearance, *truthLights, frames[f].camera, ro);
+      v.error = errorAgainstTruth(render, truthRender, v.reference, kErrorBlock);
+      v.truthVsFrame = errorAgainstPhoto(truthRender, v.reference, kErrorBlock).errorMean;
+    } else {
+      v.error = errorAgainstPhoto(render, v.reference, kErrorBlock);
+    }
+    v.render = render.mean;
+    shown.push_back(std::move(v));
+    progress.advance();
   }
+  // The frames pooled: means weighted by block count, RMS over every block.
+  std::vector<Image> refs;
+  ViewError all;
+  double truthVsFrame = 0;
+  for (const Shown& v : shown) {
+    refs.push_back(v.reference);
+    const double w = static_cast<double>(v.error.samples);
+    all.samples += v.error.samples;
+    all.errorMean += w * v.error.errorMean, all.noiseMean += w * v.error.noiseMean, all.referenceMean += w * v.error.referenceMean;
+    all.errorRms += w * v.error.errorRms * v.error.errorRms, all.noiseRms += w * v.error.noiseRms * v.error.noiseRms;
+    truthVsFrame += w * v.truthVsFrame;
+  }
+  const double samples = static_cast<double>(std::max<size_t>(all.samples, 1));
+  all.errorMean /= samples, all.noiseMean /= samples, all.referenceMean /= samples, truthVsFrame /= samples;
+  all.errorRms = std::sqrt(all.errorRms / samples), all.noiseRms = std::sqrt(all.noiseRms / samples);
+  auto pct = [&](double v) { return percentOf(v, all.referenceMean); };
   const float exposure = viewExposure(refs);
-  std::string s = fmt::format(
-      "<p>Kept frames re-rendered from the result ({} spp), one exposure ({:.3g}) for all; error = |render - reference| x 4 "
-      "(masked pixels black).</p><table><tr><th>frame</th><th>reference</th><th>re-render</th><th>error</th></tr>",
-      o.spp, exposure);
-  for (size_t k = 0; k < shown.size(); ++k) {
-    Image err(refs[k].width, refs[k].height);
-    for (size_t i = 0; i < err.rgb.size(); ++i)
-      err.rgb[i] = refs[k].rgb[i] < 0 ? 0.0f : 4.0f * std::abs(renders[k].rgb[i] - refs[k].rgb[i]);
-    const std::string stem = fmt::format("view_{}", shown[k]);
-    writePng(out / (stem + "_reference.png"), refs[k], exposure);
-    writePng(out / (stem + "_render.png"), renders[k], exposure);
-    writePng(out / (stem + "_error.png"), err, exposure);
-    s += fmt::format("<tr><td>{}</td><td><img src=\"{}_reference.png\"></td><td><img src=\"{}_render.png\"></td>"
-                     "<td><img src=\"{}_error.png\"></td></tr>", html(frames[shown[k]].image.filename().string()), stem, stem, stem);
+  const int half = std::max(1, o.spp / 2);
+  std::string s;
+  if (truth)
+    s = fmt::format(
+        "<p>Kept frames re-rendered from the result and from the capture's ground truth with the same random numbers ({} spp "
+        "each, as two halves of {}). Where the two scenes agree their Monte Carlo noise is the same and cancels, so the error "
+        "|fit - truth| is the reconstruction's; the noise left in it (paths the two scenes scatter differently), estimated from "
+        "the halves, is shown beside it. Both are averaged over {}x{}-pixel blocks before their magnitude is taken, which "
+        "divides the noise by {} and keeps what is off at that scale. One exposure ({:.3g}) for all; error and noise x 4; "
+        "masked pixels black.</p><p>Over these frames, as a share of the frames' mean value: |fit - truth| {} on average, of "
+        "which noise {}; RMS {}, noise RMS {}, so the reconstruction's own RMS error is about {}. For comparison, the truth "
+        "itself re-rendered differs from the frames by {} on average at the same scale: the frames' and the re-render's "
+        "noise, which an error against the frames would mostly show.</p>",
+        o.spp, half, kErrorBlock, kErrorBlock, kErrorBlock, exposure, pct(all.errorMean), pct(all.noiseMean), pct(all.errorRms), pct(all.noiseRms),
+        pct(all.beyondNoiseRms()), pct(truthVsFrame));
+  else
+    s = fmt::format(
+        "<p>Kept frames re-rendered from the result ({} spp, as two halves of {}). Error = |re-render - frame|; noise = the "
+        "re-render's own Monte Carlo noise, estimated from its halves' difference (the frame's noise is not known, so not "
+        "shown): error that the noise does not explain is the reconstruction's, or the frame's noise. Both are averaged over "
+        "{}x{}-pixel blocks before their magnitude is taken, which divides the noise by {} and keeps what is off at that "
+        "scale. One exposure ({:.3g}) for all; error and noise x 4; masked pixels black.</p><p>Over these frames, as a share "
+        "of the frames' mean value: error {} on average, the re-render's noise {}; RMS {}, noise RMS {}, so the error beyond "
+        "the re-render's noise has an RMS of about {}.</p>",
+        o.spp, half, kErrorBlock, kErrorBlock, kErrorBlock, exposure, pct(all.errorMean), pct(all.noiseMean), pct(all.errorRms), pct(all.noiseRms),
+        pct(all.beyondNoiseRms()));
+  s += fmt::format("<table><tr><th>frame</th><th>reference</th><th>re-render</th><th>{}</th><th>noise in that error</th></tr>",
+                   truth ? "error |fit - truth|" : "error |re-render - frame|");
+  for (const Shown& v : shown) {
+    const std::string stem = fmt::format("view_{}", v.frame);
+    writePng(out / (stem + "_reference.png"), v.reference, exposure);
+    writePng(out / (stem + "_render.png"), v.render, exposure);
+    writePng(out / (stem + "_error.png"), v.error.error, 4 * exposure);
+    writePng(out / (stem + "_noise.png"), v.error.noise, 4 * exposure);
+    s += fmt::format("<tr><td>{}<br>error {}<br>noise {}</td><td><img src=\"{}_reference.png\"></td><td><img src=\"{}_render.png\"></td>"
+                     "<td><img src=\"{}_error.png\"></td><td><img src=\"{}_noise.png\"></td></tr>",
+                     html(frames[v.frame].image.filename().string()), percentOf(v.error.errorMean, v.error.referenceMean),
+                     percentOf(v.error.noiseMean, v.error.referenceMean), stem, stem, stem, stem);
   }
   return s + "</table>";
 }
@@ -276,15 +345,16 @@ fs::path writeFitReport(const fs::path& work, const ReportOptions& o) {
   const Json materials = readJson(work / "result" / "materials.json");
   const SceneDescription fit = loadSceneFile(work / "result" / "scene.json");
   const fs::path truthFile = fs::path(prepare.at("capture").get<std::string>()) / "gt" / "scene.json";
-  std::optional<SceneDescription> truth;
-  if (fs::exists(truthFile)) truth = loadSceneFile(truthFile);
+  std::optional<SceneDescription> truthScene;
+  if (fs::exists(truthFile)) truthScene = loadSceneFile(truthFile);
+  const SceneDescription* truth = truthScene ? &*truthScene : nullptr;  // scored: null when on other triangles
   TruthComparison scores;
   std::string textures;
   try {
-    textures = texturesSection(work, out, fit, truth ? &*truth : nullptr, &scores);
+    textures = texturesSection(work, out, fit, truth, &scores);
   } catch (const Error& e) {  // a truth on other triangles (the `scan` capture) cannot be scored texel by texel
     spdlog::warn("report: truth not compared: {}", e.what());
-    truth.reset();
+    truth = nullptr;
     textures = texturesSection(work, out, fit, nullptr, &scores);
   }
   std::string page = R"(<!DOCTYPE html><html><head><meta charset="utf-8"><title>relume fit report</title><style>
@@ -305,13 +375,13 @@ img.tex{width:256px;height:256px} figure{display:inline-block;margin:4px} figcap
                         scores.roughnessPsnr8, scores.emissionIou);
   page += "<h2>Views</h2>";
   try {
-    page += viewsSection(out, fit, prepare, o);
+    page += viewsSection(out, fit, truthScene ? &*truthScene : nullptr, prepare, o);  // any truth renders
   } catch (const Error& e) {  // the capture moved or lost images: the rest of the report still stands
     spdlog::warn("report: views not rendered: {}", e.what());
     page += "<p>Views not rendered: " + html(e.what()) + "</p>";
   }
   page += "<h2>Textures</h2>" + textures;
-  page += "<h2>Materials</h2>" + materialsSection(materials, truth ? &*truth : nullptr);
+  page += "<h2>Materials</h2>" + materialsSection(materials, truth);
   page += "<h2>Light sources</h2>" + lightsSection(work / "result" / "lights.json");
   page += "<h2>Loss and time per stage</h2>" + stagesSection(readJsonLines(work / "metrics.jsonl"));
   page += "<h2>Prepare and memory</h2>" + prepareSection(prepare, materials);

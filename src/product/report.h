@@ -1,8 +1,9 @@
 // WORK/report/index.html: what a fit did, readable offline in any browser. Self-contained (images
 // beside it, loss curves as inline SVG drawn from metrics.jsonl, no scripts, no network):
-// reference / re-render / error for a few frames, albedo (init, fit, truth when the capture has
-// one), coverage, emission textures, the per-object material table, per-stage loss curves and
-// timings, peak memory, and the config.
+// reference / re-render / error / the noise in that error for a few frames (the error is
+// |fit - truth|, both rendered with the same random numbers, when the capture has a ground truth),
+// albedo (init, fit, truth when the capture has one), coverage, emission textures, the
+// per-object material table, per-stage loss curves and timings, peak memory, and the config.
 #pragma once
 #include <filesystem>
 #include <string>
@@ -12,7 +13,7 @@ namespace relume {
 
 struct ReportOptions {
   int frames = 3;  // views shown (spread over the kept frames)
-  int spp = 16;    // samples per pixel of their re-renders
+  int spp = 16;    // samples per pixel of their re-renders (the fit's, and the truth's when there is one)
 };
 
 // Reads WORK (prepare.json, metrics.jsonl, result/) and writes WORK/report/; returns index.html.

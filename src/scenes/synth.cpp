@@ -6,6 +6,7 @@
 
 #include "core/error.h"
 #include "core/rng.h"
+#include "core/system.h"
 #include "io/image.h"
 #include "render/film.h"
 
@@ -408,12 +409,15 @@ int writeSynthCapture(const SynthCaptureOptions& o) {
   RenderOptions ro;
   ro.path.maxDepth = o.maxDepth;
   int rendered = 0;
-  for (const auto& [folder, json, count, phase, spp] :
-       {std::tuple{"images", "transforms.json", o.frames, 0.0, o.spp}, std::tuple{"test", "transforms_test.json", o.testFrames, 0.5, o.testSpp}}) {
+  const int testWidth = o.testWidth > 0 ? o.testWidth : o.width, testHeight = o.testHeight > 0 ? o.testHeight : o.height;
+  for (const auto& [folder, json, count, phase, spp, width, height] :
+       {std::tuple{"images", "transforms.json", o.frames, 0.0, o.spp, o.width, o.height},
+        std::tuple{"test", "transforms_test.json", o.testFrames, 0.5, o.testSpp, testWidth, testHeight}}) {
     ro.spp = spp;
     std::vector<Frame> frames;
-    auto cams = synthCameraPath(o.kind, count, o.width, o.height, phase);
+    auto cams = synthCameraPath(o.kind, count, width, height, phase);
     for (Camera& cam : cams) cam.filter = o.pixelFilter;
+    Progress progress(std::string(folder) == "images" ? "synth frames" : "synth held-out", cams.size());
     for (size_t i = 0; i < cams.size(); ++i) {
       ro.seed = hashTuple({o.seed, static_cast<uint64_t>(phase * 2), i});
       const RenderResult r = renderImage(scene, gt.appearance, lights, cams[i], ro);
@@ -425,6 +429,7 @@ int writeSynthCapture(const SynthCaptureOptions& o) {
       ++rendered;
       spdlog::info("{} {}/{} rendered ({:.1f}s, {:.2f} Mrays/s)", folder, i + 1, cams.size(), r.stats.seconds,
                    r.stats.rays / r.stats.seconds * 1e-6);
+      progress.advance();
     }
     writeTransforms(o.out / json, frames);
   }

@@ -45,6 +45,7 @@ struct SynthCaptureOptions {
   // rendered near convergence, so that their noise does not cap the score (at 16 spp the ground
   // truth itself scores 30.5 dB against them).
   int testSpp = 256;
+  int testWidth = 0, testHeight = 0;  // the held-out frames' size (0: the frames' own)
   int maxDepth = kDefaultMaxDepth;
   uint64_t seed = 1;
   bool withUv = false;

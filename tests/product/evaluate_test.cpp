@@ -1,9 +1,12 @@
-// Peers' truth measures of `relume eval`: 8-bit albedo and roughness map PSNR, emission IoU.
+// Peers' truth measures of `relume eval`: 8-bit albedo and roughness map PSNR, emission IoU; re-renders
+// against a truth with the same random numbers, and their noise estimates.
 #include <gtest/gtest.h>
 
 #include <cmath>
 
+#include "core/error.h"
 #include "product/evaluate.h"
+#include "render/lights.h"
 #include "scenes/synth.h"
 
 using namespace relume;
@@ -43,4 +46,92 @@ TEST(Evaluate, PeersMeasuresAreExactOnTheTruthAndFallWithErrors) {
   EXPECT_LT(off.albedoPsnr8, 25.0);
   EXPECT_GT(off.emissionIou, 0.2);
   EXPECT_LT(off.emissionIou, 0.8);
+}
+
+namespace {
+struct Rendered {
+  SceneDescription desc;
+  Scene scene;
+  LightSampler lights;
+  explicit Rendered(SceneDescription d) : desc(std::move(d)), scene(desc.mesh), lights(scene, desc.appearance) {}
+  SplitRender render(const Camera& camera, int spp, uint64_t seed) const {
+    RenderOptions ro;
+    ro.spp = spp, ro.seed = seed;
+    return renderSplit(scene, desc.appearance, lights, camera, ro);
+  }
+};
+Camera cornellCamera() { return synthCameraPath(SynthSceneKind::Cornell, 1, 32, 24, 0.0)[0]; }
+}  // namespace
+
+TEST(Evaluate, SameRandomNumbersCancelTheNoiseOfTwoCopiesOfAScene) {
+  const Rendered fit(makeSynthScene(SynthSceneKind::Cornell, 64).scene), truth(makeSynthScene(SynthSceneKind::Cornell, 64).scene);
+  const SplitRender a = fit.render(cornellCamera(), 4, 7), b = truth.render(cornellCamera(), 4, 7);
+  const ViewError e = errorAgainstTruth(a, b, b.mean);
+  EXPECT_EQ(e.samples, b.mean.rgb.size());
+  for (size_t i = 0; i < e.error.rgb.size(); ++i) {
+    ASSERT_EQ(e.error.rgb[i], 0.0f) << i;
+    ASSERT_EQ(e.noise.rgb[i], 0.0f) << i;
+  }
+  EXPECT_EQ(e.errorRms, 0.0);
+  // Not for lack of noise: the render's halves differ, and so do other random numbers.
+  EXPECT_GT(errorAgainstPhoto(a, b.mean).noiseMean, 0.0);
+  EXPECT_GT(errorAgainstTruth(a, truth.render(cornellCamera(), 4, 8), b.mean).errorMean, 0.0);
+}
+
+TEST(Evaluate, TheNoiseEstimateExplainsIndependentRendersAndNotAReconstructionError) {
+  const Camera camera = cornellCamera();
+  const Rendered truth(makeSynthScene(SynthSceneKind::Cornell, 64).scene);
+  // The same scene with other random numbers: the difference is all noise, and the halves say how much.
+  const ViewError noise = errorAgainstTruth(truth.render(camera, 8, 1), truth.render(camera, 8, 2), truth.render(camera, 8, 1).mean);
+  EXPECT_GT(noise.noiseRms, 0.0);
+  EXPECT_GT(noise.errorRms / noise.noiseRms, 0.7);
+  EXPECT_LT(noise.errorRms / noise.noiseRms, 1.4);
+  // The walls 20% darker, same random numbers: the error is the reconstruction's, the noise left in it small.
+  SceneDescription darker = makeSynthScene(SynthSceneKind::Cornell, 64).scene;
+  for (float& v : darker.appearance.albedo.rgb) v *= 0.8f;
+  const Rendered fit(std::move(darker));
+  const SplitRender t = truth.render(camera, 8, 1);
+  const ViewError e = errorAgainstTruth(fit.render(camera, 8, 1), t, t.mean);
+  EXPECT_GT(e.errorMean, 0.05 * e.referenceMean);
+  EXPECT_LT(e.noiseRms, 0.25 * e.errorRms);
+  EXPECT_GT(e.beyondNoiseRms(), 0.9 * e.errorRms);
+}
+
+TEST(Evaluate, BlocksAverageTheNoiseDownAndKeepSmoothErrors) {
+  const Rendered truth(makeSynthScene(SynthSceneKind::Cornell, 64).scene);
+  const SplitRender r = truth.render(cornellCamera(), 4, 3);
+  Image photo = r.mean;  // 0.05 brighter everywhere, the first pixel masked
+  for (float& v : photo.rgb) v += 0.05f;
+  for (int k = 0; k < 3; ++k) photo.rgb[k] = -1.0f;
+  const ViewError pixels = errorAgainstPhoto(r, photo), blocks = errorAgainstPhoto(r, photo, 4), odd = errorAgainstPhoto(r, photo, 5);
+  EXPECT_EQ(pixels.samples, 32u * 24 * 3 - 3);
+  EXPECT_EQ(blocks.error.width, 8);
+  EXPECT_EQ(blocks.error.height, 6);
+  EXPECT_EQ(odd.error.width, 7);  // partial blocks at the edges
+  EXPECT_EQ(odd.error.height, 5);
+  EXPECT_EQ(blocks.samples, 8u * 6 * 3);
+  for (const ViewError* v : {&pixels, &blocks, &odd}) {
+    EXPECT_NEAR(v->errorMean, 0.05, 1e-5);
+    EXPECT_NEAR(v->errorRms, 0.05, 1e-5);
+  }
+  // Independent pixels: the noise of a 4x4 block's mean is a quarter of a pixel's.
+  EXPECT_GT(pixels.noiseRms, 0.0);
+  EXPECT_GT(blocks.noiseRms / pixels.noiseRms, 0.15);
+  EXPECT_LT(blocks.noiseRms / pixels.noiseRms, 0.4);
+  EXPECT_THROW(errorAgainstPhoto(r, photo, 0), Error);
+}
+
+TEST(Evaluate, MaskedPixelsAreLeftOutOfScoresAndErrors) {
+  Image reference(2, 1), estimate(2, 1);
+  std::fill(reference.rgb.begin(), reference.rgb.end(), 0.5f);
+  std::fill(estimate.rgb.begin(), estimate.rgb.end(), 0.5f);
+  for (int k = 0; k < 3; ++k) reference.rgb[k] = -1.0f, estimate.rgb[k] = 9.0f;  // pixel 0 masked, and wrong
+  EXPECT_NEAR(scoreImage(estimate, reference, "r").psnr, 120.0, 1e-9);
+  const ViewError e = errorAgainstPhoto({estimate, Image(2, 1)}, reference);
+  EXPECT_EQ(e.samples, 3u);
+  EXPECT_EQ(e.errorMean, 0.0);
+  EXPECT_EQ(e.error.rgb[0], 0.0f);
+  EXPECT_DOUBLE_EQ(e.referenceMean, 0.5);
+  std::fill(reference.rgb.begin(), reference.rgb.end(), -1.0f);
+  EXPECT_THROW(scoreImage(estimate, reference, "all masked"), Error);
 }

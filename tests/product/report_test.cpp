@@ -37,7 +37,10 @@ TEST(Report, FitWritesASelfContainedPageWithCurvesImagesAndMaterials) {
     EXPECT_EQ(file.find('/'), std::string::npos) << file;  // beside the page: no path, no URL
     EXPECT_TRUE(fs::exists(page.parent_path() / file)) << file;
   }
-  EXPECT_GE(images, 3 * 3 + 4);  // 3 views x (reference, render, error) + init, fit, truth albedo, coverage
+  EXPECT_GE(images, 3 * 4 + 4);  // 3 views x (reference, render, error, noise) + init, fit, truth albedo, coverage
+  // The capture has a ground truth: the views' error is the fit's against it, with the same random numbers.
+  EXPECT_NE(html.find("with the same random numbers"), std::string::npos);
+  EXPECT_NE(html.find("error |fit - truth|"), std::string::npos);
   // One curve per stage that logged metrics, each a polyline with a point per record.
   size_t records = 0;
   std::ifstream metrics(dir / "work" / "metrics.jsonl");
@@ -70,6 +73,14 @@ TEST(Report, FitWritesASelfContainedPageWithCurvesImagesAndMaterials) {
   again << std::ifstream(page).rdbuf();
   EXPECT_EQ(again.str().find("albedo_init.png"), std::string::npos);
   EXPECT_NE(again.str().find("coverage.png"), std::string::npos);
+  // Without a ground truth (a real capture) the error is against the frames, beside the re-render's own noise.
+  fs::remove(dir / "capture" / "gt" / "scene.json");
+  writeFitReport(dir / "work", {2, 4});
+  std::stringstream photo;
+  photo << std::ifstream(page).rdbuf();
+  EXPECT_NE(photo.str().find("error |re-render - frame|"), std::string::npos);
+  EXPECT_NE(photo.str().find("re-render's own Monte Carlo noise"), std::string::npos);
+  EXPECT_EQ(photo.str().find("same random numbers"), std::string::npos);
 }
 
 TEST(Report, LossCurveSkipsNonPositiveLossesOnItsLogAxis) {

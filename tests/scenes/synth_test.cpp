@@ -63,3 +63,34 @@ TEST(Synth, CaptureRoundTripsThroughTheReaders) {
   for (const char* json : {"transforms.json", "transforms_test.json"})
     EXPECT_EQ(readTransforms(dir / json).frames[0].camera.filter, PixelFilter(PixelFilterType::BlackmanHarris, 1.5f)) << json;
 }
+
+TEST(Synth, HeldOutViewsOfTheirOwnSizeLeaveTheTrainingFramesAsTheyWere) {
+  const auto dir = std::filesystem::temp_directory_path() / "relume_synth_test_size";
+  SynthCaptureOptions o;
+  o.kind = SynthSceneKind::Cornell;
+  o.frames = 2, o.testFrames = 2, o.width = 32, o.height = 24, o.spp = 2, o.testSpp = 2, o.atlasResolution = 64;
+  std::vector<Image> frames[2];
+  std::vector<Camera> tests[2];
+  for (int run = 0; run < 2; ++run) {
+    std::filesystem::remove_all(dir);
+    o.out = dir;
+    if (run == 1) o.testWidth = 16, o.testHeight = 12;
+    writeSynthCapture(o);
+    for (const Frame& f : readTransforms(dir / "transforms.json").frames) frames[run].push_back(loadFrameImage(f));
+    for (const Frame& f : readTransforms(dir / "transforms_test.json").frames) {
+      tests[run].push_back(f.camera);
+      const Image img = loadFrameImage(f);
+      EXPECT_EQ(img.width, f.camera.width);
+      EXPECT_EQ(img.height, f.camera.height);
+    }
+  }
+  ASSERT_EQ(frames[0].size(), 2u);
+  for (size_t i = 0; i < frames[0].size(); ++i) EXPECT_EQ(frames[0][i].rgb, frames[1][i].rgb) << i;
+  ASSERT_EQ(tests[1].size(), 2u);
+  for (size_t i = 0; i < tests[1].size(); ++i) {
+    EXPECT_EQ(tests[1][i].width, 16);
+    EXPECT_EQ(tests[1][i].height, 12);
+    EXPECT_FLOAT_EQ(tests[1][i].fx, tests[0][i].fx / 2);  // the same view, half the pixels across
+    EXPECT_TRUE(tests[1][i].position.isApprox(tests[0][i].position));
+  }
+}

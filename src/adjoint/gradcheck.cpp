@@ -58,12 +58,16 @@ double sampleObjective(const std::vector<BatchRay>& rays, Pairing pairing, const
   const double invN = 1.0 / rays.size();
   for (size_t j = 0; j < rays.size(); ++j) {
     switch (pairing) {
-      case Pairing::Decorrelated: sum += (deltaA[j].cast<double>() * residualOf(rays[j], b[j])).sum(); break;
+      case Pairing::Decorrelated:
+        sum += (deltaA[j].cast<double>() * residualOf(rays[j], b[j])).sum();
+        break;
       case Pairing::Crossfit:
         sum += 0.5 * ((deltaA[j].cast<double>() * residualOf(rays[j], b[j])).sum() +
                       (deltaB[j].cast<double>() * residualOf(rays[j], a[j])).sum());
         break;
-      case Pairing::Reuse: sum += rays[j].weight * residualOf(rays[j], a[j]).square().sum() * invN; break;
+      case Pairing::Reuse:
+        sum += rays[j].weight * residualOf(rays[j], a[j]).square().sum() * invN;
+        break;
     }
   }
   return sum;
@@ -74,7 +78,8 @@ double sampleObjective(const std::vector<BatchRay>& rays, Pairing pairing, const
 double productLoss(const std::vector<BatchRay>& rays, const std::vector<Eigen::Array3d>& a,
                    const std::vector<Eigen::Array3d>& b) {
   double sum = 0;
-  for (size_t j = 0; j < rays.size(); ++j) sum += rays[j].weight * (residualOf(rays[j], a[j]) * residualOf(rays[j], b[j])).sum();
+  for (size_t j = 0; j < rays.size(); ++j)
+    sum += rays[j].weight * (residualOf(rays[j], a[j]) * residualOf(rays[j], b[j])).sum();
   return sum / rays.size();
 }
 
@@ -142,8 +147,9 @@ std::vector<ParamRef> pickParameters(const Scene& scene, const Appearance& a, co
   return out;
 }
 
-std::vector<double> meanAdjointGradient(const Scene& scene, const Appearance& appearance, const std::vector<BatchRay>& rays,
-                                        const AdjointSettings& settings, const std::vector<ParamRef>& params, int batches) {
+std::vector<double> meanAdjointGradient(const Scene& scene, const Appearance& appearance,
+                                        const std::vector<BatchRay>& rays, const AdjointSettings& settings,
+                                        const std::vector<ParamRef>& params, int batches) {
   const LightSampler lights(scene, appearance);
   std::vector<double> mean(params.size(), 0.0);
   Gradients g(appearance);
@@ -190,10 +196,12 @@ GradcheckReport runGradcheck(const Scene& scene, const Appearance& base, const s
     // Float rounding of each radiance estimate (~6e-8 relative) divided by the step bounds how
     // well any finite difference can resolve; the tolerance adds it to the relative 2e-3.
     double scale = 0;
-    for (size_t j = 0; j < rays.size(); ++j) scale += (dA[j].abs().cast<double>() * (a0[j].abs() + b0[j].abs())).sum() + 1e-30;
+    for (size_t j = 0; j < rays.size(); ++j)
+      scale += (dA[j].abs().cast<double>() * (a0[j].abs() + b0[j].abs())).sum() + 1e-30;
     for (const ParamRef& p : params) {
       const double fd = centralDifference(p, [&](const AppearanceScope& scope) {
-        const auto a = s.pairing == Pairing::Decorrelated ? a0 : traceAll(scene, lights, scope, rays, s.path, seedA(it));
+        const auto a =
+            s.pairing == Pairing::Decorrelated ? a0 : traceAll(scene, lights, scope, rays, s.path, seedA(it));
         const auto b = s.pairing == Pairing::Reuse ? b0 : traceAll(scene, lights, scope, rays, s.path, seedB(it));
         return sampleObjective(rays, s.pairing, a, b, dA, dB);
       });
@@ -234,7 +242,8 @@ GradcheckReport runGradcheck(const Scene& scene, const Appearance& base, const s
       row.informational = s.pairing == Pairing::Reuse;
       // The finite difference itself is only exact to the level-1 tolerance; for crossfit, whose
       // estimator is exactly the derivative of the product loss, that floor is all that remains.
-      row.pass = row.informational || std::abs(md) <= o.sigmas * row.stdError + o.level1Tolerance * std::abs(row.finiteDifference);
+      row.pass = row.informational ||
+                 std::abs(md) <= o.sigmas * row.stdError + o.level1Tolerance * std::abs(row.finiteDifference);
       report.rows.push_back(row);
     }
   }
@@ -250,8 +259,8 @@ std::string directVersusFull(const Scene& scene, const Appearance& appearance, c
   full.mode = GradientMode::Full;
   const auto gd = meanAdjointGradient(scene, appearance, rays, direct, params, batches);
   const auto gf = meanAdjointGradient(scene, appearance, rays, full, params, batches);
-  std::string out = fmt::format("bias of direct vs full (mean over {} batches):\n{:<34} {:>14} {:>14} {:>10}\n", batches,
-                                "parameter", "direct", "full", "rel diff");
+  std::string out = fmt::format("bias of direct vs full (mean over {} batches):\n{:<34} {:>14} {:>14} {:>10}\n",
+                                batches, "parameter", "direct", "full", "rel diff");
   for (size_t i = 0; i < params.size(); ++i)
     out += fmt::format("{:<34} {:>14.6e} {:>14.6e} {:>9.1f}%\n", params[i].label(), gd[i], gf[i],
                        100.0 * std::abs(gd[i] - gf[i]) / std::max(std::abs(gf[i]), 1e-30));
@@ -263,10 +272,11 @@ bool GradcheckReport::pass() const {
 }
 
 std::string GradcheckReport::table() const {
-  std::string out = fmt::format("{:<7} {:<34} {:>14} {:>14} {:>12} {}\n", "level", "parameter", "adjoint", "finite diff",
-                                "error", "result");
+  std::string out = fmt::format("{:<7} {:<34} {:>14} {:>14} {:>12} {}\n", "level", "parameter", "adjoint",
+                                "finite diff", "error", "result");
   for (const GradcheckRow& r : rows) {
-    const std::string err = r.level == "sample" ? fmt::format("{:.2e} rel", r.error) : fmt::format("{:.2f} se", r.error);
+    const std::string err =
+        r.level == "sample" ? fmt::format("{:.2e} rel", r.error) : fmt::format("{:.2f} se", r.error);
     out += fmt::format("{:<7} {:<34} {:>14.6e} {:>14.6e} {:>12} {}\n", r.level, r.param.label(), r.adjoint,
                        r.finiteDifference, err, r.informational ? "bias (reported)" : (r.pass ? "pass" : "FAIL"));
   }

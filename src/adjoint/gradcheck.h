@@ -19,8 +19,8 @@ struct GradcheckOptions {
   std::vector<ParamKind> kinds;
   AdjointSettings settings;
   int paramsPerKind = 3;
-  float eps = 1e-3f;        // absolute for [0,1] parameters; for emission x the scene's largest emission (floor 1)
-  int batches = 32;         // level 2
+  float eps = 1e-3f;  // absolute for [0,1] parameters; for emission x the scene's largest emission (floor 1)
+  int batches = 32;   // level 2
   bool level1 = true, level2 = true;
   double level1Tolerance = 2e-3;  // relative, on top of the float-rounding floor
   double sigmas = 4.0;            // level 2 acceptance
@@ -41,15 +41,16 @@ struct GradcheckReport {
 };
 
 // Parameters of each kind that the batch actually reaches (most-hit objects, texels, emitters).
-std::vector<ParamRef> pickParameters(const Scene& scene, const Appearance& appearance, const std::vector<BatchRay>& rays,
-                                     ParamKind kind, int count);
+std::vector<ParamRef> pickParameters(const Scene& scene, const Appearance& appearance,
+                                     const std::vector<BatchRay>& rays, ParamKind kind, int count);
 
 GradcheckReport runGradcheck(const Scene& scene, const Appearance& appearance, const std::vector<BatchRay>& rays,
                              const GradcheckOptions& options);
 
 // Mean adjoint gradient over `batches` batches for the given params (used to report direct vs full).
-std::vector<double> meanAdjointGradient(const Scene& scene, const Appearance& appearance, const std::vector<BatchRay>& rays,
-                                        const AdjointSettings& settings, const std::vector<ParamRef>& params, int batches);
+std::vector<double> meanAdjointGradient(const Scene& scene, const Appearance& appearance,
+                                        const std::vector<BatchRay>& rays, const AdjointSettings& settings,
+                                        const std::vector<ParamRef>& params, int batches);
 
 // How far `direct` gradients are from `full` ones for the parameters of the report's whole-loss
 // rows (mean over `batches`): the bias the paper's first-vertex gradients accept. A table.

@@ -11,9 +11,12 @@ namespace relume {
 inline Color lossResidual(const Color& estimate, const Color& reference, const ClipThresholds& clip) {
   Color r;
   for (int c = 0; c < 3; ++c) {
-    if (reference[c] >= clip.high) r[c] = std::min(estimate[c] - clip.high, 0.0f);
-    else if (reference[c] <= clip.low) r[c] = std::max(estimate[c] - clip.low, 0.0f);
-    else r[c] = estimate[c] - reference[c];
+    if (reference[c] >= clip.high)
+      r[c] = std::min(estimate[c] - clip.high, 0.0f);
+    else if (reference[c] <= clip.low)
+      r[c] = std::max(estimate[c] - clip.low, 0.0f);
+    else
+      r[c] = estimate[c] - reference[c];
   }
   return r;
 }
@@ -22,9 +25,12 @@ inline Color lossResidual(const Color& estimate, const Color& reference, const C
 inline Color lossResidualSlope(const Color& estimate, const Color& reference, const ClipThresholds& clip) {
   Color s;
   for (int c = 0; c < 3; ++c) {
-    if (reference[c] >= clip.high) s[c] = estimate[c] < clip.high ? 1.0f : 0.0f;
-    else if (reference[c] <= clip.low) s[c] = estimate[c] > clip.low ? 1.0f : 0.0f;
-    else s[c] = 1.0f;
+    if (reference[c] >= clip.high)
+      s[c] = estimate[c] < clip.high ? 1.0f : 0.0f;
+    else if (reference[c] <= clip.low)
+      s[c] = estimate[c] > clip.low ? 1.0f : 0.0f;
+    else
+      s[c] = 1.0f;
   }
   return s;
 }

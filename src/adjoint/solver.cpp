@@ -25,8 +25,8 @@ struct VertexRecord {
   Vec2 uv;
   Vec3 wo;
   BsdfParams params;
-  Color beta;            // throughput from the camera to x_k (detached)
-  Color emitted;         // mis * Le at x_k, reached from x_{k-1}
+  Color beta;     // throughput from the camera to x_k (detached)
+  Color emitted;  // mis * Le at x_k, reached from x_{k-1}
   float emitMis;
   bool frontFacing;
   bool hasNee;
@@ -66,7 +66,8 @@ struct AdjointRecorder : NullPathObserver {
     r.emitMis = mis;
     r.frontFacing = true;
   }
-  void nee(int depth, const Vec3& wi, const Color& f, float cosI, float scale, const Color& le, const SurfaceHit& light) {
+  void nee(int depth, const Vec3& wi, const Color& f, float cosI, float scale, const Color& le,
+           const SurfaceHit& light) {
     VertexRecord& r = records[depth];
     r.hasNee = true;
     r.neeWi = wi, r.neeF = f, r.neeLe = le, r.neeCos = cosI, r.neeScale = scale;
@@ -172,7 +173,8 @@ Color sweep(const VertexRecord* records, int count, const Color& delta, const Ad
 class RecordBuffers {
  public:
   explicit RecordBuffers(int maxDepth)
-      : n_(static_cast<size_t>(maxDepth + 1)), width_(wavePaths(maxDepth)),
+      : n_(static_cast<size_t>(maxDepth + 1)),
+        width_(wavePaths(maxDepth)),
         buffers_([this] { return std::vector<VertexRecord>(kRecordedWaves * width_ * n_); }) {}
   VertexRecord* get(int wave) { return buffers_.local().data() + wave * width_ * n_; }
   size_t width() const { return width_; }
@@ -239,7 +241,8 @@ std::vector<Color> traceRays(const Scene& scene, const LightSampler& lights, con
     forEachWave(range.begin(), range.end(), kWavefrontWidth, [&](size_t b, size_t e) {
       paths.clear();
       for (size_t j = b; j < e; ++j) paths.emplace_back(rays[j].origin, rays[j].dir, Pcg32(seedOf(j)));
-      tracePaths(scene, lights, scope, path, std::span<PathSlot>(paths), [&](size_t) -> NullPathObserver& { return none; });
+      tracePaths(scene, lights, scope, path, std::span<PathSlot>(paths),
+                 [&](size_t) -> NullPathObserver& { return none; });
       for (size_t j = b; j < e; ++j) estimate[j] = safeRadiance(paths[j - b].L);
     });
   });
@@ -281,30 +284,33 @@ void adjointPass(const Scene& scene, const Appearance& appearance, const LightSa
   const AppearanceScope scope = AppearanceScope::uniform(appearance);
   RecordBuffers buffers(settings.path.maxDepth);
   const float invN = 1.0f / static_cast<float>(rays.size());
-  grads.accumulate(rays.size(), [&](Gradients::Chunk& chunk, size_t begin, size_t end) {
-    Scatterer out(appearance, settings, chunk);
-    RecordedWave wave(appearance, buffers, 0);
-    std::vector<size_t> traced;  // the wave's rays: those with a nonzero delta
-    forEachWave(begin, end, buffers.width(), [&](size_t b, size_t e) {
-      wave.clear(), traced.clear();
-      for (size_t j = b; j < e; ++j) {
-        if ((delta[j] == 0.0f).all()) continue;  // exact: deltas are tiny (1/N), isZero() would drop them
-        traced.push_back(j);
-        wave.add(rays[j].origin, rays[j].adjointDirection(), adjointSeed(settings, iteration, j));
-      }
-      wave.trace(scene, lights, scope, settings.path);
-      for (size_t i = 0; i < traced.size(); ++i) {
-        const size_t j = traced[i];
-        const Color& L = wave.radiance(i);
-        if (!isFinite(L)) continue;
-        const AdjointRecorder& rec = wave.path(i);
-        const Color slope = lossResidualSlope(L, rays[j].reference, rays[j].clip);
-        const Color x = slope * sweep(rec.records, rec.count, delta[j] * slope, settings, out);
-        const Color partner = primalSensitivity ? (*primalSensitivity)[j] : x;
-        out.albedoCurvature(rec, rayCurvatureWeight(x, partner, rays[j].weight * invN));
-      }
-    });
-  }, settings.splatVertices());
+  grads.accumulate(
+      rays.size(),
+      [&](Gradients::Chunk& chunk, size_t begin, size_t end) {
+        Scatterer out(appearance, settings, chunk);
+        RecordedWave wave(appearance, buffers, 0);
+        std::vector<size_t> traced;  // the wave's rays: those with a nonzero delta
+        forEachWave(begin, end, buffers.width(), [&](size_t b, size_t e) {
+          wave.clear(), traced.clear();
+          for (size_t j = b; j < e; ++j) {
+            if ((delta[j] == 0.0f).all()) continue;  // exact: deltas are tiny (1/N), isZero() would drop them
+            traced.push_back(j);
+            wave.add(rays[j].origin, rays[j].adjointDirection(), adjointSeed(settings, iteration, j));
+          }
+          wave.trace(scene, lights, scope, settings.path);
+          for (size_t i = 0; i < traced.size(); ++i) {
+            const size_t j = traced[i];
+            const Color& L = wave.radiance(i);
+            if (!isFinite(L)) continue;
+            const AdjointRecorder& rec = wave.path(i);
+            const Color slope = lossResidualSlope(L, rays[j].reference, rays[j].clip);
+            const Color x = slope * sweep(rec.records, rec.count, delta[j] * slope, settings, out);
+            const Color partner = primalSensitivity ? (*primalSensitivity)[j] : x;
+            out.albedoCurvature(rec, rayCurvatureWeight(x, partner, rays[j].weight * invN));
+          }
+        });
+      },
+      settings.splatVertices());
 }
 
 GradientResult computeGradients(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
@@ -316,7 +322,9 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
   CHECK(settings.path.maxDepth >= 0);
   if (rays.empty()) return result;
   const float invN = 1.0f / static_cast<float>(rays.size());
-  auto lossOf = [&](size_t j, const Color& est) { return rays[j].weight * rayLoss(est, rays[j].reference, rays[j].clip); };
+  auto lossOf = [&](size_t j, const Color& est) {
+    return rays[j].weight * rayLoss(est, rays[j].reference, rays[j].clip);
+  };
   auto deltaOf = [&](size_t j, const Color& est) {
     return rayLossDelta(est, rays[j].reference, rays[j].clip, rays[j].weight * invN);
   };
@@ -351,40 +359,46 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
   RecordBuffers buffers(settings.path.maxDepth);
   std::vector<double> loss(rays.size(), 0.0);  // summed in ray order: the same at any thread count
   Timer t;
-  grads.accumulate(rays.size(), [&](Gradients::Chunk& chunk, size_t begin, size_t end) {
-    Scatterer out(appearance, settings, chunk);
-    RecordedWave waveA(appearance, buffers, 0), waveB(appearance, buffers, 1);
-    forEachWave(begin, end, buffers.width(), [&](size_t b, size_t e) {
-      waveA.clear(), waveB.clear();
-      for (size_t j = b; j < e; ++j) {
-        waveA.add(rays[j].origin, rays[j].dir, primalSeed(settings, iteration, j));
-        if (crossfit) waveB.add(rays[j].origin, rays[j].adjointDirection(), adjointSeed(settings, iteration, j));
-      }
-      waveA.trace(scene, lights, scope, settings.path);
-      if (crossfit) waveB.trace(scene, lights, scope, settings.path);
-      for (size_t j = b; j < e; ++j) {
-        const AdjointRecorder& recA = waveA.path(j - b);
-        const Color a = waveA.radiance(j - b);
-        if (!crossfit) {
-          if (!isFinite(a)) continue;  // as in the decorrelated pass: no gradient from a broken path
-          loss[j] = lossOf(j, a);
-          const Color x = slopeOf(j, a) * sweep(recA.records, recA.count, deltaOf(j, a) * slopeOf(j, a), settings, out);
-          out.albedoCurvature(recA, rayCurvatureWeight(x, x, rays[j].weight * invN));  // biased, as reuse is
-          continue;
-        }
-        const AdjointRecorder& recB = waveB.path(j - b);
-        const Color b2 = waveB.radiance(j - b);
-        const Color sa = safeRadiance(a), sb = safeRadiance(b2);
-        loss[j] = 0.5 * (lossOf(j, sa) + lossOf(j, sb));
-        // Each sample's delta drives the other's path: the derivative of r(a) r(b), a product of
-        // independent estimates. A non-finite sample drives nothing and receives nothing.
-        if (!isFinite(a) || !isFinite(b2)) continue;
-        const Color xb = slopeOf(j, b2) * sweep(recB.records, recB.count, 0.5f * deltaOf(j, a) * slopeOf(j, b2), settings, out);
-        const Color xa = slopeOf(j, a) * sweep(recA.records, recA.count, 0.5f * deltaOf(j, b2) * slopeOf(j, a), settings, out);
-        out.albedoCurvature(recA, rayCurvatureWeight(xa, xb, rays[j].weight * invN));
-      }
-    });
-  }, settings.splatVertices());
+  grads.accumulate(
+      rays.size(),
+      [&](Gradients::Chunk& chunk, size_t begin, size_t end) {
+        Scatterer out(appearance, settings, chunk);
+        RecordedWave waveA(appearance, buffers, 0), waveB(appearance, buffers, 1);
+        forEachWave(begin, end, buffers.width(), [&](size_t b, size_t e) {
+          waveA.clear(), waveB.clear();
+          for (size_t j = b; j < e; ++j) {
+            waveA.add(rays[j].origin, rays[j].dir, primalSeed(settings, iteration, j));
+            if (crossfit) waveB.add(rays[j].origin, rays[j].adjointDirection(), adjointSeed(settings, iteration, j));
+          }
+          waveA.trace(scene, lights, scope, settings.path);
+          if (crossfit) waveB.trace(scene, lights, scope, settings.path);
+          for (size_t j = b; j < e; ++j) {
+            const AdjointRecorder& recA = waveA.path(j - b);
+            const Color a = waveA.radiance(j - b);
+            if (!crossfit) {
+              if (!isFinite(a)) continue;  // as in the decorrelated pass: no gradient from a broken path
+              loss[j] = lossOf(j, a);
+              const Color x =
+                  slopeOf(j, a) * sweep(recA.records, recA.count, deltaOf(j, a) * slopeOf(j, a), settings, out);
+              out.albedoCurvature(recA, rayCurvatureWeight(x, x, rays[j].weight * invN));  // biased, as reuse is
+              continue;
+            }
+            const AdjointRecorder& recB = waveB.path(j - b);
+            const Color b2 = waveB.radiance(j - b);
+            const Color sa = safeRadiance(a), sb = safeRadiance(b2);
+            loss[j] = 0.5 * (lossOf(j, sa) + lossOf(j, sb));
+            // Each sample's delta drives the other's path: the derivative of r(a) r(b), a product of
+            // independent estimates. A non-finite sample drives nothing and receives nothing.
+            if (!isFinite(a) || !isFinite(b2)) continue;
+            const Color xb =
+                slopeOf(j, b2) * sweep(recB.records, recB.count, 0.5f * deltaOf(j, a) * slopeOf(j, b2), settings, out);
+            const Color xa =
+                slopeOf(j, a) * sweep(recA.records, recA.count, 0.5f * deltaOf(j, b2) * slopeOf(j, a), settings, out);
+            out.albedoCurvature(recA, rayCurvatureWeight(xa, xb, rays[j].weight * invN));
+          }
+        });
+      },
+      settings.splatVertices());
   result.times.adjoint = t.seconds();
   double lossSum = 0;
   for (double l : loss) lossSum += l;

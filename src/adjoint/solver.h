@@ -17,8 +17,8 @@
 
 namespace relume {
 
-enum class GradientMode { Direct, Full };         // Direct: parameters at the first vertex only
-enum class EmitterGradients { Strict, AllDepth }; // with Direct: emitters reached from x0 only, or any
+enum class GradientMode { Direct, Full };          // Direct: parameters at the first vertex only
+enum class EmitterGradients { Strict, AllDepth };  // with Direct: emitters reached from x0 only, or any
 enum class Pairing { Decorrelated, Crossfit, Reuse };
 
 template <>
@@ -51,7 +51,8 @@ struct AdjointSettings {
   }
   // Path vertices of a ray whose terms may splat texels (Gradients::accumulate bounds its logs by it).
   size_t splatVertices() const {
-    return mode == GradientMode::Full || emitters == EmitterGradients::AllDepth ? static_cast<size_t>(path.maxDepth + 1) : 1;
+    return mode == GradientMode::Full || emitters == EmitterGradients::AllDepth ? static_cast<size_t>(path.maxDepth + 1)
+                                                                                : 1;
   }
 };
 
@@ -82,9 +83,9 @@ std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, 
 
 // Adjoint pass only: scatters sum_j delta_j . dr(I_hat_j)/dtheta (paths traced with seed s2 along
 // the ray's adjointDirection(), r the ray's loss residual) into `grads`, and, when `grads` has
-// albedo curvature storage, the Gauss-Newton curvature of the loss in the albedo texels under each ray's first vertex: the
-// product of this pass's residual sensitivity and `primalSensitivity` (the primal's, times its
-// residual slope; unbiased), or without it the square of this pass's own (inflated by its variance).
+// albedo curvature storage, the Gauss-Newton curvature of the loss in the albedo texels under each ray's first vertex:
+// the product of this pass's residual sensitivity and `primalSensitivity` (the primal's, times its residual slope;
+// unbiased), or without it the square of this pass's own (inflated by its variance).
 void adjointPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
                  const std::vector<BatchRay>& rays, const std::vector<Color>& delta, const AdjointSettings& settings,
                  uint64_t iteration, Gradients& grads, const std::vector<Color>* primalSensitivity = nullptr);

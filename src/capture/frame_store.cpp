@@ -54,8 +54,8 @@ Image boxDownscale(const Image& img, int k) {
 }
 }  // namespace
 
-std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const std::vector<Frame>& frames, int downscale,
-                                        const std::function<void()>& progress) {
+std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const std::vector<Frame>& frames,
+                                        int downscale, const std::function<void()>& progress) {
   if (downscale < 1 || downscale > 64) fail("{}: downscale must be 1..64, not {}", path.string(), downscale);
   std::vector<DiskEntry> entries(frames.size());
   writeAtomically(path, [&](const std::filesystem::path& tmp) {
@@ -65,7 +65,8 @@ std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const
     h.version = kVersion;
     h.frames = static_cast<uint32_t>(frames.size());
     out.write(reinterpret_cast<const char*>(&h), sizeof(h));
-    out.write(reinterpret_cast<const char*>(entries.data()), static_cast<std::streamsize>(entries.size() * sizeof(DiskEntry)));
+    out.write(reinterpret_cast<const char*>(entries.data()),
+              static_cast<std::streamsize>(entries.size() * sizeof(DiskEntry)));
     uint64_t offset = sizeof(Header) + entries.size() * sizeof(DiskEntry);
     std::vector<Imath::half> halfs;
     for (size_t i = 0; i < frames.size(); ++i) {
@@ -91,12 +92,14 @@ std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const
       e.stats.height = static_cast<uint32_t>(px.height);
       halfs.resize(px.rgb.size());
       for (size_t k = 0; k < px.rgb.size(); ++k) halfs[k] = Imath::half(std::min(px.rgb[k], 65504.0f));
-      out.write(reinterpret_cast<const char*>(halfs.data()), static_cast<std::streamsize>(halfs.size() * sizeof(Imath::half)));
+      out.write(reinterpret_cast<const char*>(halfs.data()),
+                static_cast<std::streamsize>(halfs.size() * sizeof(Imath::half)));
       offset += halfs.size() * sizeof(Imath::half);
       if (progress) progress();
     }
     out.seekp(sizeof(Header));
-    out.write(reinterpret_cast<const char*>(entries.data()), static_cast<std::streamsize>(entries.size() * sizeof(DiskEntry)));
+    out.write(reinterpret_cast<const char*>(entries.data()),
+              static_cast<std::streamsize>(entries.size() * sizeof(DiskEntry)));
     if (!out) fail("{}: cannot write frame cache", path.string());
   });
   std::vector<FrameStats> stats;
@@ -126,8 +129,10 @@ FrameStore::FrameStore(const std::filesystem::path& path) {
     data_ = nullptr;
     fail("{}: {}", file, why);
   };
-  if (std::memcmp(h.magic, kMagic, 8) != 0 || h.version != kVersion) bad("not a relume frame cache (or another version)");
-  if (sizeof(Header) + static_cast<uint64_t>(h.frames) * sizeof(DiskEntry) > size_) bad("frame cache index is truncated");
+  if (std::memcmp(h.magic, kMagic, 8) != 0 || h.version != kVersion)
+    bad("not a relume frame cache (or another version)");
+  if (sizeof(Header) + static_cast<uint64_t>(h.frames) * sizeof(DiskEntry) > size_)
+    bad("frame cache index is truncated");
   index_.resize(h.frames);
   for (uint32_t i = 0; i < h.frames; ++i) {
     DiskEntry e;
@@ -137,7 +142,8 @@ FrameStore::FrameStore(const std::filesystem::path& path) {
       bad(fmt::format("frame {}: size {}x{} / downscale {} out of range (65536 per side, downscale 1..64)", i, s.width,
                       s.height, s.downscale));
     for (const float fraction : {s.overexposed, s.underexposed, s.masked})
-      if (!(fraction >= 0 && fraction <= 1)) bad(fmt::format("frame {}: exposure statistic {} is not in [0, 1]", i, fraction));
+      if (!(fraction >= 0 && fraction <= 1))
+        bad(fmt::format("frame {}: exposure statistic {} is not in [0, 1]", i, fraction));
     // Written as a difference so a huge offset cannot wrap around.
     const uint64_t bytes = static_cast<uint64_t>(s.width) * s.height * 3 * sizeof(Imath::half);
     if (e.offset > size_ || bytes > size_ - e.offset) bad(fmt::format("frame {} lies outside the file", i));
@@ -176,7 +182,8 @@ void FrameStore::prefetch(size_t frame, const Vec2& px) const {
   if (!(maxX >= 0 && maxY >= 0)) return;
   const auto x = static_cast<size_t>(std::clamp(xf, 0.0f, maxX)), y = static_cast<size_t>(std::clamp(yf, 0.0f, maxY));
   constexpr size_t kPixelBytes = 3 * sizeof(Imath::half);
-  for (size_t row = y; row < y + 2; ++row) prefetchBytes(data_ + e.offset + (row * e.stats.width + x) * kPixelBytes, 2 * kPixelBytes);
+  for (size_t row = y; row < y + 2; ++row)
+    prefetchBytes(data_ + e.offset + (row * e.stats.width + x) * kPixelBytes, 2 * kPixelBytes);
 }
 
 std::optional<Color> FrameStore::bilinear(size_t frame, const Vec2& px) const {
@@ -184,7 +191,8 @@ std::optional<Color> FrameStore::bilinear(size_t frame, const Vec2& px) const {
   const float inv = 1.0f / static_cast<float>(e.stats.downscale);
   const float x = px.x() * inv - 0.5f, y = px.y() * inv - 0.5f;
   const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
-  if (x0 < 0 || y0 < 0 || x0 + 1 >= static_cast<int>(e.stats.width) || y0 + 1 >= static_cast<int>(e.stats.height)) return std::nullopt;
+  if (x0 < 0 || y0 < 0 || x0 + 1 >= static_cast<int>(e.stats.width) || y0 + 1 >= static_cast<int>(e.stats.height))
+    return std::nullopt;
   const float dx = x - x0, dy = y - y0;
   Color sum = Color::Zero();
   const float w[4] = {(1 - dx) * (1 - dy), dx * (1 - dy), (1 - dx) * dy, dx * dy};

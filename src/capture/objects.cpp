@@ -29,7 +29,8 @@ static std::map<int, std::string> parseObjectNames(const std::filesystem::path& 
   for (const auto& [key, value] : j.items()) {
     int id = -1;
     const auto [ptr, ec] = std::from_chars(key.data(), key.data() + key.size(), id);
-    if (ec != std::errc() || ptr != key.data() + key.size() || id < 0) fail("{}: key '{}' is not an object id", file, key);
+    if (ec != std::errc() || ptr != key.data() + key.size() || id < 0)
+      fail("{}: key '{}' is not an object id", file, key);
     if (!value.is_string()) fail("{}: name of object {} must be a string", file, id);
     names[id] = value.get<std::string>();
   }

@@ -11,10 +11,10 @@ namespace relume {
 namespace {
 
 // Bounds of a plausible camera: beyond them Embree's rays are invalid or the input is garbage.
-constexpr double kMaxFocal = 1e7;              // pixels
-constexpr double kMaxPrincipalOffset = 10.0;   // |c - size/2| <= this many image sizes
-constexpr double kMaxPosition = 1e6;           // metres, per coordinate
-constexpr double kOrthonormalTolerance = 1e-3; // on every entry of R^T R - I, and on det R - 1
+constexpr double kMaxFocal = 1e7;               // pixels
+constexpr double kMaxPrincipalOffset = 10.0;    // |c - size/2| <= this many image sizes
+constexpr double kMaxPosition = 1e6;            // metres, per coordinate
+constexpr double kOrthonormalTolerance = 1e-3;  // on every entry of R^T R - I, and on det R - 1
 
 struct Intrinsics {
   std::optional<double> fx, fy, cx, cy, w, h, k1, k2, p1, p2, k3, exposure, clipLow, clipHigh;
@@ -48,10 +48,20 @@ void readIntrinsics(const Json& j, Intrinsics& in, const std::string& where) {
       fail("{}: field '{}' must be a finite number (in float)", where, key);
     dst = j[key].get<double>();
   };
-  num("fl_x", in.fx); num("fl_y", in.fy); num("cx", in.cx); num("cy", in.cy);
-  num("w", in.w); num("h", in.h); num("k1", in.k1); num("k2", in.k2);
-  num("p1", in.p1); num("p2", in.p2); num("k3", in.k3); num("exposure", in.exposure);
-  num("clip_low", in.clipLow); num("clip_high", in.clipHigh);
+  num("fl_x", in.fx);
+  num("fl_y", in.fy);
+  num("cx", in.cx);
+  num("cy", in.cy);
+  num("w", in.w);
+  num("h", in.h);
+  num("k1", in.k1);
+  num("k2", in.k2);
+  num("p1", in.p1);
+  num("p2", in.p2);
+  num("k3", in.k3);
+  num("exposure", in.exposure);
+  num("clip_low", in.clipLow);
+  num("clip_high", in.clipHigh);
   if (j.contains("pixel_filter")) in.filter = readPixelFilter(j["pixel_filter"], where);
   if (j.contains("camera_model")) {
     if (!j["camera_model"].is_string()) fail("{}: 'camera_model' must be a string", where);
@@ -59,7 +69,8 @@ void readIntrinsics(const Json& j, Intrinsics& in, const std::string& where) {
   }
 }
 
-template <typename T> T need(const std::optional<T>& v, const char* key, const std::string& where) {
+template <typename T>
+T need(const std::optional<T>& v, const char* key, const std::string& where) {
   if (!v) fail("{}: missing '{}'", where, key);
   return *v;
 }
@@ -118,7 +129,8 @@ static Capture parseTransforms(const std::filesystem::path& path) {
       const Json& row = f["transform_matrix"][r];
       if (!row.is_array() || row.size() != 4) fail("{}: transform_matrix row {} must have 4 numbers", where, r);
       for (int k = 0; k < 4; ++k) {
-        if (!row[k].is_number() || !std::isfinite(row[k].get<double>())) fail("{}: transform_matrix[{}][{}] is not a finite number", where, r, k);
+        if (!row[k].is_number() || !std::isfinite(row[k].get<double>()))
+          fail("{}: transform_matrix[{}][{}] is not a finite number", where, r, k);
         m(r, k) = row[k].get<double>();
       }
     }
@@ -157,8 +169,16 @@ void writeTransforms(const std::filesystem::path& path, const std::vector<Frame>
     Json f;
     if (!(c.filter == common)) f["pixel_filter"] = filterJson(c.filter);
     f["file_path"] = std::filesystem::relative(fr.image, path.parent_path()).generic_string();
-    f["fl_x"] = c.fx; f["fl_y"] = c.fy; f["cx"] = c.cx; f["cy"] = c.cy; f["w"] = c.width; f["h"] = c.height;
-    f["k1"] = c.distortion.k1; f["k2"] = c.distortion.k2; f["p1"] = c.distortion.p1; f["p2"] = c.distortion.p2;
+    f["fl_x"] = c.fx;
+    f["fl_y"] = c.fy;
+    f["cx"] = c.cx;
+    f["cy"] = c.cy;
+    f["w"] = c.width;
+    f["h"] = c.height;
+    f["k1"] = c.distortion.k1;
+    f["k2"] = c.distortion.k2;
+    f["p1"] = c.distortion.p1;
+    f["p2"] = c.distortion.p2;
     f["k3"] = c.distortion.k3;
     if (fr.exposure != 1.0f) f["exposure"] = fr.exposure;
     const Mat3 gl = c.rotationToOpenGL();

@@ -49,7 +49,9 @@ CLI::Option* addEnumOption(CLI::App* c, const std::string& name, E& target, cons
 }
 constexpr int kMaxSide = 65536, kMaxSpp = 1 << 20, kMaxDepthLimit = 1024;
 
-constexpr const char* kMaxDepthHelp = "scattering vertices per path, each with light sampling (1 = direct light only; Cycles' max bounces B is depth B + 1)";
+constexpr const char* kMaxDepthHelp =
+    "scattering vertices per path, each with light sampling (1 = direct light only; Cycles' max bounces B is depth B + "
+    "1)";
 
 void registerPrepare(CLI::App& app, CommandTable& table) {
   auto o = std::make_shared<PrepareOptions>();
@@ -57,18 +59,34 @@ void registerPrepare(CLI::App& app, CommandTable& table) {
   auto work = std::make_shared<std::string>();
   auto res = std::make_shared<std::string>("1024,2048,4096");
   auto init = std::make_shared<std::string>("median");
-  CLI::App* c = app.add_subcommand("prepare", "build the texture-space data of a capture: atlas, frame cache, visibility, init");
-  c->add_option("capture", *capture, "capture folder (mesh.ply|obj, transforms.json, images)")->required()->check(CLI::ExistingDirectory);
+  CLI::App* c =
+      app.add_subcommand("prepare", "build the texture-space data of a capture: atlas, frame cache, visibility, init");
+  c->add_option("capture", *capture, "capture folder (mesh.ply|obj, transforms.json, images)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
   c->add_option("--out", *work, "work folder")->required();
-  c->add_option("--res", *res, "texture resolutions, coarse to fine (the first is the init resolution)")->capture_default_str();
+  c->add_option("--res", *res, "texture resolutions, coarse to fine (the first is the init resolution)")
+      ->capture_default_str();
   c->add_option("--init", *init, "median or mean of the observations")->capture_default_str();
-  c->add_option("--max-overexposed", o->maxOverexposed, "drop frames with more saturated pixels than this")->capture_default_str()->check(inRange(0, 1));
+  c->add_option("--max-overexposed", o->maxOverexposed, "drop frames with more saturated pixels than this")
+      ->capture_default_str()
+      ->check(inRange(0, 1));
   c->add_option("--max-underexposed", o->maxUnderexposed)->capture_default_str()->check(inRange(0, 1));
-  c->add_option("--max-speed", o->maxSpeed, "metres between neighbouring frames")->capture_default_str()->check(inRange(0, kInf));
-  c->add_option("--max-angular-speed", o->maxAngularSpeed, "degrees between neighbouring frames")->capture_default_str()->check(inRange(0, 180));
-  c->add_option("--tile", o->tileTexels, "visibility tile size in texels at the init resolution")->capture_default_str()->check(inRange(1, 4096));
-  c->add_option("--gutter-res", o->atlas.gutterResolution, "resolution at which charts keep a 2-texel gutter")->capture_default_str()->check(inRange(1, kMaxSide));
-  c->add_option("--downscale", o->downscale, "box-filter frames by this integer factor in the cache")->capture_default_str()->check(inRange(1, 256));
+  c->add_option("--max-speed", o->maxSpeed, "metres between neighbouring frames")
+      ->capture_default_str()
+      ->check(inRange(0, kInf));
+  c->add_option("--max-angular-speed", o->maxAngularSpeed, "degrees between neighbouring frames")
+      ->capture_default_str()
+      ->check(inRange(0, 180));
+  c->add_option("--tile", o->tileTexels, "visibility tile size in texels at the init resolution")
+      ->capture_default_str()
+      ->check(inRange(1, 4096));
+  c->add_option("--gutter-res", o->atlas.gutterResolution, "resolution at which charts keep a 2-texel gutter")
+      ->capture_default_str()
+      ->check(inRange(1, kMaxSide));
+  c->add_option("--downscale", o->downscale, "box-filter frames by this integer factor in the cache")
+      ->capture_default_str()
+      ->check(inRange(1, 256));
   c->add_flag("--force", o->force, "redo every phase");
   table[c] = [=] {
     o->resolutions.clear();
@@ -82,33 +100,48 @@ void registerPrepare(CLI::App& app, CommandTable& table) {
       }
     }
     if (o->resolutions.empty()) fail("--res needs at least one resolution");
-    if (*init == "median") o->init = InitStatistic::Median;
-    else if (*init == "mean") o->init = InitStatistic::Mean;
-    else fail("--init must be median or mean, not '{}'", *init);
+    if (*init == "median")
+      o->init = InitStatistic::Median;
+    else if (*init == "mean")
+      o->init = InitStatistic::Mean;
+    else
+      fail("--init must be median or mean, not '{}'", *init);
     const PrepareSummary s = prepareCapture(*capture, *work, *o);
-    spdlog::info("prepared {}: {} triangles, {}/{} frames kept, {:.2f}% of texels never observed, {:.1f}s", *work, s.triangles,
-                 s.keptFrames, s.frames, 100 * s.fractionUnobserved, s.seconds);
+    spdlog::info("prepared {}: {} triangles, {}/{} frames kept, {:.2f}% of texels never observed, {:.1f}s", *work,
+                 s.triangles, s.keptFrames, s.frames, 100 * s.fractionUnobserved, s.seconds);
     return 0;
   };
 }
 
 void registerProfile(CLI::App& app, CommandTable& table) {
   auto a = std::make_shared<ProfileRequest>();
-  CLI::App* c = app.add_subcommand("profile", "measure speed: renderer, adjoint passes, fit iterations, pairings, gradient scatter");
-  c->add_option("--what", a->what, "comma list of render, adjoint, pairing, scatter, leaks, visibility (+ texel maps), fit")->capture_default_str();
-  c->add_option("--work", a->work, "fit: a prepared work folder (default: the demo's room, prepared in --scratch)")->check(CLI::ExistingDirectory);
-  c->add_option("--scratch", a->scratch, "fit: where the room is prepared when no --work is given (reused)")->capture_default_str();
-  c->add_option("--config", a->config, "fit: config JSON (default: the demo's, 20 warm-up emission iterations)")->check(CLI::ExistingFile);
+  CLI::App* c = app.add_subcommand(
+      "profile", "measure speed: renderer, adjoint passes, fit iterations, pairings, gradient scatter");
+  c->add_option("--what", a->what,
+                "comma list of render, adjoint, pairing, scatter, leaks, visibility (+ texel maps), fit")
+      ->capture_default_str();
+  c->add_option("--work", a->work, "fit: a prepared work folder (default: the demo's room, prepared in --scratch)")
+      ->check(CLI::ExistingDirectory);
+  c->add_option("--scratch", a->scratch, "fit: where the room is prepared when no --work is given (reused)")
+      ->capture_default_str();
+  c->add_option("--config", a->config, "fit: config JSON (default: the demo's, 20 warm-up emission iterations)")
+      ->check(CLI::ExistingFile);
   c->add_option("--stage", a->stage, "fit: profile the first stage whose name starts with this")->capture_default_str();
-  c->add_option("--iterations", a->iterations, "fit: iterations timed")->capture_default_str()->check(inRange(1, 100000));
+  c->add_option("--iterations", a->iterations, "fit: iterations timed")
+      ->capture_default_str()
+      ->check(inRange(1, 100000));
   c->add_option("--json", a->json, "fit: also write the profile as JSON here");
   c->add_option("--synth", a->synth, "room, cornell or furnace")->capture_default_str();
-  auto* scene = c->add_option("--scene", a->scene, "render: this scene.json instead of --synth")->check(CLI::ExistingFile);
-  c->add_option("--cameras", a->cameras,
-                "render: with --scene, a transforms.json; its first camera is rendered (its size, not --width/--height)")
-      ->check(CLI::ExistingFile)->needs(scene);
+  auto* scene =
+      c->add_option("--scene", a->scene, "render: this scene.json instead of --synth")->check(CLI::ExistingFile);
+  c->add_option(
+       "--cameras", a->cameras,
+       "render: with --scene, a transforms.json; its first camera is rendered (its size, not --width/--height)")
+      ->check(CLI::ExistingFile)
+      ->needs(scene);
   scene->needs("--cameras");
-  c->add_option("--rays-out", a->raysOut, "render: also write the replayed rays here (float32 records of 8: origin, "
+  c->add_option("--rays-out", a->raysOut,
+                "render: also write the replayed rays here (float32 records of 8: origin, "
                 "direction, tmax, shadow) for another tracer");
   c->add_option("--width", a->width)->capture_default_str()->check(inRange(8, kMaxSide));
   c->add_option("--height", a->height)->capture_default_str()->check(inRange(8, kMaxSide));
@@ -117,7 +150,9 @@ void registerProfile(CLI::App& app, CommandTable& table) {
   c->add_option("--rays", a->rays, "adjoint batch size")->capture_default_str()->check(inRange(1, 1 << 26));
   c->add_option("--repeats", a->repeats)->capture_default_str()->check(inRange(1, 1000));
   c->add_option("--batches", a->batches, "pairing study batches")->capture_default_str()->check(inRange(2, 1 << 20));
-  c->add_option("--study-rays", a->studyRays, "pairing study batch size")->capture_default_str()->check(inRange(1, 1 << 24));
+  c->add_option("--study-rays", a->studyRays, "pairing study batch size")
+      ->capture_default_str()
+      ->check(inRange(1, 1 << 24));
   c->add_option("--scatter-res", a->scatterRes)->capture_default_str()->check(inRange(1, 1 << 15));
   table[c] = [=] {
     a->maxDepthGiven = c->count("--max-depth") > 0;
@@ -131,16 +166,26 @@ void registerBench(CLI::App& app, CommandTable& table) {
   auto config = std::make_shared<std::string>();
   std::string names;
   for (const BenchSweep& sw : benchSweeps()) names += (names.empty() ? "" : ",") + sw.name;
-  CLI::App* c = app.add_subcommand("bench", "speed vs accuracy: fits with one setting changed at a time, error vs time");
-  c->add_option("--work", o->work, "a prepared work folder (default: the demo's room, prepared in --scratch)")->check(CLI::ExistingDirectory);
-  c->add_option("--scratch", o->scratch, "where the room is prepared when no --work is given (reused)")->capture_default_str();
+  CLI::App* c =
+      app.add_subcommand("bench", "speed vs accuracy: fits with one setting changed at a time, error vs time");
+  c->add_option("--work", o->work, "a prepared work folder (default: the demo's room, prepared in --scratch)")
+      ->check(CLI::ExistingDirectory);
+  c->add_option("--scratch", o->scratch, "where the room is prepared when no --work is given (reused)")
+      ->capture_default_str();
   c->add_option("--out", o->out, "where bench.md, bench.csv, curves.csv and the charts go")->capture_default_str();
   c->add_option("--sweeps", *sweeps, "comma list of " + names + " (default: all)");
-  c->add_option("--config", *config, "base fit config JSON (default: the demo's, shortened; docs/user/commands.md)")->check(CLI::ExistingFile);
-  c->add_option("--truth", o->truth, "ground-truth scene.json (default: CAPTURE/gt/scene.json)")->check(CLI::ExistingFile);
-  c->add_option("--test-cameras", o->testCameras, "held-out frames (default: CAPTURE/transforms_test.json)")->check(CLI::ExistingFile);
-  c->add_option("--eval-every", o->evaluateEvery, "iterations between error-vs-time points")->capture_default_str()->check(inRange(1, 1 << 20));
-  c->add_option("--test-spp", o->testSpp, "samples per pixel of the held-out re-renders")->capture_default_str()->check(inRange(1, kMaxSpp));
+  c->add_option("--config", *config, "base fit config JSON (default: the demo's, shortened; docs/user/commands.md)")
+      ->check(CLI::ExistingFile);
+  c->add_option("--truth", o->truth, "ground-truth scene.json (default: CAPTURE/gt/scene.json)")
+      ->check(CLI::ExistingFile);
+  c->add_option("--test-cameras", o->testCameras, "held-out frames (default: CAPTURE/transforms_test.json)")
+      ->check(CLI::ExistingFile);
+  c->add_option("--eval-every", o->evaluateEvery, "iterations between error-vs-time points")
+      ->capture_default_str()
+      ->check(inRange(1, 1 << 20));
+  c->add_option("--test-spp", o->testSpp, "samples per pixel of the held-out re-renders")
+      ->capture_default_str()
+      ->check(inRange(1, kMaxSpp));
   table[c] = [=] {
     std::stringstream ss(*sweeps);
     for (std::string item; std::getline(ss, item, ',');)
@@ -157,10 +202,12 @@ void registerFit(CLI::App& app, CommandTable& table) {
   auto config = std::make_shared<std::string>();
   auto resume = std::make_shared<bool>(false);
   auto maxRes = std::make_shared<int>(0);
-  CLI::App* c = app.add_subcommand("fit", "reconstruct albedo, roughness, specular and emission from a prepared work folder");
+  CLI::App* c =
+      app.add_subcommand("fit", "reconstruct albedo, roughness, specular and emission from a prepared work folder");
   c->add_option("work", *work, "work folder written by `relume prepare`")->required()->check(CLI::ExistingDirectory);
   c->add_option("--config", *config, "fit config JSON (keys: docs/user/fit-config.md)")->check(CLI::ExistingFile);
-  c->add_option("--res", *maxRes, "cap on the final albedo resolution (default: what the frames resolve)")->check(CLI::NonNegativeNumber);
+  c->add_option("--res", *maxRes, "cap on the final albedo resolution (default: what the frames resolve)")
+      ->check(CLI::NonNegativeNumber);
   c->add_flag("--resume", *resume, "continue from WORK/checkpoint.bin");
   auto noReport = std::make_shared<bool>(false);
   c->add_flag("--no-report", *noReport, "skip WORK/report/ (`relume report WORK` writes it later)");
@@ -168,11 +215,12 @@ void registerFit(CLI::App& app, CommandTable& table) {
     FitConfig cfg = config->empty() ? FitConfig{} : FitConfig::load(*config);
     if (*maxRes > 0) cfg.maxResolution = *maxRes;
     // Its checkpoint is written atomically into the work folder: clear what killed runs left.
-    if (const size_t stale = removeStaleTemporaries(*work)) spdlog::info("fit: removed {} temporaries of killed runs", stale);
+    if (const size_t stale = removeStaleTemporaries(*work))
+      spdlog::info("fit: removed {} temporaries of killed runs", stale);
     const FitSummary s = runFit(*work, cfg, *resume);
     if (s.stopped) return 0;
-    spdlog::info("fit: {} iterations in {:.0f}s, albedo {}^2, {} light source(s), result in {}", s.iterations, s.seconds,
-                 s.finalResolution, s.emitters.size(), s.resultDir.string());
+    spdlog::info("fit: {} iterations in {:.0f}s, albedo {}^2, {} light source(s), result in {}", s.iterations,
+                 s.seconds, s.finalResolution, s.emitters.size(), s.resultDir.string());
     if (!*noReport) writeFitReport(*work);  // re-renders a few frames: tens of seconds
     return 0;
   };
@@ -181,9 +229,12 @@ void registerFit(CLI::App& app, CommandTable& table) {
 void registerEval(CLI::App& app, CommandTable& table) {
   auto paths = std::make_shared<std::array<std::string, 5>>();
   auto spp = std::make_shared<int>(64);
-  CLI::App* c = app.add_subcommand("eval", "re-render a scene at held-out frames and compare (and with a ground truth)");
+  CLI::App* c =
+      app.add_subcommand("eval", "re-render a scene at held-out frames and compare (and with a ground truth)");
   c->add_option("--scene", (*paths)[0], "scene.json to evaluate")->required()->check(CLI::ExistingFile);
-  c->add_option("--cameras", (*paths)[1], "transforms.json of the reference frames")->required()->check(CLI::ExistingFile);
+  c->add_option("--cameras", (*paths)[1], "transforms.json of the reference frames")
+      ->required()
+      ->check(CLI::ExistingFile);
   c->add_option("--out", (*paths)[2], "output folder (renders, eval.json)")->required();
   c->add_option("--truth", (*paths)[3], "ground-truth scene.json (same triangles)")->check(CLI::ExistingFile);
   c->add_option("--coverage", (*paths)[4], "coverage.exr of the work folder (albedo scored where observed >= 5 times)")
@@ -200,13 +251,15 @@ void registerExport(CLI::App& app, CommandTable& table) {
   auto input = std::make_shared<std::string>();
   auto paths = std::make_shared<std::array<std::string, 3>>();
   auto maxDepth = std::make_shared<int>(kDefaultMaxDepth);
-  CLI::App* c = app.add_subcommand("export", "write a reconstruction as glTF 2.0 (.glb), a Mitsuba 3 scene and EXR/PNG textures");
+  CLI::App* c =
+      app.add_subcommand("export", "write a reconstruction as glTF 2.0 (.glb), a Mitsuba 3 scene and EXR/PNG textures");
   c->add_option("input", *input, "work folder (its result/scene.json) or a scene.json")->required();
   c->add_option("--gltf", (*paths)[0], "binary glTF file to write (.glb)");
   c->add_option("--mitsuba", (*paths)[1], "folder for the Mitsuba 3 scene (scene.xml, meshes/, textures/)");
   c->add_option("--textures", (*paths)[2], "folder for the textures: linear EXR, sRGB PNG 8 and 16 bit");
   c->add_option("--max-depth", *maxDepth, "path depth written into the Mitsuba integrator (relume's convention)")
-      ->capture_default_str()->check(inRange(0, kMaxDepthLimit));
+      ->capture_default_str()
+      ->check(inRange(0, kMaxDepthLimit));
   table[c] = [=] {
     ExportOptions o;
     o.gltf = (*paths)[0], o.mitsuba = (*paths)[1], o.textures = (*paths)[2];
@@ -219,10 +272,13 @@ void registerExport(CLI::App& app, CommandTable& table) {
 void registerReport(CLI::App& app, CommandTable& table) {
   auto work = std::make_shared<std::string>();
   auto o = std::make_shared<ReportOptions>();
-  CLI::App* c = app.add_subcommand("report", "(re)write WORK/report/index.html from a finished fit (fit writes it too)");
+  CLI::App* c =
+      app.add_subcommand("report", "(re)write WORK/report/index.html from a finished fit (fit writes it too)");
   c->add_option("work", *work, "work folder with result/")->required()->check(CLI::ExistingDirectory);
   c->add_option("--frames", o->frames, "views shown")->capture_default_str()->check(inRange(0, 1000));
-  c->add_option("--spp", o->spp, "samples per pixel of their re-renders")->capture_default_str()->check(inRange(1, kMaxSpp));
+  c->add_option("--spp", o->spp, "samples per pixel of their re-renders")
+      ->capture_default_str()
+      ->check(inRange(1, kMaxSpp));
   table[c] = [=] {
     writeFitReport(*work, *o);
     return 0;
@@ -231,23 +287,37 @@ void registerReport(CLI::App& app, CommandTable& table) {
 
 void registerGradcheck(CLI::App& app, CommandTable& table) {
   auto a = std::make_shared<GradcheckRequest>();
-  CLI::App* c = app.add_subcommand("gradcheck", "adjoint gradients vs central finite differences (common random numbers)");
+  CLI::App* c =
+      app.add_subcommand("gradcheck", "adjoint gradients vs central finite differences (common random numbers)");
   c->add_option("--scene", a->scene, "scene.json (default: a synthetic scene)");
   c->add_option("--cameras", a->cameras, "transforms.json whose cameras aim the rays (with --scene)");
   c->add_option("--synth", a->synth, "room, cornell or furnace")->capture_default_str();
-  c->add_option("--param", a->param, "albedo, roughness, specular, emission, emission_tex or all")->capture_default_str();
+  c->add_option("--param", a->param, "albedo, roughness, specular, emission, emission_tex or all")
+      ->capture_default_str();
   addEnumOption(c, "--gradients", a->gradients, "parameters at the first vertex only, or along the whole path");
-  addEnumOption(c, "--emitter-gradients", a->emitters, "with direct: emitters reached from the first vertex only, or any");
+  addEnumOption(c, "--emitter-gradients", a->emitters,
+                "with direct: emitters reached from the first vertex only, or any");
   addEnumOption(c, "--pairing", a->pairing, "how the primal and adjoint passes share random numbers");
-  c->add_option("--level", a->level, "sample, loss or both")->capture_default_str()->check(CLI::IsMember({"sample", "loss", "both"}));
+  c->add_option("--level", a->level, "sample, loss or both")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"sample", "loss", "both"}));
   c->add_option("--rays", a->rays, "rays per batch")->capture_default_str()->check(inRange(1, 1 << 26));
-  c->add_option("--batches", a->batches, "independent batches for the whole-loss check")->capture_default_str()->check(inRange(2, 1 << 20));
+  c->add_option("--batches", a->batches, "independent batches for the whole-loss check")
+      ->capture_default_str()
+      ->check(inRange(2, 1 << 20));
   c->add_option("--params-per-kind", a->perKind)->capture_default_str()->check(inRange(1, 1 << 20));
-  c->add_option("--eps", a->eps, "finite-difference step (relative for emission)")->capture_default_str()->check(inRange(1e-6, 0.5));
+  c->add_option("--eps", a->eps, "finite-difference step (relative for emission)")
+      ->capture_default_str()
+      ->check(inRange(1e-6, 0.5));
   c->add_option("--max-depth", a->maxDepth, kMaxDepthHelp)->capture_default_str()->check(inRange(0, kMaxDepthLimit));
-  c->add_option("--atlas-res", a->atlas, "synthetic albedo atlas resolution")->capture_default_str()->check(inRange(1, 1 << 14));
-  c->add_option("--emission-scale", a->emissionScale, "multiply emitters (e.g. 1e4 to stress)")->capture_default_str()->check(inRange(1e-6, 1e12));
-  c->add_option("--clip-high", a->clipHigh, "reference saturation threshold (one-sided loss)")->check(inRange(1e-30, kInf));
+  c->add_option("--atlas-res", a->atlas, "synthetic albedo atlas resolution")
+      ->capture_default_str()
+      ->check(inRange(1, 1 << 14));
+  c->add_option("--emission-scale", a->emissionScale, "multiply emitters (e.g. 1e4 to stress)")
+      ->capture_default_str()
+      ->check(inRange(1e-6, 1e12));
+  c->add_option("--clip-high", a->clipHigh, "reference saturation threshold (one-sided loss)")
+      ->check(inRange(1e-30, kInf));
   c->add_flag("--russian-roulette", a->roulette);
   table[c] = [=] { return runGradcheckCommand(*a); };
 }
@@ -263,22 +333,37 @@ CommandTable registerCommands(CLI::App& app) {
   CLI::App* synth = app.add_subcommand("synth", "write a synthetic capture with known ground truth");
   synth->add_option("--scene", *synthScene, "room, cornell, furnace, scan or lounge")->capture_default_str();
   synth->add_option("--out", *outDir, "output capture folder")->required();
-  synth->add_option("--frames", synthArgs->frames, "training frames")->capture_default_str()->check(inRange(1, 1 << 20));
-  synth->add_option("--test-frames", synthArgs->testFrames, "held-out frames")->capture_default_str()->check(inRange(0, 1 << 20));
+  synth->add_option("--frames", synthArgs->frames, "training frames")
+      ->capture_default_str()
+      ->check(inRange(1, 1 << 20));
+  synth->add_option("--test-frames", synthArgs->testFrames, "held-out frames")
+      ->capture_default_str()
+      ->check(inRange(0, 1 << 20));
   synth->add_option("--width", synthArgs->width)->capture_default_str()->check(inRange(8, kMaxSide));
   synth->add_option("--height", synthArgs->height)->capture_default_str()->check(inRange(8, kMaxSide));
-  synth->add_option("--spp", synthArgs->spp, "samples per pixel of the training frames")->capture_default_str()->check(inRange(1, kMaxSpp));
-  synth->add_option("--test-spp", synthArgs->testSpp, "samples per pixel of the held-out frames (evaluation references)")
+  synth->add_option("--spp", synthArgs->spp, "samples per pixel of the training frames")
       ->capture_default_str()
       ->check(inRange(1, kMaxSpp));
-  synth->add_option("--max-depth", synthArgs->maxDepth, kMaxDepthHelp)->capture_default_str()->check(inRange(0, kMaxDepthLimit));
+  synth
+      ->add_option("--test-spp", synthArgs->testSpp, "samples per pixel of the held-out frames (evaluation references)")
+      ->capture_default_str()
+      ->check(inRange(1, kMaxSpp));
+  synth->add_option("--max-depth", synthArgs->maxDepth, kMaxDepthHelp)
+      ->capture_default_str()
+      ->check(inRange(0, kMaxDepthLimit));
   synth->add_option("--seed", synthArgs->seed)->capture_default_str();
-  synth->add_option("--atlas-res", synthArgs->atlasResolution, "ground-truth albedo atlas resolution")->capture_default_str()->check(inRange(1, 1 << 15));
+  synth->add_option("--atlas-res", synthArgs->atlasResolution, "ground-truth albedo atlas resolution")
+      ->capture_default_str()
+      ->check(inRange(1, 1 << 15));
   synth->add_flag("--with-uv", synthArgs->withUv, "keep uv coordinates in the capture's mesh.ply");
-  synth->add_option("--triangles", synthArgs->scanTriangles, "size of the `scan` mesh")->capture_default_str()->check(inRange(1000, 1e8));
+  synth->add_option("--triangles", synthArgs->scanTriangles, "size of the `scan` mesh")
+      ->capture_default_str()
+      ->check(inRange(1000, 1e8));
   auto synthFilter = std::make_shared<std::string>("box");
-  synth->add_option("--pixel-filter", *synthFilter,
-                    "the frames' pixel filter, TYPE[:WIDTH]: box (width 1), gaussian or blackman-harris (Cycles' definitions, width 1.5)")
+  synth
+      ->add_option("--pixel-filter", *synthFilter,
+                   "the frames' pixel filter, TYPE[:WIDTH]: box (width 1), gaussian or blackman-harris (Cycles' "
+                   "definitions, width 1.5)")
       ->capture_default_str();
   table[synth] = [=] {
     synthArgs->kind = parseSynthScene(*synthScene);
@@ -297,11 +382,16 @@ CommandTable registerCommands(CLI::App& app) {
   render->add_option("--cameras", (*renderPaths)[1], "transforms.json")->required()->check(CLI::ExistingFile);
   render->add_option("--out", (*renderPaths)[2], "output folder")->required();
   render->add_option("--spp", renderArgs->render.spp)->capture_default_str()->check(inRange(1, kMaxSpp));
-  render->add_option("--max-depth", renderArgs->render.path.maxDepth, kMaxDepthHelp)->capture_default_str()->check(inRange(0, kMaxDepthLimit));
+  render->add_option("--max-depth", renderArgs->render.path.maxDepth, kMaxDepthHelp)
+      ->capture_default_str()
+      ->check(inRange(0, kMaxDepthLimit));
   render->add_option("--seed", renderArgs->render.seed)->capture_default_str();
   render->add_flag("--russian-roulette", renderArgs->render.path.russianRoulette);
   render->add_option("--aov", renderArgs->aovs, "comma list of albedo,normal,depth,object");
-  render->add_option("--edit", renderArgs->edit, "EDIT.json: switch off/rescale emitters, change materials, add lights and meshes (docs/user/edit-file.md)")
+  render
+      ->add_option(
+          "--edit", renderArgs->edit,
+          "EDIT.json: switch off/rescale emitters, change materials, add lights and meshes (docs/user/edit-file.md)")
       ->check(CLI::ExistingFile);
   table[render] = [=] {
     renderViews((*renderPaths)[0], (*renderPaths)[1], (*renderPaths)[2], *renderArgs);
@@ -310,17 +400,19 @@ CommandTable registerCommands(CLI::App& app) {
 
   auto demo = std::make_shared<DemoOptions>();
   auto demoOut = std::make_shared<std::string>("out/demo");
-  CLI::App* demoCmd = app.add_subcommand("demo", "end to end on the built-in synthetic room: synth, prepare, fit, evaluate");
+  CLI::App* demoCmd =
+      app.add_subcommand("demo", "end to end on the built-in synthetic room: synth, prepare, fit, evaluate");
   demoCmd->add_option("--out", *demoOut, "output folder")->capture_default_str();
   table[demoCmd] = [=] {
     demo->out = *demoOut;
     const Json s = runDemo(*demo);
-    fmt::print("\nrelume demo: fit {:.0f} s ({} iterations), albedo MAE {:.4f} (PSNR {:.1f} dB), roughness MAE {:.3f}, "
-               "specular MAE {:.3f}, emitters {}/{} found, emission error {:.1f}%, test views PSNR {:.1f} dB\n",
-               s["fit_seconds"].get<double>(), s["fit_iterations"].get<int>(), s["albedo_mae"].get<double>(),
-               s["albedo_psnr"].get<double>(), s["roughness_mae"].get<double>(), s["specular_mae"].get<double>(),
-               s["emitters_found"].get<int>(), s["emitters_true"].get<int>(), 100 * s["emission_rel_error"].get<double>(),
-               s["test_psnr"].get<double>());
+    fmt::print(
+        "\nrelume demo: fit {:.0f} s ({} iterations), albedo MAE {:.4f} (PSNR {:.1f} dB), roughness MAE {:.3f}, "
+        "specular MAE {:.3f}, emitters {}/{} found, emission error {:.1f}%, test views PSNR {:.1f} dB\n",
+        s["fit_seconds"].get<double>(), s["fit_iterations"].get<int>(), s["albedo_mae"].get<double>(),
+        s["albedo_psnr"].get<double>(), s["roughness_mae"].get<double>(), s["specular_mae"].get<double>(),
+        s["emitters_found"].get<int>(), s["emitters_true"].get<int>(), 100 * s["emission_rel_error"].get<double>(),
+        s["test_psnr"].get<double>());
     spdlog::info("report: {}   summary: {}   result: {}", (demo->out / "report.md").string(),
                  (demo->out / "summary.json").string(), (demo->out / "work" / "result").string());
     return 0;

@@ -21,7 +21,10 @@ inline constexpr float kInvPi = 1.0f / kPi;
 inline float luminance(const Color& c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
 inline bool isFinite(const Color& c) { return std::isfinite(c[0]) && std::isfinite(c[1]) && std::isfinite(c[2]); }
 inline float safeSqrt(float x) { return std::sqrt(std::max(x, 0.0f)); }
-template <typename T> inline T sqr(T x) { return x * x; }
+template <typename T>
+inline T sqr(T x) {
+  return x * x;
+}
 
 // Orthonormal basis around a unit normal (Duff et al. 2017, branchless).
 struct ShadingFrame {

@@ -51,18 +51,24 @@ PixelFilter PixelFilter::parseSpec(const std::string& spec) {
 
 const char* PixelFilter::name() const {
   switch (type_) {
-    case PixelFilterType::Box: return "box";
-    case PixelFilterType::Gaussian: return "gaussian";
-    case PixelFilterType::BlackmanHarris: return "blackman-harris";
+    case PixelFilterType::Box:
+      return "box";
+    case PixelFilterType::Gaussian:
+      return "gaussian";
+    case PixelFilterType::BlackmanHarris:
+      return "blackman-harris";
   }
   return "";
 }
 
 float PixelFilter::radius() const {
   switch (type_) {
-    case PixelFilterType::Box: return 0.5f * width_;
-    case PixelFilterType::Gaussian: return 1.5f * width_;
-    case PixelFilterType::BlackmanHarris: return width_;
+    case PixelFilterType::Box:
+      return 0.5f * width_;
+    case PixelFilterType::Gaussian:
+      return 1.5f * width_;
+    case PixelFilterType::BlackmanHarris:
+      return width_;
   }
   return 0.5f * width_;
 }
@@ -70,8 +76,10 @@ float PixelFilter::radius() const {
 float PixelFilter::weight(float x) const {
   if (std::abs(x) > radius()) return 0.0f;
   switch (type_) {
-    case PixelFilterType::Box: return 1.0f;
-    case PixelFilterType::Gaussian: return std::exp(-8.0f * x * x / (width_ * width_));
+    case PixelFilterType::Box:
+      return 1.0f;
+    case PixelFilterType::Gaussian:
+      return std::exp(-8.0f * x * x / (width_ * width_));
     case PixelFilterType::BlackmanHarris: {
       const float v = 2.0f * kPi * (x / (2.0f * width_) + 0.5f);
       return 0.35875f - 0.48829f * std::cos(v) + 0.14128f * std::cos(2.0f * v) - 0.01168f * std::cos(3.0f * v);

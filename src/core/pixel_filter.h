@@ -27,8 +27,8 @@ class PixelFilter {
   PixelFilterType type() const { return type_; }
   const char* name() const;
   float width() const { return width_; }
-  float radius() const;                 // f is 0 beyond it
-  float weight(float x) const;          // f(x), unnormalised, x from the pixel centre
+  float radius() const;         // f is 0 beyond it
+  float weight(float x) const;  // f(x), unnormalised, x from the pixel centre
   // A position from the pixel's top-left corner (in pixels) distributed as f around the centre
   // 0.5, for u uniform in [0, 1). The unit box maps u to itself, bit for bit.
   float sample(float u) const;

@@ -8,31 +8,34 @@
 namespace relume {
 
 enum class RandomStream : uint64_t {
-  FilmPixel = 0x7265,                // render/film.cpp: a pixel's samples
-  PrimalPass = 0x5031,               // adjoint/solver.cpp: the primal pass of a ray
-  AdjointPass = 0x5032,              // adjoint/solver.cpp: the adjoint pass of a ray
-  TextureSampler = 0x7473,           // sampling/samplers.cpp: texel and frame draws
-  ImageSampler = 0x6973,             // sampling/samplers.cpp: pixel draws
-  HighlightProbe = 0x70726f,         // product/fit_batches.cpp: which texels see a light reflected
-  MaterialBatch = 0x6d6174,          // product/fit_batches.cpp: the fitted objects' extra texels
-  HighlightBatch = 0x686c74,         // product/fit_batches.cpp: their highlight texels
-  EmissionBatch = 0x656d69,          // product/fit_batches.cpp: each light-source candidate's texels
-  LightDecision = 0x6c69676874,      // product/light_decisions.cpp: each decision's evidence rays
-  ReflectorBound = 0x7265666c,       // product/light_evidence.cpp: the albedo-1 bound's paths
-  MirrorPath = 0x6d697272,           // product/light_evidence.cpp: the perfect-mirror paths
-  ExperimentRays = 0x7261,           // lab/experiment.cpp: a gradient experiment's rays
-  ExperimentPerturbation = 0x7065,   // lab/experiment.cpp: its current parameters' perturbation
-  LeakRays = 0x6c65,                 // lab/profile.cpp: the edge-leak study's rays
+  FilmPixel = 0x7265,               // render/film.cpp: a pixel's samples
+  PrimalPass = 0x5031,              // adjoint/solver.cpp: the primal pass of a ray
+  AdjointPass = 0x5032,             // adjoint/solver.cpp: the adjoint pass of a ray
+  TextureSampler = 0x7473,          // sampling/samplers.cpp: texel and frame draws
+  ImageSampler = 0x6973,            // sampling/samplers.cpp: pixel draws
+  HighlightProbe = 0x70726f,        // product/fit_batches.cpp: which texels see a light reflected
+  MaterialBatch = 0x6d6174,         // product/fit_batches.cpp: the fitted objects' extra texels
+  HighlightBatch = 0x686c74,        // product/fit_batches.cpp: their highlight texels
+  EmissionBatch = 0x656d69,         // product/fit_batches.cpp: each light-source candidate's texels
+  LightDecision = 0x6c69676874,     // product/light_decisions.cpp: each decision's evidence rays
+  ReflectorBound = 0x7265666c,      // product/light_evidence.cpp: the albedo-1 bound's paths
+  MirrorPath = 0x6d697272,          // product/light_evidence.cpp: the perfect-mirror paths
+  ExperimentRays = 0x7261,          // lab/experiment.cpp: a gradient experiment's rays
+  ExperimentPerturbation = 0x7065,  // lab/experiment.cpp: its current parameters' perturbation
+  LeakRays = 0x6c65,                // lab/profile.cpp: the edge-leak study's rays
 };
 
 inline constexpr uint64_t streamTag(RandomStream s) { return static_cast<uint64_t>(s); }
 
 namespace detail {
-inline constexpr std::array kAllRandomStreams{
-    RandomStream::FilmPixel,      RandomStream::PrimalPass,     RandomStream::AdjointPass,    RandomStream::TextureSampler,
-    RandomStream::ImageSampler,   RandomStream::HighlightProbe, RandomStream::MaterialBatch,  RandomStream::HighlightBatch,
-    RandomStream::EmissionBatch,  RandomStream::LightDecision,  RandomStream::ReflectorBound, RandomStream::MirrorPath,
-    RandomStream::ExperimentRays, RandomStream::ExperimentPerturbation, RandomStream::LeakRays};
+inline constexpr std::array kAllRandomStreams{RandomStream::FilmPixel,      RandomStream::PrimalPass,
+                                              RandomStream::AdjointPass,    RandomStream::TextureSampler,
+                                              RandomStream::ImageSampler,   RandomStream::HighlightProbe,
+                                              RandomStream::MaterialBatch,  RandomStream::HighlightBatch,
+                                              RandomStream::EmissionBatch,  RandomStream::LightDecision,
+                                              RandomStream::ReflectorBound, RandomStream::MirrorPath,
+                                              RandomStream::ExperimentRays, RandomStream::ExperimentPerturbation,
+                                              RandomStream::LeakRays};
 constexpr bool allTagsDistinct() {
   for (size_t i = 0; i < kAllRandomStreams.size(); ++i)
     for (size_t j = i + 1; j < kAllRandomStreams.size(); ++j)

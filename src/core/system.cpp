@@ -61,7 +61,9 @@ thread_local Progress* innermostProgress = nullptr;  // the bar a new bar on thi
 }  // namespace
 
 Progress::Progress(std::string label, size_t total)
-    : label_(std::move(label)), total_(std::max<size_t>(total, 1)), outer_(innermostProgress),
+    : label_(std::move(label)),
+      total_(std::max<size_t>(total, 1)),
+      outer_(innermostProgress),
       enabled_(!outer_ && isatty(STDERR_FILENO)) {
   innermostProgress = this;
 }
@@ -110,9 +112,10 @@ void Progress::draw(bool final) {
   const std::optional<double> eta = etaSeconds(elapsed, frac, 1.0);
   const int width = 30, filled = static_cast<int>(frac * width);
   const std::string count = fmt::format("{}/{}", std::min<size_t>(done_, total_), total_);
-  std::fprintf(stderr, "\r%-18s [%s%s] %5.1f%% %9s %7s ETA %7s%s\033[K%s", label_.c_str(), std::string(filled, '#').c_str(),
-               std::string(width - filled, '.').c_str(), 100.0 * frac, count.c_str(), formatDuration(elapsed).c_str(),
-               eta ? formatDuration(*eta).c_str() : "--", note.c_str(), final ? "\n" : "");
+  std::fprintf(stderr, "\r%-18s [%s%s] %5.1f%% %9s %7s ETA %7s%s\033[K%s", label_.c_str(),
+               std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(), 100.0 * frac, count.c_str(),
+               formatDuration(elapsed).c_str(), eta ? formatDuration(*eta).c_str() : "--", note.c_str(),
+               final ? "\n" : "");
   std::fflush(stderr);
 }
 

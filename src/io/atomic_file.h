@@ -7,8 +7,7 @@
 namespace relume {
 
 // Calls write(tempPath) and renames tempPath to path; removes the temporary on failure.
-void writeAtomically(const std::filesystem::path& path,
-                     const std::function<void(const std::filesystem::path&)>& write);
+void writeAtomically(const std::filesystem::path& path, const std::function<void(const std::filesystem::path&)>& write);
 void writeTextAtomically(const std::filesystem::path& path, std::string_view text);
 // A killed run leaves its temporary behind (named after the target and the writer's pid). Removes
 // those in `dir` whose writer is no longer running; returns how many. Never throws: a read-only

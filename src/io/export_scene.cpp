@@ -32,7 +32,8 @@ std::vector<MeshData> objectSubmeshes(const MeshData& mesh, int objects) {
     }
     for (int v : touched) local[v] = -1;
     // With one degenerate normal (zero, NaN) none is kept: importers then compute their own.
-    if (!std::all_of(sub.normals.begin(), sub.normals.end(), [](const Vec3& n) { return n.allFinite() && n.norm() > 1e-6f; }))
+    if (!std::all_of(sub.normals.begin(), sub.normals.end(),
+                     [](const Vec3& n) { return n.allFinite() && n.norm() > 1e-6f; }))
       sub.normals.clear();
   }
   return subs;

@@ -184,7 +184,8 @@ void writeGlb(const std::filesystem::path& path, const ExportScene& scene) {
   }
   m.scenes.push_back(gltfScene);
   for (const char* ext : {"KHR_materials_specular", "KHR_materials_emissive_strength"})
-    if (std::any_of(m.materials.begin(), m.materials.end(), [&](const tinygltf::Material& mat) { return mat.extensions.count(ext) > 0; }))
+    if (std::any_of(m.materials.begin(), m.materials.end(),
+                    [&](const tinygltf::Material& mat) { return mat.extensions.count(ext) > 0; }))
       m.extensionsUsed.push_back(ext);
   m.defaultScene = 0;
   std::ostringstream out;

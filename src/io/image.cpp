@@ -30,8 +30,10 @@ Image readImage(const std::filesystem::path& path, ImageReadStats* stats) {
   const int nc = spec.nchannels >= 3 ? 3 : 1;
   // Not zero-filled: a corrupt file whose header claims 8192 x 8192 fails without touching 800 MB.
   const auto raw = std::make_unique_for_overwrite<float[]>(static_cast<size_t>(spec.width) * spec.height * nc);
-  if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, raw.get())) fail("{}: corrupt image data: {}", file, in->geterror());
-  const bool isInteger = spec.format.basetype == OIIO::TypeDesc::UINT8 || spec.format.basetype == OIIO::TypeDesc::UINT16;
+  if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, raw.get()))
+    fail("{}: corrupt image data: {}", file, in->geterror());
+  const bool isInteger =
+      spec.format.basetype == OIIO::TypeDesc::UINT8 || spec.format.basetype == OIIO::TypeDesc::UINT16;
   const std::string colorSpace = spec.get_string_attribute("oiio:ColorSpace");
   const bool decodeSrgb = isInteger && colorSpace != "Linear" && colorSpace != "linear";
   Image img(spec.width, spec.height);
@@ -74,7 +76,8 @@ void writeOiio(const std::filesystem::path& path, int w, int h, OIIO::TypeDesc s
 std::vector<uint16_t> srgb16(const Image& image) {
   std::vector<uint16_t> v(image.rgb.size());
   for (size_t i = 0; i < v.size(); ++i)
-    v[i] = static_cast<uint16_t>(std::lround(std::clamp(linearToSrgb(std::max(0.0f, image.rgb[i])), 0.0f, 1.0f) * 65535.0f));
+    v[i] = static_cast<uint16_t>(
+        std::lround(std::clamp(linearToSrgb(std::max(0.0f, image.rgb[i])), 0.0f, 1.0f) * 65535.0f));
   return v;
 }
 

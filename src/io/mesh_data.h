@@ -14,9 +14,9 @@ struct MeshData {
   std::vector<Vec3> normals;  // empty or one per vertex
   std::vector<Vec2> uvs;      // empty or one per vertex; glTF convention (v down from the top)
   std::vector<Eigen::Vector3i> triangles;
-  std::vector<int32_t> faceObject;        // empty (one object) or one per triangle
-  std::vector<std::string> objectNames;   // optional names, index = object id (OBJ groups)
-  size_t polygonsTriangulated = 0;        // faces with more than 3 vertices that were fan-split
+  std::vector<int32_t> faceObject;       // empty (one object) or one per triangle
+  std::vector<std::string> objectNames;  // optional names, index = object id (OBJ groups)
+  size_t polygonsTriangulated = 0;       // faces with more than 3 vertices that were fan-split
 };
 
 // PLY: ascii, binary_little_endian, binary_big_endian. Throws relume::Error naming file and element.

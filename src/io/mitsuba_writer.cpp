@@ -11,11 +11,20 @@ std::string xmlEscape(const std::string& s) {
   std::string out;
   for (char c : s) {
     switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      default:
+        out += c;
     }
   }
   return out;
@@ -58,7 +67,8 @@ std::string shape(const ExportMaterial& m, const std::string& meshFile) {
 }  // namespace
 
 void writeMitsubaScene(const std::filesystem::path& dir, const ExportScene& scene, int maxDepth) {
-  std::string xml = "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n<!-- written by relume; units: metres, linear Rec.709 -->\n";
+  std::string xml =
+      "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n<!-- written by relume; units: metres, linear Rec.709 -->\n";
   xml += "<scene version=\"3.0.0\">\n";
   // No Russian roulette: relume's default path has none either.
   xml += fmt::format(

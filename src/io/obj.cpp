@@ -48,16 +48,20 @@ MeshData readObj(const std::filesystem::path& path) {
           const float* p = &attrib.vertices[3 * static_cast<size_t>(idx.vertex_index)];
           mesh.positions.emplace_back(p[0], p[1], p[2]);
           if (anyN) {
-            const bool ok = idx.normal_index >= 0 && 3 * static_cast<size_t>(idx.normal_index) + 2 < attrib.normals.size();
-            mesh.normals.push_back(ok ? Vec3(attrib.normals[3 * idx.normal_index], attrib.normals[3 * idx.normal_index + 1],
+            const bool ok =
+                idx.normal_index >= 0 && 3 * static_cast<size_t>(idx.normal_index) + 2 < attrib.normals.size();
+            mesh.normals.push_back(ok ? Vec3(attrib.normals[3 * idx.normal_index],
+                                             attrib.normals[3 * idx.normal_index + 1],
                                              attrib.normals[3 * idx.normal_index + 2])
                                       : Vec3::Zero());
           }
           if (anyUv) {
-            const bool ok = idx.texcoord_index >= 0 && 2 * static_cast<size_t>(idx.texcoord_index) + 1 < attrib.texcoords.size();
+            const bool ok =
+                idx.texcoord_index >= 0 && 2 * static_cast<size_t>(idx.texcoord_index) + 1 < attrib.texcoords.size();
             // OBJ's v points up; ours (glTF) points down.
-            mesh.uvs.push_back(ok ? Vec2(attrib.texcoords[2 * idx.texcoord_index], 1.0f - attrib.texcoords[2 * idx.texcoord_index + 1])
-                                  : Vec2(-1, -1));
+            mesh.uvs.push_back(
+                ok ? Vec2(attrib.texcoords[2 * idx.texcoord_index], 1.0f - attrib.texcoords[2 * idx.texcoord_index + 1])
+                   : Vec2(-1, -1));
           }
         }
         corner[k] = it->second;

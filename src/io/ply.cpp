@@ -33,10 +33,18 @@ std::optional<Type> parseType(const std::string& s) {
 
 size_t typeSize(Type t) {
   switch (t) {
-    case Type::I8: case Type::U8: return 1;
-    case Type::I16: case Type::U16: return 2;
-    case Type::I32: case Type::U32: case Type::F32: return 4;
-    case Type::F64: return 8;
+    case Type::I8:
+    case Type::U8:
+      return 1;
+    case Type::I16:
+    case Type::U16:
+      return 2;
+    case Type::I32:
+    case Type::U32:
+    case Type::F32:
+      return 4;
+    case Type::F64:
+      return 8;
   }
   return 0;
 }
@@ -69,14 +77,40 @@ class Cursor {
     p_ += n;
     if ((format_ == Format::BinaryBE) == (std::endian::native == std::endian::little)) std::reverse(bytes, bytes + n);
     switch (t) {
-      case Type::I8: return static_cast<int8_t>(bytes[0]);
-      case Type::U8: return bytes[0];
-      case Type::I16: { int16_t v; std::memcpy(&v, bytes, 2); return v; }
-      case Type::U16: { uint16_t v; std::memcpy(&v, bytes, 2); return v; }
-      case Type::I32: { int32_t v; std::memcpy(&v, bytes, 4); return v; }
-      case Type::U32: { uint32_t v; std::memcpy(&v, bytes, 4); return v; }
-      case Type::F32: { float v; std::memcpy(&v, bytes, 4); return v; }
-      case Type::F64: { double v; std::memcpy(&v, bytes, 8); return v; }
+      case Type::I8:
+        return static_cast<int8_t>(bytes[0]);
+      case Type::U8:
+        return bytes[0];
+      case Type::I16: {
+        int16_t v;
+        std::memcpy(&v, bytes, 2);
+        return v;
+      }
+      case Type::U16: {
+        uint16_t v;
+        std::memcpy(&v, bytes, 2);
+        return v;
+      }
+      case Type::I32: {
+        int32_t v;
+        std::memcpy(&v, bytes, 4);
+        return v;
+      }
+      case Type::U32: {
+        uint32_t v;
+        std::memcpy(&v, bytes, 4);
+        return v;
+      }
+      case Type::F32: {
+        float v;
+        std::memcpy(&v, bytes, 4);
+        return v;
+      }
+      case Type::F64: {
+        double v;
+        std::memcpy(&v, bytes, 8);
+        return v;
+      }
     }
     return 0;
   }
@@ -91,7 +125,8 @@ class Cursor {
     double v = 0;
     const auto [ptr, ec] = std::from_chars(p_, tokenEnd, v);
     if (ec != std::errc() || ptr != tokenEnd)
-      fail("{}: non-numeric token '{}' while reading {}", file_, std::string(p_, std::min<size_t>(tokenEnd - p_, 32)), what);
+      fail("{}: non-numeric token '{}' while reading {}", file_, std::string(p_, std::min<size_t>(tokenEnd - p_, 32)),
+           what);
     p_ = tokenEnd;
     return v;
   }
@@ -174,10 +209,14 @@ Header parseHeader(const std::string& data, const std::string& file) {
     if (key == "format") {
       std::string f;
       ls >> f;
-      if (f == "ascii") format = Format::Ascii;
-      else if (f == "binary_little_endian") format = Format::BinaryLE;
-      else if (f == "binary_big_endian") format = Format::BinaryBE;
-      else fail("{}: line {}: unknown PLY format '{}'", file, lineNo, f);
+      if (f == "ascii")
+        format = Format::Ascii;
+      else if (f == "binary_little_endian")
+        format = Format::BinaryLE;
+      else if (f == "binary_big_endian")
+        format = Format::BinaryBE;
+      else
+        fail("{}: line {}: unknown PLY format '{}'", file, lineNo, f);
     } else if (key == "element") {
       Element e;
       std::string count;
@@ -311,7 +350,8 @@ void readFaces(const Element& e, Cursor& cur, const std::string& file, MeshData&
 void skipElement(const Element& e, Cursor& cur, const std::string& file) {
   for (uint64_t i = 0; i < e.count; ++i)
     for (const Property& p : e.properties) {
-      const size_t n = p.isList ? listLength(cur.read(p.countType, "list count"), file, "element '" + e.name + "'", i) : 1;
+      const size_t n =
+          p.isList ? listLength(cur.read(p.countType, "list count"), file, "element '" + e.name + "'", i) : 1;
       for (size_t j = 0; j < n; ++j) cur.read(p.type, e.name.c_str());
     }
 }
@@ -350,7 +390,8 @@ MeshData readPly(const std::filesystem::path& path) {
 void writePly(const std::filesystem::path& path, const MeshData& mesh) {
   std::string out;
   out += "ply\nformat binary_little_endian 1.0\ncomment written by relume\n";
-  out += fmt::format("element vertex {}\nproperty float x\nproperty float y\nproperty float z\n", mesh.positions.size());
+  out +=
+      fmt::format("element vertex {}\nproperty float x\nproperty float y\nproperty float z\n", mesh.positions.size());
   const bool hasN = mesh.normals.size() == mesh.positions.size() && !mesh.normals.empty();
   const bool hasUv = mesh.uvs.size() == mesh.positions.size() && !mesh.uvs.empty();
   const bool hasObj = mesh.faceObject.size() == mesh.triangles.size() && !mesh.faceObject.empty();
@@ -363,8 +404,10 @@ void writePly(const std::filesystem::path& path, const MeshData& mesh) {
   static_assert(std::endian::native == std::endian::little);
   for (size_t i = 0; i < mesh.positions.size(); ++i) {
     for (int k = 0; k < 3; ++k) put(mesh.positions[i][k]);
-    if (hasN) for (int k = 0; k < 3; ++k) put(mesh.normals[i][k]);
-    if (hasUv) for (int k = 0; k < 2; ++k) put(mesh.uvs[i][k]);
+    if (hasN)
+      for (int k = 0; k < 3; ++k) put(mesh.normals[i][k]);
+    if (hasUv)
+      for (int k = 0; k < 2; ++k) put(mesh.uvs[i][k]);
   }
   for (size_t i = 0; i < mesh.triangles.size(); ++i) {
     put(static_cast<uint8_t>(3));

@@ -67,7 +67,8 @@ struct Evaluation {
 
   double albedoMae(const Appearance& a, const TriangleMesh& mesh) const {
     if (!truth) return NAN;
-    const TruthComparison tc = compareWithTruth(SceneDescription{work / "atlas_mesh.ply", mesh, a}, *truth, coverage, {});
+    const TruthComparison tc =
+        compareWithTruth(SceneDescription{work / "atlas_mesh.ply", mesh, a}, *truth, coverage, {});
     return tc.albedoTexels > 0 ? tc.albedoMae : NAN;  // no texel observed often enough to score
   }
 };
@@ -113,11 +114,13 @@ BenchRun benchRun(const fs::path& work, const FitConfig& config, const Evaluatio
 void writeOutputs(const fs::path& out, const std::vector<BenchRun>& runs, const std::vector<const BenchSweep*>& sweeps,
                   const FitConfig& base) {
   const BenchRun& baseline = runs.front();
-  std::string csv = "sweep,value,seconds,cpu_seconds,iterations,fit_memory_mib,albedo_mae,albedo_mae_at_baseline_cpu,test_psnr,test_msre\n";
+  std::string csv =
+      "sweep,value,seconds,cpu_seconds,iterations,fit_memory_mib,albedo_mae,albedo_mae_at_baseline_cpu,test_psnr,test_"
+      "msre\n";
   std::string curves = "sweep,value,cpu_seconds,albedo_mae\n";
   for (const BenchRun& r : runs) {
-    csv += fmt::format("{},{},{:.2f},{:.2f},{},{:.1f},{:.5f},{:.5f},{:.3f},{:.5f}\n", r.sweep, r.value, r.seconds, r.cpuSeconds,
-                       r.iterations, r.memoryMiB, r.albedoMae, r.maeAtBaselineCost, r.psnr, r.msre);
+    csv += fmt::format("{},{},{:.2f},{:.2f},{},{:.1f},{:.5f},{:.5f},{:.3f},{:.5f}\n", r.sweep, r.value, r.seconds,
+                       r.cpuSeconds, r.iterations, r.memoryMiB, r.albedoMae, r.maeAtBaselineCost, r.psnr, r.msre);
     for (size_t i = 0; i < r.curveCpuSeconds.size(); ++i)
       curves += fmt::format("{},{},{:.3f},{:.5f}\n", r.sweep, r.value, r.curveCpuSeconds[i], r.curveMae[i]);
   }
@@ -125,27 +128,31 @@ void writeOutputs(const fs::path& out, const std::vector<BenchRun>& runs, const 
   writeTextAtomically(out / "curves.csv", curves);
   const Json baseJson = base.toJson();
   std::string md = fmt::format(
-      "Baseline: {:.0f} s ({:.0f} CPU s), {} iterations, albedo MAE {:.4f}, held-out PSNR {:.2f} dB / MSRE {:.4f}. Each "
+      "Baseline: {:.0f} s ({:.0f} CPU s), {} iterations, albedo MAE {:.4f}, held-out PSNR {:.2f} dB / MSRE {:.4f}. "
+      "Each "
       "row changes one setting; \"MAE at {:.0f} CPU s\" is its albedo error when it had used as much CPU as the whole "
       "baseline (equal cost).\n\n",
       baseline.seconds, baseline.cpuSeconds, baseline.iterations, baseline.albedoMae, baseline.psnr, baseline.msre,
       baseline.cpuSeconds);
   for (const BenchSweep* sw : sweeps) {
-    md += fmt::format("**{}** (`{}`)\n\n| value | fit time (CPU) | iterations | albedo MAE | MAE at {:.0f} CPU s | test PSNR | "
-                      "MSRE | fit memory |\n| --- | --- | --- | --- | --- | --- | --- | --- |\n",
-                      sw->name, sw->key, baseline.cpuSeconds);
+    md += fmt::format(
+        "**{}** (`{}`)\n\n| value | fit time (CPU) | iterations | albedo MAE | MAE at {:.0f} CPU s | test PSNR | "
+        "MSRE | fit memory |\n| --- | --- | --- | --- | --- | --- | --- | --- |\n",
+        sw->name, sw->key, baseline.cpuSeconds);
     std::vector<ChartSeries> series;
     for (const BenchRun& r : runs) {
       const bool isBase = r.sweep == "baseline" && sw->with.empty();
-      if (r.sweep != sw->name && !(isBase && std::count(sw->values.begin(), sw->values.end(), baseJson[sw->key]))) continue;
+      if (r.sweep != sw->name && !(isBase && std::count(sw->values.begin(), sw->values.end(), baseJson[sw->key])))
+        continue;
       const std::string value = isBase ? valueText(baseJson[sw->key]) + " (baseline)" : r.value;
-      md += fmt::format("| {} | {:.0f} s ({:.0f} s) | {} | {:.4f} | {:.4f} | {:.2f} dB | {:.4f} | {:.0f} MiB |\n", value, r.seconds,
-                        r.cpuSeconds, r.iterations, r.albedoMae, r.maeAtBaselineCost, r.psnr, r.msre, r.memoryMiB);
+      md += fmt::format("| {} | {:.0f} s ({:.0f} s) | {} | {:.4f} | {:.4f} | {:.2f} dB | {:.4f} | {:.0f} MiB |\n",
+                        value, r.seconds, r.cpuSeconds, r.iterations, r.albedoMae, r.maeAtBaselineCost, r.psnr, r.msre,
+                        r.memoryMiB);
       series.push_back({value, r.curveCpuSeconds, r.curveMae});
     }
     md += fmt::format("\n![{}]({}.svg)\n\n", sw->name, sw->name);
-    writeTextAtomically(out / (sw->name + ".svg"),
-                        lineChartSvg("albedo MAE vs fit cost: " + sw->name, "CPU seconds; MAE on a log scale", series, true));
+    writeTextAtomically(out / (sw->name + ".svg"), lineChartSvg("albedo MAE vs fit cost: " + sw->name,
+                                                                "CPU seconds; MAE on a log scale", series, true));
   }
   writeTextAtomically(out / "bench.md", md);
 }
@@ -180,8 +187,10 @@ std::vector<BenchRun> runBench(const BenchOptions& o) {
     BenchRun r = benchRun(ev.work, c, ev, o.evaluateEvery);
     r.sweep = sweep, r.value = value;
     r.maeAtBaselineCost = runs.empty() ? r.albedoMae : errorAt(r, runs.front().cpuSeconds);
-    spdlog::info("bench: {} = {}: {:.0f} s ({:.0f} CPU s), albedo MAE {:.4f} ({:.4f} at the baseline's cost), test PSNR {:.2f} dB",
-                 sweep, value, r.seconds, r.cpuSeconds, r.albedoMae, r.maeAtBaselineCost, r.psnr);
+    spdlog::info(
+        "bench: {} = {}: {:.0f} s ({:.0f} CPU s), albedo MAE {:.4f} ({:.4f} at the baseline's cost), test PSNR {:.2f} "
+        "dB",
+        sweep, value, r.seconds, r.cpuSeconds, r.albedoMae, r.maeAtBaselineCost, r.psnr);
     runs.push_back(std::move(r));
     writeOutputs(o.out, runs, sweeps, o.base);  // after every run: a long bench that is stopped keeps what it measured
   };

@@ -13,7 +13,7 @@
 namespace relume {
 
 struct BenchSweep {
-  std::string name, key;   // e.g. "spp", "samples_per_ray"
+  std::string name, key;  // e.g. "spp", "samples_per_ray"
   std::vector<Json> values;
   Json with = Json::object();  // other keys every value of this sweep needs (then the baseline run is not reused)
 };
@@ -22,25 +22,25 @@ const std::vector<BenchSweep>& benchSweeps();
 
 struct BenchOptions {
   std::filesystem::path out = "out/bench";
-  std::filesystem::path work;            // a prepared work folder; empty: the demo's room, prepared in `scratch`
+  std::filesystem::path work;  // a prepared work folder; empty: the demo's room, prepared in `scratch`
   std::filesystem::path scratch = "out/room";
-  std::filesystem::path truth;           // ground-truth scene.json (default: CAPTURE/gt/scene.json if there)
-  std::filesystem::path testCameras;     // held-out frames (default: CAPTURE/transforms_test.json if there)
-  std::vector<std::string> sweeps;       // names from benchSweeps(); empty: all
+  std::filesystem::path truth;        // ground-truth scene.json (default: CAPTURE/gt/scene.json if there)
+  std::filesystem::path testCameras;  // held-out frames (default: CAPTURE/transforms_test.json if there)
+  std::vector<std::string> sweeps;    // names from benchSweeps(); empty: all
   FitConfig base = baseConfig();
-  int evaluateEvery = 25;                // iterations between points of the error-vs-time curve
+  int evaluateEvery = 25;  // iterations between points of the error-vs-time curve
   int testSpp = 16;
-  static FitConfig baseConfig();         // the demo's, shortened so a sweep takes minutes
+  static FitConfig baseConfig();  // the demo's, shortened so a sweep takes minutes
 };
 
 // Costs are wall seconds and CPU seconds of the fit (evaluation excluded). Equal-cost comparisons
 // and the charts use CPU seconds: on a machine shared with other work, other processes inflate
 // wall time but not this process's CPU time (on an idle machine CPU ~ threads x wall).
 struct BenchRun {
-  std::string sweep, value;              // "baseline" for the base run
+  std::string sweep, value;  // "baseline" for the base run
   double seconds = 0, cpuSeconds = 0;
   int iterations = 0;
-  double memoryMiB = 0;                  // what the fit held at its largest stage
+  double memoryMiB = 0;  // what the fit held at its largest stage
   double albedoMae = NAN, maeAtBaselineCost = NAN, psnr = NAN, msre = NAN;
   std::vector<double> curveCpuSeconds, curveMae;
 };

@@ -22,7 +22,8 @@ std::vector<BatchRay> raysFromCameras(const Scene& scene, const Appearance& trut
     r.dir = randomPixelRay(cam, rng).value_or(std::pair{Vec2::Zero().eval(), Vec3(cam.rotation.col(2))}).second;
     Color sum = Color::Zero();
     for (int s = 0; s < o.referenceSpp; ++s) {
-      Pcg32 pr(hashTuple({o.seed, static_cast<uint64_t>(j), static_cast<uint64_t>(s), streamTag(RandomStream::ExperimentPerturbation)}));
+      Pcg32 pr(hashTuple({o.seed, static_cast<uint64_t>(j), static_cast<uint64_t>(s),
+                          streamTag(RandomStream::ExperimentPerturbation)}));
       sum += tracePath(scene, lights, scope, path, r.origin, r.dir, pr);
     }
     r.reference = sum / static_cast<float>(o.referenceSpp);
@@ -41,7 +42,8 @@ Appearance perturbAppearance(const Appearance& a, uint64_t seed) {
       for (float& v : g.values) v = g.lo + 0.7f * (v - g.lo) + 0.1f * (g.hi - g.lo);
     } else {  // per-object scalars: a random move, kept off the domain's edges
       const float w = g.hi - g.lo;
-      for (float& v : g.values) v = std::clamp(v + 0.35f * w * (rng.next1D() - 0.5f), g.lo + 0.1f * w, g.hi - 0.05f * w);
+      for (float& v : g.values)
+        v = std::clamp(v + 0.35f * w * (rng.next1D() - 0.5f), g.lo + 0.1f * w, g.hi - 0.05f * w);
     }
   }
   return p;
@@ -61,7 +63,8 @@ GradientExperiment makeGradientExperiment(SceneDescription truth, const std::vec
 }
 
 GradientExperiment makeGradientExperiment(SynthSceneKind kind, const ExperimentOptions& o) {
-  return makeGradientExperiment(makeSynthScene(kind, o.atlasResolution).scene, synthCameraPath(kind, 8, 160, 120, 0.25), o);
+  return makeGradientExperiment(makeSynthScene(kind, o.atlasResolution).scene, synthCameraPath(kind, 8, 160, 120, 0.25),
+                                o);
 }
 
 }  // namespace relume

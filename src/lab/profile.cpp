@@ -77,8 +77,10 @@ double traceOnlySeconds(const Scene& scene, const std::vector<RecordedRay>& rays
       size_t hits = 0;
       for (size_t i = range.begin(); i < range.end(); ++i) {
         const RecordedRay& ray = rays[i];
-        if (ray.shadow) hits += scene.occluded(ray.origin, ray.dir, ray.tmax);
-        else hits += std::isfinite(scene.hitDistance(ray.origin, ray.dir, ray.tmax));
+        if (ray.shadow)
+          hits += scene.occluded(ray.origin, ray.dir, ray.tmax);
+        else
+          hits += std::isfinite(scene.hitDistance(ray.origin, ray.dir, ray.tmax));
       }
       volatile size_t sink = hits;  // keep the traversal from being optimised away
       (void)sink;
@@ -96,7 +98,8 @@ void writeRays(const std::filesystem::path& path, const std::vector<RecordedRay>
                                    r.shadow ? 1.0f : 0.0f});
   writeAtomically(path, [&](const std::filesystem::path& tmp) {
     std::ofstream f(tmp, std::ios::binary);
-    f.write(reinterpret_cast<const char*>(records.data()), static_cast<std::streamsize>(records.size() * sizeof(float)));
+    f.write(reinterpret_cast<const char*>(records.data()),
+            static_cast<std::streamsize>(records.size() * sizeof(float)));
     if (!f.flush()) fail("cannot write {}", path.string());
   });
 }
@@ -139,8 +142,8 @@ RenderProfile profileRender(const SceneDescription& desc, const Camera& camera, 
 
 namespace relume {
 
-AdjointProfile profileAdjoint(const SceneDescription& desc, const Appearance& current, const std::vector<BatchRay>& rays,
-                              int maxDepth, int repeats) {
+AdjointProfile profileAdjoint(const SceneDescription& desc, const Appearance& current,
+                              const std::vector<BatchRay>& rays, int maxDepth, int repeats) {
   Scene scene(desc.mesh);
   const LightSampler lights(scene, current);
   AdjointProfile p;
@@ -167,7 +170,8 @@ AdjointProfile profileAdjoint(const SceneDescription& desc, const Appearance& cu
     for (Pairing pairing : {Pairing::Crossfit, Pairing::Reuse}) {
       s.pairing = pairing;
       g.clear();
-      best(pairing == Pairing::Crossfit ? p.crossfit : p.reuse, computeGradients(scene, current, lights, rays, s, r, g).times.adjoint);
+      best(pairing == Pairing::Crossfit ? p.crossfit : p.reuse,
+           computeGradients(scene, current, lights, rays, s, r, g).times.adjoint);
     }
   }
   p.peakRssMiB = peakRssMiB();
@@ -318,7 +322,8 @@ std::vector<LeakStat> studyLeaks(const TriangleMesh& mesh, const Eigen::AlignedB
 
 namespace relume {
 
-FitProfile profileFit(const std::filesystem::path& work, const FitConfig& config, const std::string& stage, int iterations) {
+FitProfile profileFit(const std::filesystem::path& work, const FitConfig& config, const std::string& stage,
+                      int iterations) {
   FitProfile p;
   p.threads = threadCount();
   p.maxDepth = config.maxDepth;
@@ -345,11 +350,13 @@ FitProfile profileFit(const std::filesystem::path& work, const FitConfig& config
     auto best = [](double& slot, double v) { slot = slot == 0 ? v : std::min(slot, v); };
     for (int rep = 0; rep < 3; ++rep) {
       grads.clear();
-      const GradientResult g = computeGradients(it.scene, it.appearance, it.lights, it.rays, it.settings, iteration, grads);
+      const GradientResult g =
+          computeGradients(it.scene, it.appearance, it.lights, it.rays, it.settings, iteration, grads);
       best(p.primal, g.times.primal);
       best(p.adjoint, g.times.adjoint);
       grads.clear();
-      best(p.adjointNoScatter, computeGradients(it.scene, it.appearance, it.lights, it.rays, none, iteration, grads).times.adjoint);
+      best(p.adjointNoScatter,
+           computeGradients(it.scene, it.appearance, it.lights, it.rays, none, iteration, grads).times.adjoint);
     }
     p.memory = it.memory;
     return false;
@@ -377,13 +384,25 @@ Json FitProfile::toJson() const {
                     {"min_ms", 1e3 * *std::min_element(v.begin(), v.end())},
                     {"max_ms", 1e3 * *std::max_element(v.begin(), v.end())}};
   }
-  return {{"stage", stage}, {"iterations", iterations}, {"threads", threads}, {"max_depth", maxDepth},
-          {"rays_per_iteration", raysPerIteration}, {"phases", phases},
-          {"iteration_over_primal", phases["total"]["mean_ms"].get<double>() / phases["primal"]["mean_ms"].get<double>()},
-          {"connection_trace_only_ms", 1e3 * connectionTraceOnly}, {"primal_ms", 1e3 * primal},
-          {"primal_trace_only_ms", 1e3 * primalTraceOnly}, {"primal_closest_rays", primalClosestRays},
-          {"primal_shadow_rays", primalShadowRays}, {"adjoint_ms", 1e3 * adjoint}, {"adjoint_no_scatter_ms", 1e3 * adjointNoScatter},
-          {"record_bytes", recordBytes}, {"ray_state_bytes", rayStateBytes}, {"peak_rss_mib", peakRssMiB}, {"memory_bytes", memory}};
+  return {
+      {"stage", stage},
+      {"iterations", iterations},
+      {"threads", threads},
+      {"max_depth", maxDepth},
+      {"rays_per_iteration", raysPerIteration},
+      {"phases", phases},
+      {"iteration_over_primal", phases["total"]["mean_ms"].get<double>() / phases["primal"]["mean_ms"].get<double>()},
+      {"connection_trace_only_ms", 1e3 * connectionTraceOnly},
+      {"primal_ms", 1e3 * primal},
+      {"primal_trace_only_ms", 1e3 * primalTraceOnly},
+      {"primal_closest_rays", primalClosestRays},
+      {"primal_shadow_rays", primalShadowRays},
+      {"adjoint_ms", 1e3 * adjoint},
+      {"adjoint_no_scatter_ms", 1e3 * adjointNoScatter},
+      {"record_bytes", recordBytes},
+      {"ray_state_bytes", rayStateBytes},
+      {"peak_rss_mib", peakRssMiB},
+      {"memory_bytes", memory}};
 }
 
 }  // namespace relume

@@ -37,15 +37,15 @@ struct AdjointProfile {
   double traceOnlyFloor() const { return primalTraceOnly + adjointTraceOnly; }
 };
 // Times each pass of one iteration on a batch (best of `repeats`), and Embree alone on its rays.
-AdjointProfile profileAdjoint(const SceneDescription& scene, const Appearance& current, const std::vector<BatchRay>& rays,
-                              int maxDepth, int repeats);
+AdjointProfile profileAdjoint(const SceneDescription& scene, const Appearance& current,
+                              const std::vector<BatchRay>& rays, int maxDepth, int repeats);
 
 struct PairingStat {
   Pairing pairing;
-  double seconds = 0;      // per iteration
-  double relBias = 0;      // |mean - reference| / |reference|, RMS over parameters
-  double relStd = 0;       // per-iteration std / |reference|, RMS over parameters
-  double biasZ = 0;        // |mean - reference| in standard errors, RMS over parameters (~1 if unbiased)
+  double seconds = 0;  // per iteration
+  double relBias = 0;  // |mean - reference| / |reference|, RMS over parameters
+  double relStd = 0;   // per-iteration std / |reference|, RMS over parameters
+  double biasZ = 0;    // |mean - reference| in standard errors, RMS over parameters (~1 if unbiased)
 };
 // Bias and variance of each pairing's gradient against a high-sample reference (mean of many
 // crossfit batches, which is unbiased), over the per-object parameters.
@@ -85,18 +85,19 @@ namespace relume {
 struct FitProfile {
   std::string stage;
   int iterations = 0, threads = 0, maxDepth = 0;
-  size_t raysPerIteration = 0;                 // training rays (connections) of the last batch
+  size_t raysPerIteration = 0;  // training rays (connections) of the last batch
   std::vector<FitPhaseTimes> perIteration;
-  double connectionTraceOnly = 0;              // the batch's camera rays, Embree alone
-  double primal = 0, primalTraceOnly = 0;      // best of 3 on the last batch
+  double connectionTraceOnly = 0;          // the batch's camera rays, Embree alone
+  double primal = 0, primalTraceOnly = 0;  // best of 3 on the last batch
   uint64_t primalClosestRays = 0, primalShadowRays = 0;
-  double adjoint = 0, adjointNoScatter = 0;    // best of 3: the stage's parameters, and none
+  double adjoint = 0, adjointNoScatter = 0;  // best of 3: the stage's parameters, and none
   size_t recordBytes = 0, rayStateBytes = 0;
   double peakRssMiB = 0;
   Json memory;
   Json toJson() const;
 };
 
-FitProfile profileFit(const std::filesystem::path& work, const FitConfig& config, const std::string& stage, int iterations);
+FitProfile profileFit(const std::filesystem::path& work, const FitConfig& config, const std::string& stage,
+                      int iterations);
 
 }  // namespace relume

@@ -13,7 +13,8 @@ struct ProfileRequest {  // `relume profile --help` says what each is
   std::string scene, cameras, raysOut;  // render: a scene.json seen from a transforms.json's first camera
   int iterations = 20;
   bool maxDepthGiven = false;  // fit: --max-depth overrides the config's
-  int width = 320, height = 240, spp = 4, maxDepth = kDefaultMaxDepth, rays = 65536, repeats = 3, batches = 32, studyRays = 4096;
+  int width = 320, height = 240, spp = 4, maxDepth = kDefaultMaxDepth, rays = 65536, repeats = 3, batches = 32,
+      studyRays = 4096;
   int scatterRes = 4096;
 };
 

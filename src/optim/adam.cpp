@@ -24,7 +24,8 @@ size_t AdamState::step(std::span<float> x, std::span<const float> g, float lo, f
       c1 = 1.0f - std::pow(b1, static_cast<float>(steps[i]));
       c2 = 1.0f - std::pow(b2, static_cast<float>(steps[i]));
     }
-    const float lr = s.relativeFloor > 0.0f ? s.learningRate * std::max(std::abs(x[i]), s.relativeFloor) : s.learningRate;
+    const float lr =
+        s.relativeFloor > 0.0f ? s.learningRate * std::max(std::abs(x[i]), s.relativeFloor) : s.learningRate;
     const float delta = lr * (m[i] / c1) / (std::sqrt(v[i] / c2) + s.epsilon);
     if (std::isfinite(delta)) x[i] = std::clamp(x[i] - delta, lo, hi);
     ++updated;

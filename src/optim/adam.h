@@ -29,7 +29,8 @@ class AdamState {
   // One step on x with gradient g (already clamped; NaN or Inf entries count as 0), then projection
   // onto [lo, hi].
   // `globalStep` (1-based) is used when per-entry steps are off. Returns the entries updated.
-  size_t step(std::span<float> x, std::span<const float> g, float lo, float hi, const AdamSettings& s, uint32_t globalStep);
+  size_t step(std::span<float> x, std::span<const float> g, float lo, float hi, const AdamSettings& s,
+              uint32_t globalStep);
 
   std::vector<float> m, v;
   std::vector<uint16_t> steps;  // saturates at 65535, where the bias correction is 1 to float precision

@@ -22,8 +22,8 @@ void Checkpoint::copyOut(const std::string& name, void* out, size_t bytes) const
   const auto it = arrays_.find(name);
   if (it == arrays_.end()) fail("{}: checkpoint has no array '{}'", source_.string(), name);
   if (it->second.size() != bytes)
-    fail("{}: checkpoint array '{}' has {} bytes, expected {} (was it written for another work folder?)", source_.string(),
-         name, it->second.size(), bytes);
+    fail("{}: checkpoint array '{}' has {} bytes, expected {} (was it written for another work folder?)",
+         source_.string(), name, it->second.size(), bytes);
   if (bytes) std::memcpy(out, it->second.data(), bytes);
 }
 
@@ -66,7 +66,8 @@ Checkpoint Checkpoint::read(const std::filesystem::path& path) {
     c.meta = j.at("meta");
     for (const Json& entry : j.at("arrays")) {
       const std::string name = entry.at(0).get<std::string>();
-      const uint64_t n = static_cast<uint64_t>(jsonInteger(entry.at(1), 0, std::numeric_limits<int64_t>::max(), path.string(), name));
+      const uint64_t n =
+          static_cast<uint64_t>(jsonInteger(entry.at(1), 0, std::numeric_limits<int64_t>::max(), path.string(), name));
       if (n > size - offset) fail("{}: checkpoint array '{}' is truncated", path.string(), name);
       std::vector<char>& b = c.arrays_[name];
       b.resize(n);

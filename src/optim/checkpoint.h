@@ -19,16 +19,26 @@ class Checkpoint {
  public:
   Json meta = Json::object();
 
-  template <typename T> void put(const std::string& name, std::span<const T> data) {
+  template <typename T>
+  void put(const std::string& name, std::span<const T> data) {
     std::vector<char>& b = arrays_[name];
     b.resize(data.size_bytes());
     if (!data.empty()) std::memcpy(b.data(), data.data(), data.size_bytes());
   }
-  template <typename T> void put(const std::string& name, const std::vector<T>& data) { put(name, std::span<const T>(data)); }
+  template <typename T>
+  void put(const std::string& name, const std::vector<T>& data) {
+    put(name, std::span<const T>(data));
+  }
   bool has(const std::string& name) const { return arrays_.count(name) != 0; }
   // Copies array `name` into `out`, which must have exactly its size (throws relume::Error otherwise).
-  template <typename T> void get(const std::string& name, std::span<T> out) const { copyOut(name, out.data(), out.size_bytes()); }
-  template <typename T> void get(const std::string& name, std::vector<T>& out) const { get(name, std::span<T>(out)); }
+  template <typename T>
+  void get(const std::string& name, std::span<T> out) const {
+    copyOut(name, out.data(), out.size_bytes());
+  }
+  template <typename T>
+  void get(const std::string& name, std::vector<T>& out) const {
+    get(name, std::span<T>(out));
+  }
   size_t bytes(const std::string& name) const;
   // Header field `key`, an integer in [lo, hi] (throws relume::Error naming the file otherwise).
   int64_t metaInteger(const char* key, int64_t lo, int64_t hi) const;

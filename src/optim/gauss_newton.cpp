@@ -42,7 +42,8 @@ size_t GaussNewtonState::stepTexels(std::span<float> x, std::span<const float> g
       tbb::blocked_range<size_t>(0, texels.size(), 1 << 12), size_t{0},
       [&](const tbb::blocked_range<size_t>& range, size_t updated) {
         for (size_t k = range.begin(); k < range.end(); ++k)
-          for (size_t i = 3 * size_t{texels[k]}; i < 3 * size_t{texels[k]} + 3; ++i) updated += stepEntry(i, x, g, h, lo, hi, s);
+          for (size_t i = 3 * size_t{texels[k]}; i < 3 * size_t{texels[k]} + 3; ++i)
+            updated += stepEntry(i, x, g, h, lo, hi, s);
         return updated;
       },
       std::plus<size_t>());

@@ -18,7 +18,8 @@ std::vector<float> upsampleTexels(std::span<const float> parent, const TexelMap&
       const size_t p = static_cast<size_t>(y) * pr + x;
       return parentMap.valid(p) && objectOf(parentMap, p) == object;
     };
-    const float px = (static_cast<float>(t % cr) + 0.5f) / f - 0.5f, py = (static_cast<float>(t / cr) + 0.5f) / f - 0.5f;
+    const float px = (static_cast<float>(t % cr) + 0.5f) / f - 0.5f,
+                py = (static_cast<float>(t / cr) + 0.5f) / f - 0.5f;
     const int x0 = static_cast<int>(std::floor(px)), y0 = static_cast<int>(std::floor(py));
     const float dx = px - x0, dy = py - y0;
     float wsum = 0.0f;
@@ -40,7 +41,8 @@ std::vector<float> upsampleTexels(std::span<const float> parent, const TexelMap&
     const int cx = static_cast<int>(std::lround(px)), cy = static_cast<int>(std::lround(py));
     for (int y = cy - 2; y <= cy + 2; ++y)
       for (int x = cx - 2; x <= cx + 2; ++x)
-        if (const float d = (x - px) * (x - px) + (y - py) * (y - py); d < bestD && usable(x, y)) bestD = d, best = y * pr + x;
+        if (const float d = (x - px) * (x - px) + (y - py) * (y - py); d < bestD && usable(x, y))
+          bestD = d, best = y * pr + x;
     if (best >= 0)
       for (int c = 0; c < channels; ++c) out[c] = parent[static_cast<size_t>(best) * channels + c];
   });

@@ -71,7 +71,8 @@ float* Gradients::texelData(uint32_t entry) {
   return emissionTexture[t].data() + 3 * static_cast<size_t>(entry - emissionBase_[t]);
 }
 
-void Gradients::accumulate(size_t count, const std::function<void(Chunk&, size_t, size_t)>& trace, size_t splatVertices) {
+void Gradients::accumulate(size_t count, const std::function<void(Chunk&, size_t, size_t)>& trace,
+                           size_t splatVertices) {
   if (chunks_.empty()) {
     chunks_.resize(kSubBatchRays / kChunkRays);
     for (Chunk& c : chunks_) {
@@ -81,7 +82,8 @@ void Gradients::accumulate(size_t count, const std::function<void(Chunk&, size_t
   }
   for (Chunk& c : chunks_) c.owner_ = this;  // this object may have moved since
   std::vector<double> objectSum(objects.size(), 0.0);
-  const size_t subBatch = kChunkRays * std::max(kMinSubBatchChunks, chunks_.size() / std::max<size_t>(1, splatVertices));
+  const size_t subBatch =
+      kChunkRays * std::max(kMinSubBatchChunks, chunks_.size() / std::max<size_t>(1, splatVertices));
   for (size_t first = 0; first < count; first += subBatch) {
     const size_t last = std::min(count, first + subBatch);
     const size_t chunks = (last - first + kChunkRays - 1) / kChunkRays;

@@ -69,10 +69,10 @@ class Gradients {
   // with the vectors' growth slack).
   size_t logBytes() const;
 
-  std::vector<float> albedo;                      // texels * 3
-  std::vector<float> albedoCurvature;             // texels * 3 like albedo, or empty
+  std::vector<float> albedo;           // texels * 3
+  std::vector<float> albedoCurvature;  // texels * 3 like albedo, or empty
   std::vector<std::vector<float>> emissionTexture;
-  std::vector<float> objects;                     // [roughness | specular | emission rgb], slots:
+  std::vector<float> objects;  // [roughness | specular | emission rgb], slots:
   size_t roughnessSlot(int o) const { return static_cast<size_t>(o); }
   size_t specularSlot(int o) const { return static_cast<size_t>(objectCount_ + o); }
   size_t emissionSlot(int o, int c) const { return static_cast<size_t>(2 * objectCount_ + 3 * o + c); }
@@ -93,7 +93,7 @@ class Gradients {
   std::vector<uint32_t> emissionBase_;
   int bucketShift_ = 0;
   size_t bucketCount_ = 1;
-  std::vector<Chunk> chunks_;  // one sub-batch's, reused
+  std::vector<Chunk> chunks_;                           // one sub-batch's, reused
   std::vector<uint8_t> splatted_;                       // per entry: reached since the last clear
   std::vector<std::vector<uint32_t>> splattedEntries_;  // per bucket: those entries
 };

@@ -6,11 +6,16 @@ namespace relume {
 
 const char* paramKindName(ParamKind kind) {
   switch (kind) {
-    case ParamKind::Albedo: return "albedo";
-    case ParamKind::Roughness: return "roughness";
-    case ParamKind::Specular: return "specular";
-    case ParamKind::Emission: return "emission";
-    case ParamKind::EmissionTexture: return "emission_tex";
+    case ParamKind::Albedo:
+      return "albedo";
+    case ParamKind::Roughness:
+      return "roughness";
+    case ParamKind::Specular:
+      return "specular";
+    case ParamKind::Emission:
+      return "emission";
+    case ParamKind::EmissionTexture:
+      return "emission_tex";
   }
   return "";
 }
@@ -24,11 +29,16 @@ ParamKind parseParamKind(const std::string& name) {
 std::string ParamRef::label() const {
   const char* rgb = "rgb";
   switch (kind) {
-    case ParamKind::Albedo: return fmt::format("albedo[texel {}].{}", texel, rgb[channel]);
-    case ParamKind::Roughness: return fmt::format("roughness[obj {}]", object);
-    case ParamKind::Specular: return fmt::format("specular[obj {}]", object);
-    case ParamKind::Emission: return fmt::format("emission[obj {}].{}", object, rgb[channel]);
-    case ParamKind::EmissionTexture: return fmt::format("emission_tex[obj {} texel {}].{}", object, texel, rgb[channel]);
+    case ParamKind::Albedo:
+      return fmt::format("albedo[texel {}].{}", texel, rgb[channel]);
+    case ParamKind::Roughness:
+      return fmt::format("roughness[obj {}]", object);
+    case ParamKind::Specular:
+      return fmt::format("specular[obj {}]", object);
+    case ParamKind::Emission:
+      return fmt::format("emission[obj {}].{}", object, rgb[channel]);
+    case ParamKind::EmissionTexture:
+      return fmt::format("emission_tex[obj {} texel {}].{}", object, texel, rgb[channel]);
   }
   return "";
 }
@@ -39,12 +49,15 @@ std::string ParamGroup::name() const {
 
 std::vector<ParamGroup> paramGroups(Appearance& a, Gradients* g, const ParamDomain& domain) {
   const size_t n = static_cast<size_t>(a.objectCount());
-  auto floats = [](auto& v) { return std::span<float>(reinterpret_cast<float*>(v.data()), v.size() * sizeof(v[0]) / sizeof(float)); };
+  auto floats = [](auto& v) {
+    return std::span<float>(reinterpret_cast<float*>(v.data()), v.size() * sizeof(v[0]) / sizeof(float));
+  };
   auto slice = [&](size_t begin, size_t count) {
     return g ? std::span<float>(g->objects).subspan(begin, count) : std::span<float>();
   };
   std::vector<ParamGroup> groups;
-  groups.push_back({ParamKind::Albedo, -1, 3, 0.0f, 1.0f, floats(a.albedo.rgb), g ? floats(g->albedo) : std::span<float>()});
+  groups.push_back(
+      {ParamKind::Albedo, -1, 3, 0.0f, 1.0f, floats(a.albedo.rgb), g ? floats(g->albedo) : std::span<float>()});
   groups.push_back({ParamKind::Roughness, -1, 1, domain.roughnessMin, 1.0f, floats(a.roughness), slice(0, n)});
   groups.push_back({ParamKind::Specular, -1, 1, 0.0f, 1.0f, floats(a.specular), slice(n, n)});
   groups.push_back({ParamKind::Emission, -1, 3, 0.0f, INFINITY, floats(a.emission), slice(2 * n, 3 * n)});

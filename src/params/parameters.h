@@ -16,8 +16,8 @@
 namespace relume {
 
 enum class ParamKind { Albedo, Roughness, Specular, Emission, EmissionTexture };
-inline constexpr std::array<ParamKind, 5> kAllParamKinds = {ParamKind::Albedo, ParamKind::Roughness, ParamKind::Specular,
-                                                            ParamKind::Emission, ParamKind::EmissionTexture};
+inline constexpr std::array<ParamKind, 5> kAllParamKinds = {
+    ParamKind::Albedo, ParamKind::Roughness, ParamKind::Specular, ParamKind::Emission, ParamKind::EmissionTexture};
 const char* paramKindName(ParamKind kind);
 ParamKind parseParamKind(const std::string& name);  // throws relume::Error
 
@@ -52,14 +52,16 @@ struct ParamDomain {
 // A group of unknowns of one kind as flat floats, with its gradient buffer when one is given.
 struct ParamGroup {
   ParamKind kind;
-  int object = -1;          // the emitter of an emission-texture group; -1: one entry per object
-  int channels = 1;         // floats per entry (3: RGB)
+  int object = -1;   // the emitter of an emission-texture group; -1: one entry per object
+  int channels = 1;  // floats per entry (3: RGB)
   float lo = 0.0f, hi = 1.0f;
   std::span<float> values;
-  std::span<float> grads;   // empty without a Gradients
+  std::span<float> grads;  // empty without a Gradients
   bool textured() const { return kind == ParamKind::Albedo || kind == ParamKind::EmissionTexture; }
   std::string name() const;  // "albedo", "roughness", "emission_tex[4]"
-  size_t indexOf(const ParamRef& p) const { return (textured() ? p.texel : static_cast<size_t>(p.object)) * channels + p.channel; }
+  size_t indexOf(const ParamRef& p) const {
+    return (textured() ? p.texel : static_cast<size_t>(p.object)) * channels + p.channel;
+  }
   bool holds(const ParamRef& p) const { return p.kind == kind && (object < 0 || p.object == object); }
 };
 

@@ -32,8 +32,8 @@ ImageScore scoreImage(const Image& estimate, const Image& reference, const std::
   return {10.0 * std::log10(1.0 / std::max(se / n, 1e-12)), rel / n};
 }
 
-SplitRender renderSplit(const Scene& scene, const Appearance& appearance, const LightSampler& lights, const Camera& camera,
-                        const RenderOptions& render) {
+SplitRender renderSplit(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
+                        const Camera& camera, const RenderOptions& render) {
   RenderOptions first = render, second = render;
   first.spp = std::max(1, render.spp / 2), second.spp = std::max(1, render.spp - first.spp);
   first.seed = 2 * render.seed, second.seed = 2 * render.seed + 1;
@@ -78,7 +78,8 @@ ViewError viewError(const Image& reference, int block, const Difference& differe
         const double e = std::abs(d / kept), en = std::abs(n / kept);
         const size_t o = 3 * (static_cast<size_t>(by) * W + bx) + c;
         v.error.rgb[o] = static_cast<float>(e), v.noise.rgb[o] = static_cast<float>(en);
-        v.errorMean += e, v.noiseMean += en, errorSquares += e * e, noiseSquares += en * en, v.referenceMean += ref / kept;
+        v.errorMean += e, v.noiseMean += en, errorSquares += e * e, noiseSquares += en * en,
+            v.referenceMean += ref / kept;
         ++v.samples;
       }
   const double count = static_cast<double>(std::max<size_t>(v.samples, 1));
@@ -97,11 +98,12 @@ ViewError errorAgainstTruth(const SplitRender& fit, const SplitRender& truth, co
 
 ViewError errorAgainstPhoto(const SplitRender& render, const Image& photo, int block) {
   return viewError(
-      photo, block, [&](size_t i) { return render.mean.rgb[i] - photo.rgb[i]; }, [&](size_t i) { return render.noise.rgb[i]; });
+      photo, block, [&](size_t i) { return render.mean.rgb[i] - photo.rgb[i]; },
+      [&](size_t i) { return render.noise.rgb[i]; });
 }
 
-ViewComparison compareViews(const SceneDescription& desc, const std::filesystem::path& cameras, const RenderOptions& render,
-                            const std::filesystem::path& out) {
+ViewComparison compareViews(const SceneDescription& desc, const std::filesystem::path& cameras,
+                            const RenderOptions& render, const std::filesystem::path& out) {
   const Capture cap = readTransforms(cameras);
   const Scene scene(desc.mesh);
   const LightSampler lights(scene, desc.appearance);
@@ -120,16 +122,19 @@ ViewComparison compareViews(const SceneDescription& desc, const std::filesystem:
     v.frameMsre.push_back(s.msre);
     progress.advance();
   }
-  for (size_t i = 0; i < v.framePsnr.size(); ++i) v.psnr += v.framePsnr[i] / v.framePsnr.size(), v.msre += v.frameMsre[i] / v.frameMsre.size();
+  for (size_t i = 0; i < v.framePsnr.size(); ++i)
+    v.psnr += v.framePsnr[i] / v.framePsnr.size(), v.msre += v.frameMsre[i] / v.frameMsre.size();
   return v;
 }
 
 Json TruthComparison::toJson() const {
-  return {{"albedo_texels", albedoTexels}, {"albedo_mae", albedoMae}, {"albedo_psnr", albedoPsnr},
-          {"roughness_mae", roughnessMae}, {"specular_mae", specularMae}, {"material_objects", materialObjects},
-          {"emitters_true", emittersTrue}, {"emitters_found", emittersFound}, {"emitters_correct", emittersCorrect},
-          {"emission_rel_error", emissionRelError}, {"albedo_psnr_8bit", albedoPsnr8}, {"roughness_psnr_8bit", roughnessPsnr8},
-          {"emission_iou", emissionIou}, {"objects", perObject}};
+  return {{"albedo_texels", albedoTexels},       {"albedo_mae", albedoMae},
+          {"albedo_psnr", albedoPsnr},           {"roughness_mae", roughnessMae},
+          {"specular_mae", specularMae},         {"material_objects", materialObjects},
+          {"emitters_true", emittersTrue},       {"emitters_found", emittersFound},
+          {"emitters_correct", emittersCorrect}, {"emission_rel_error", emissionRelError},
+          {"albedo_psnr_8bit", albedoPsnr8},     {"roughness_psnr_8bit", roughnessPsnr8},
+          {"emission_iou", emissionIou},         {"objects", perObject}};
 }
 
 TruthOptions truthOptionsFor(const std::filesystem::path& sceneFile) {
@@ -145,9 +150,13 @@ TruthOptions truthOptionsFor(const std::filesystem::path& sceneFile) {
 }
 
 namespace {
-int srgb8(float linear) { return static_cast<int>(std::lround(std::clamp(linearToSrgb(std::max(linear, 0.0f)), 0.0f, 1.0f) * 255)); }
+int srgb8(float linear) {
+  return static_cast<int>(std::lround(std::clamp(linearToSrgb(std::max(linear, 0.0f)), 0.0f, 1.0f) * 255));
+}
 int unit8(float v) { return static_cast<int>(std::lround(std::clamp(v, 0.0f, 1.0f) * 255)); }
-double psnrOf(double sumSquares, size_t n) { return 10.0 * std::log10(1.0 / std::max(sumSquares / std::max<size_t>(n, 1), 1e-12)); }
+double psnrOf(double sumSquares, size_t n) {
+  return 10.0 * std::log10(1.0 / std::max(sumSquares / std::max<size_t>(n, 1), 1e-12));
+}
 }  // namespace
 
 TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescription& truth, const Image& coverage,
@@ -155,7 +164,8 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
   const TriangleMesh& fm = fit.mesh;
   const TriangleMesh& tm = truth.mesh;
   if (fm.triangles.size() != tm.triangles.size())
-    fail("eval: the fitted mesh has {} triangles, the truth {}: they must be the same triangles", fm.triangles.size(), tm.triangles.size());
+    fail("eval: the fitted mesh has {} triangles, the truth {}: they must be the same triangles", fm.triangles.size(),
+         tm.triangles.size());
   for (size_t f = 0; f < fm.triangles.size(); f += std::max<size_t>(1, fm.triangles.size() / 64))
     for (int k = 0; k < 3; ++k)
       if ((fm.positions[fm.triangles[f][k]] - tm.positions[tm.triangles[f][k]]).norm() > 1e-4f)
@@ -169,7 +179,10 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
   if (truthAlbedo) *truthAlbedo = Image(res, res);
   double abs = 0, sq = 0, sq8 = 0, roughSq8 = 0;
   size_t emitBoth = 0, emitEither = 0;
-  struct ObjectError { double abs = 0, signedSum = 0; size_t texels = 0; };  // bias vs noise, per object
+  struct ObjectError {
+    double abs = 0, signedSum = 0;
+    size_t texels = 0;
+  };  // bias vs noise, per object
   std::vector<ObjectError> objectError(fa.objectCount());
   for (size_t t = 0; t < map.texelCount(); ++t) {
     if (!map.covered(t)) continue;
@@ -208,8 +221,11 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
     const bool materials = o.highlightObserved.empty() || o.highlightObserved[obj];
     const bool trueEmitter = ta.isEmissive(obj), fitEmitter = fa.isEmissive(obj);
     const Color te = ta.meanEmission(obj), fe = fa.meanEmission(obj);
-    Json row = {{"id", obj}, {"name", ta.names[obj]}, {"roughness", {fa.roughness[obj], ta.roughness[obj]}},
-                {"specular", {fa.specular[obj], ta.specular[obj]}}, {"materials_scored", materials},
+    Json row = {{"id", obj},
+                {"name", ta.names[obj]},
+                {"roughness", {fa.roughness[obj], ta.roughness[obj]}},
+                {"specular", {fa.specular[obj], ta.specular[obj]}},
+                {"materials_scored", materials},
                 {"emitter", {fitEmitter, trueEmitter}}};
     if (const ObjectError& oe = objectError[obj]; oe.texels)
       row["albedo"] = {{"texels", oe.texels}, {"mae", oe.abs / oe.texels}, {"bias", oe.signedSum / oe.texels}};
@@ -247,12 +263,16 @@ void runEvaluation(const EvalOptions& o) {
   writeJson(o.out / "eval.json", report);  // before printing: the results outlive a closed stdout
   fmt::print("views: PSNR {:.2f} dB, MSRE {:.4f} over {} frames\n", v.psnr, v.msre, v.framePsnr.size());
   if (t) {
-    fmt::print("albedo: MAE {:.4f}, PSNR {:.2f} dB over {} texels; roughness MAE {:.3f}, specular MAE {:.3f}; emitters "
-               "{}/{} found ({} found in all), emission error {:.2f}% (roughness/specular over {} objects with observed highlights)\n",
-               t->albedoMae, t->albedoPsnr, t->albedoTexels, t->roughnessMae, t->specularMae, t->emittersCorrect, t->emittersTrue,
-               t->emittersFound, 100 * t->emissionRelError, t->materialObjects);
-    fmt::print("peers' measures: albedo PSNR {:.2f} dB (8-bit sRGB maps), roughness PSNR {:.2f} dB (8-bit maps), emission IoU {:.3f}\n",
-               t->albedoPsnr8, t->roughnessPsnr8, t->emissionIou);
+    fmt::print(
+        "albedo: MAE {:.4f}, PSNR {:.2f} dB over {} texels; roughness MAE {:.3f}, specular MAE {:.3f}; emitters "
+        "{}/{} found ({} found in all), emission error {:.2f}% (roughness/specular over {} objects with observed "
+        "highlights)\n",
+        t->albedoMae, t->albedoPsnr, t->albedoTexels, t->roughnessMae, t->specularMae, t->emittersCorrect,
+        t->emittersTrue, t->emittersFound, 100 * t->emissionRelError, t->materialObjects);
+    fmt::print(
+        "peers' measures: albedo PSNR {:.2f} dB (8-bit sRGB maps), roughness PSNR {:.2f} dB (8-bit maps), emission IoU "
+        "{:.3f}\n",
+        t->albedoPsnr8, t->roughnessPsnr8, t->emissionIou);
     for (const Json& object : t->perObject) fmt::print("  {}\n", object.dump());
   }
 }

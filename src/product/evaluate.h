@@ -14,7 +14,7 @@
 namespace relume {
 
 struct ViewComparison {
-  double psnr = 0, msre = 0;          // means over frames
+  double psnr = 0, msre = 0;  // means over frames
   std::vector<double> framePsnr, frameMsre;
   Json toJson() const;
 };
@@ -33,8 +33,8 @@ struct SplitRender {
   Image mean;   // the render: both halves' samples
   Image noise;  // the halves' difference, scaled to have the variance of `mean`'s noise
 };
-SplitRender renderSplit(const Scene& scene, const Appearance& appearance, const LightSampler& lights, const Camera& camera,
-                        const RenderOptions& render);
+SplitRender renderSplit(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
+                        const Camera& camera, const RenderOptions& render);
 
 // What separates a re-render from what it should show, with the Monte Carlo noise that is part
 // of it, per block x block pixels: the signed difference and its noise are averaged over each
@@ -42,10 +42,10 @@ SplitRender renderSplit(const Scene& scene, const Appearance& appearance, const 
 // that scale (an albedo, a light, a material off) stay. Pixels the reference masks (negative) are
 // left out; a block with none left is 0 in both images and out of the means.
 struct ViewError {
-  Image error, noise;            // |difference| and |its noise|, a pixel per block
+  Image error, noise;  // |difference| and |its noise|, a pixel per block
   double errorMean = 0, noiseMean = 0, errorRms = 0, noiseRms = 0;
-  double referenceMean = 0;      // the reference's mean over the same pixels: the scale of the others
-  size_t samples = 0;            // block channels counted
+  double referenceMean = 0;  // the reference's mean over the same pixels: the scale of the others
+  size_t samples = 0;        // block channels counted
   // The RMS of the difference without its noise: sqrt(errorRms^2 - noiseRms^2), as the noise is
   // independent of what the two images differ by (0 when the noise explains it all).
   double beyondNoiseRms() const;
@@ -61,11 +61,11 @@ ViewError errorAgainstPhoto(const SplitRender& render, const Image& photo, int b
 
 // Renders `scene` at every frame of `cameras` and compares with the frames' images (masked
 // pixels skipped). Writes the renders (EXR + PNG) into `out` when it is not empty.
-ViewComparison compareViews(const SceneDescription& scene, const std::filesystem::path& cameras, const RenderOptions& render,
-                            const std::filesystem::path& out = {});
+ViewComparison compareViews(const SceneDescription& scene, const std::filesystem::path& cameras,
+                            const RenderOptions& render, const std::filesystem::path& out = {});
 
 struct TruthOptions {
-  int minObservations = 5;           // albedo texels observed at least this often count
+  int minObservations = 5;                 // albedo texels observed at least this often count
   std::vector<uint8_t> highlightObserved;  // per object: roughness/specular count (empty: all)
 };
 // The options a fit's result asks for: roughness/specular scored on the objects its materials.json
@@ -81,7 +81,7 @@ struct TruthComparison {
   double roughnessMae = 0, specularMae = 0;
   int materialObjects = 0;
   int emittersTrue = 0, emittersFound = 0, emittersCorrect = 0;
-  double emissionRelError = 0;       // mean over true emitters found, mean over channels
+  double emissionRelError = 0;  // mean over true emitters found, mean over channels
   Json perObject = Json::array();
   Json toJson() const;
 };
@@ -90,9 +90,8 @@ struct TruthComparison {
 // The two meshes must have the same triangles in the same order (the fit's atlas mesh re-uses
 // the capture's triangles); the truth may have its own uv layout.
 // `truthAlbedo`, when given, receives the true albedo in the fit's atlas layout (for pictures).
-TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescription& truth,
-                                 const Image& coverage, const TruthOptions& options,
-                                 Image* truthAlbedo = nullptr);
+TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescription& truth, const Image& coverage,
+                                 const TruthOptions& options, Image* truthAlbedo = nullptr);
 
 // `relume eval`: re-renders `scene` at the frames of `cameras` into `out`, compares (and with
 // `truth`, scored where `coverage` shows enough observations), writes OUT/eval.json, then prints

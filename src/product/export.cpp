@@ -12,7 +12,8 @@ namespace fs = std::filesystem;
 fs::path sceneFileOf(const fs::path& workOrScene) {
   if (fs::is_directory(workOrScene)) {
     const fs::path scene = workOrScene / "result" / "scene.json";
-    if (!fs::exists(scene)) fail("{}: no result/scene.json (run `relume fit` first, or pass a scene.json)", workOrScene.string());
+    if (!fs::exists(scene))
+      fail("{}: no result/scene.json (run `relume fit` first, or pass a scene.json)", workOrScene.string());
     return scene;
   }
   if (!fs::exists(workOrScene)) fail("{}: no such work folder or scene.json", workOrScene.string());
@@ -59,7 +60,9 @@ void writeTextures(const fs::path& dir, const ExportScene& s) {
     writeExr(dir / "emission.exr", s.emission);
     writeSrgbPng(dir / "emission_srgb8.png", normalised, 8);
     writeSrgbPng(dir / "emission_srgb16.png", normalised, 16);
-    index["emission"] = {{"linear", "emission.exr"}, {"srgb8", "emission_srgb8.png"}, {"srgb16", "emission_srgb16.png"},
+    index["emission"] = {{"linear", "emission.exr"},
+                         {"srgb8", "emission_srgb8.png"},
+                         {"srgb16", "emission_srgb16.png"},
                          {"png_radiance_scale", peak}};
   }
   writeJson(dir / "textures.json", index);
@@ -89,7 +92,8 @@ ExportScene exportSceneOf(const SceneDescription& scene) {
 }
 
 void exportScene(const fs::path& workOrScene, const ExportOptions& o) {
-  if (o.gltf.empty() && o.mitsuba.empty() && o.textures.empty()) fail("export: nothing to write (give --gltf, --mitsuba or --textures)");
+  if (o.gltf.empty() && o.mitsuba.empty() && o.textures.empty())
+    fail("export: nothing to write (give --gltf, --mitsuba or --textures)");
   const fs::path file = sceneFileOf(workOrScene);
   const ExportScene s = exportSceneOf(loadSceneFile(file));
   if (!o.gltf.empty()) {

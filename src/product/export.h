@@ -16,10 +16,10 @@ std::filesystem::path sceneFileOf(const std::filesystem::path& workOrScene);
 ExportScene exportSceneOf(const SceneDescription& scene);
 
 struct ExportOptions {
-  std::filesystem::path gltf;      // .glb file; empty: none
-  std::filesystem::path mitsuba;   // folder; empty: none
-  std::filesystem::path textures;  // folder; empty: none
-  int maxDepth = kDefaultMaxDepth; // written into the Mitsuba integrator
+  std::filesystem::path gltf;       // .glb file; empty: none
+  std::filesystem::path mitsuba;    // folder; empty: none
+  std::filesystem::path textures;   // folder; empty: none
+  int maxDepth = kDefaultMaxDepth;  // written into the Mitsuba integrator
 };
 
 void exportScene(const std::filesystem::path& workOrScene, const ExportOptions& options);

@@ -30,8 +30,14 @@ namespace {
 class Fit {
  public:
   Fit(const fs::path& work, const FitConfig& config, const FitHooks& hooks)
-      : c_(config), hooks_(hooks), w_(work), appearance_(w_.mesh.objectCount), roles_(appearance_.objectCount()),
-        batches_(c_, w_), optimiser_(c_), decisions_(c_, w_, appearance_, roles_, settings_.path) {
+      : c_(config),
+        hooks_(hooks),
+        w_(work),
+        appearance_(w_.mesh.objectCount),
+        roles_(appearance_.objectCount()),
+        batches_(c_, w_),
+        optimiser_(c_),
+        decisions_(c_, w_, appearance_, roles_, settings_.path) {
     settings_.mode = c_.gradients;
     settings_.emitters = c_.emitterGradients;
     settings_.pairing = c_.pairing;
@@ -59,7 +65,8 @@ class Fit {
   // wall wrongly kept as a light) would otherwise hold a 4096^2-scale texture with its optimiser
   // state, gradient and average.
   int emissionTextureResolution(int albedoResolution) const {
-    return c_.emissionTextureResolution > 0 ? std::min(albedoResolution, c_.emissionTextureResolution) : albedoResolution;
+    return c_.emissionTextureResolution > 0 ? std::min(albedoResolution, c_.emissionTextureResolution)
+                                            : albedoResolution;
   }
   double fitSeconds() const { return total_.seconds() - hookSeconds_; }
   Json memoryBreakdown(Gradients& grads, const Batch& batch, const AdjointSettings& settings, const TexelSpace& space) {
@@ -99,7 +106,8 @@ class Fit {
 std::vector<int> Fit::chooseResolutions(const TexelSpace& init) {
   {
     TextureSpaceSampler probe(*w_.scene, init.map, init.sampleable, w_.vis, w_.trainingFrames());
-    const Batch b = probe.sample(c_.seed, 0xFFFFFFFF, {std::min(c_.batchTexels, 4096), c_.framesPerTexel, c_.rayFootprint});
+    const Batch b =
+        probe.sample(c_.seed, 0xFFFFFFFF, {std::min(c_.batchTexels, 4096), c_.framesPerTexel, c_.rayFootprint});
     finalRes_ = c_.maxResolution > 0 ? c_.maxResolution : w_.resolvedResolution(b);
     if (b.rays.empty()) fail("{}: no frame connection survived (every texel occluded or off-frame?)", w_.dir.string());
     for (const BatchRay& r : b.rays)
@@ -123,8 +131,8 @@ FitSummary Fit::run(bool resumeRequested) {
     const size_t f = static_cast<size_t>(r / init.resolution);
     return init.sampleable.size() * f * f;
   });
-  spdlog::info("fit: {} stages, final albedo resolution {}^2 ({} texels sampleable at {}^2), radiance scale {:.3g}", stages.size(),
-               finalRes_, init.sampleable.size(), init.resolution, radianceScale_);
+  spdlog::info("fit: {} stages, final albedo resolution {}^2 ({} texels sampleable at {}^2), radiance scale {:.3g}",
+               stages.size(), finalRes_, init.sampleable.size(), init.resolution, radianceScale_);
 
   const fs::path checkpointPath = w_.dir / "checkpoint.bin";
   FitPosition at;
@@ -141,7 +149,8 @@ FitSummary Fit::run(bool resumeRequested) {
       space = std::move(finer);
     }
     if (st.emissionTexturesBefore && appearance_.emissionTextures.empty())
-      allocateEmissionTextures(appearance_, w_.mesh, emissionTextureResolution(space->resolution), [](float, float) { return 1.0f; });
+      allocateEmissionTextures(appearance_, w_.mesh, emissionTextureResolution(space->resolution),
+                               [](float, float) { return 1.0f; });
     const int firstIteration = si == static_cast<size_t>(at.stage) ? at.iteration : 0;
     if (st.name == "materials" && firstIteration == 0) decisions_.decideHighlights(*space, batches_);
     const size_t excludedBefore = std::count(roles_.outOfModel.begin(), roles_.outOfModel.end(), 1);
@@ -149,7 +158,8 @@ FitSummary Fit::run(bool resumeRequested) {
     if (static_cast<size_t>(std::count(roles_.outOfModel.begin(), roles_.outOfModel.end(), 1)) != excludedBefore)
       space = std::make_unique<TexelSpace>(w_, space->resolution, roles_.outOfModel);
     if (stopped_) {
-      spdlog::info("fit: stopped after {} iterations as asked{}", globalIteration_, hooks_.writeFiles ? "; continue with --resume" : "");
+      spdlog::info("fit: stopped after {} iterations as asked{}", globalIteration_,
+                   hooks_.writeFiles ? "; continue with --resume" : "");
       summary.stopped = true;
       summary.iterations = globalIteration_;
       summary.seconds = fitSeconds();
@@ -178,7 +188,8 @@ std::unique_ptr<TexelSpace> Fit::start(const Stage& first) {
   if (!c_.emitterParameterisation) {
     // Ablation without the emitter parameterisation: spatially varying emission on every object.
     for (Color& e : appearance_.emission) e = Color::Constant(1.0f);
-    allocateEmissionTextures(appearance_, w_.mesh, emissionTextureResolution(space->resolution), [](float, float) { return 0.0f; });
+    allocateEmissionTextures(appearance_, w_.mesh, emissionTextureResolution(space->resolution),
+                             [](float, float) { return 0.0f; });
   }
   initialiseAlbedo(*space);
   decisions_.excludeUnseen(*space);
@@ -229,8 +240,8 @@ void Fit::initialiseAlbedo(const TexelSpace& space) {
       const float p95 = lum[lum.size() * 95 / 100];
       if (p95 > 0) {
         for (float& x : v) x *= c_.initWhitePoint / p95;
-        spdlog::info("fit: albedo init = median radiance x {:.3g} (95th percentile {:.3g} -> {:.2f})", c_.initWhitePoint / p95, p95,
-                     c_.initWhitePoint);
+        spdlog::info("fit: albedo init = median radiance x {:.3g} (95th percentile {:.3g} -> {:.2f})",
+                     c_.initWhitePoint / p95, p95, c_.initWhitePoint);
       }
     }
   }
@@ -255,9 +266,10 @@ void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const
   FitPhaseTimes times;
   // One buffer per stage, cleared every iteration; curvature only where the albedo steps by it.
   Gradients grads(appearance_, optimiser_.newtonAlbedo() && st.active.active(ParamKind::Albedo));
-  const BatchFocus focus = st.active.active(ParamKind::Roughness) ? batches_.materialFocus(space, roles_.highlight, appearance_, roles_.emitter)
-                           : st.focusEmitters                      ? batches_.emissionFocus(space, roles_.emitter)
-                                                                   : BatchFocus{};
+  const BatchFocus focus = st.active.active(ParamKind::Roughness)
+                               ? batches_.materialFocus(space, roles_.highlight, appearance_, roles_.emitter)
+                           : st.focusEmitters ? batches_.emissionFocus(space, roles_.emitter)
+                                              : BatchFocus{};
   const std::vector<uint8_t> albedoHeld = decisions_.albedoHeld();
   const GradientMasks masks{space, w_.mesh, albedoHeld, roles_.highlight, roles_.emitter};
   for (int it = firstIteration; it < st.iterations; ++it) {
@@ -271,15 +283,18 @@ void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const
     Timer tl;
     lights_ = LightSampler(*w_.scene, appearance_, lights_ ? &*lights_ : nullptr);
     now.lights = tl.seconds();
-    if (lights_->builtTables() > 0) spdlog::debug("fit: light sampler built the tables of {} objects", lights_->builtTables());
-    const GradientResult gr = computeGradients(*w_.scene, appearance_, *lights_, batch.rays, settings, iteration, grads);
+    if (lights_->builtTables() > 0)
+      spdlog::debug("fit: light sampler built the tables of {} objects", lights_->builtTables());
+    const GradientResult gr =
+        computeGradients(*w_.scene, appearance_, *lights_, batch.rays, settings, iteration, grads);
     w_.scene->throwIfEmbreeFailed();
     now.primal = gr.times.primal, now.loss = gr.times.loss, now.adjoint = gr.times.adjoint;
     Timer to;
     bool averagesStart = false;
     // Every non-zero albedo gradient is at one of these: the mask and the step cost the batch
     // (listed only in the stages that step the albedo).
-    const std::vector<uint32_t> splatted = st.active.active(ParamKind::Albedo) ? grads.splattedAlbedoTexels() : std::vector<uint32_t>{};
+    const std::vector<uint32_t> splatted =
+        st.active.active(ParamKind::Albedo) ? grads.splattedAlbedoTexels() : std::vector<uint32_t>{};
     for (ParamGroup& g : paramGroups(appearance_, &grads)) {
       if (!st.active.active(g.kind)) continue;
       masks.apply(g, grads.albedoCurvature, splatted);
@@ -304,9 +319,9 @@ void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const
     }
     if (hooks_.afterIteration) {
       Timer th;
-      const bool go = hooks_.afterIteration(FitIteration{st.name, globalIteration_, fitSeconds(), now, batch.rays, batch.object, *w_.scene,
-                                                        *lights_, settings, !grads.albedoCurvature.empty(), appearance_, w_.mesh,
-                                                        peakMemory_});
+      const bool go = hooks_.afterIteration(
+          FitIteration{st.name, globalIteration_, fitSeconds(), now, batch.rays, batch.object, *w_.scene, *lights_,
+                       settings, !grads.albedoCurvature.empty(), appearance_, w_.mesh, peakMemory_});
       hookSeconds_ += th.seconds();
       if (!go) {
         if (hooks_.writeFiles) writeCheckpoint(stageIndex, it + 1, space);
@@ -319,15 +334,22 @@ void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const
     progress.note(fmt::format("loss {:.3e}, {} rays, {:.2f} Mrays/s", gr.loss, batch.rays.size(),
                               traceSeconds > 0 ? batch.rays.size() / traceSeconds * 1e-6 : 0.0));
     if (hooks_.writeFiles && ((it + 1) % c_.metricsEvery == 0 || it + 1 == st.iterations)) {
-      Json line = {{"stage", st.name}, {"iteration", globalIteration_}, {"stage_iteration", it + 1}, {"loss", gr.loss},
-                   {"rays", batch.rays.size()}, {"lr_scale", st.settles.bits != 0 ? st.settleScale(it, c_.lrFinalFraction) : 1.0f},
-                   {"sampler", batch.stats.toJson()}, {"seconds", times.toJson()}};
+      Json line = {{"stage", st.name},
+                   {"iteration", globalIteration_},
+                   {"stage_iteration", it + 1},
+                   {"loss", gr.loss},
+                   {"rays", batch.rays.size()},
+                   {"lr_scale", st.settles.bits != 0 ? st.settleScale(it, c_.lrFinalFraction) : 1.0f},
+                   {"sampler", batch.stats.toJson()},
+                   {"seconds", times.toJson()}};
       if (st.active.active(ParamKind::Roughness))  // the fitted objects' trajectories: how settled they are
         for (int o = 0; o < appearance_.objectCount(); ++o)
-          if (roles_.highlight[o]) line["materials"][appearance_.names[o]] = {appearance_.roughness[o], appearance_.specular[o]};
+          if (roles_.highlight[o])
+            line["materials"][appearance_.names[o]] = {appearance_.roughness[o], appearance_.specular[o]};
       appendMetrics(line);
     }
-    if (hooks_.writeFiles && (it + 1) % c_.checkpointEvery == 0 && it + 1 < st.iterations) writeCheckpoint(stageIndex, it + 1, space);
+    if (hooks_.writeFiles && (it + 1) % c_.checkpointEvery == 0 && it + 1 < st.iterations)
+      writeCheckpoint(stageIndex, it + 1, space);
     if (c_.stopAfterIterations > 0 && globalIteration_ >= c_.stopAfterIterations && it + 1 < st.iterations) {
       if (hooks_.writeFiles) writeCheckpoint(stageIndex, it + 1, space);
       stopped_ = true;
@@ -335,10 +357,12 @@ void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const
     }
   }
   const int done = std::max(1, st.iterations - firstIteration);
-  spdlog::info("fit: stage {} done: {} iterations, loss {:.4e}; per iteration: sample {:.1f} ms, primal {:.1f} ms, adjoint {:.1f} ms, "
-               "optimiser {:.1f} ms",
-               st.name, st.iterations - firstIteration, lastLoss_, 1e3 * times.sample / done, 1e3 * times.primal / done,
-               1e3 * times.adjoint / done, 1e3 * times.optimiser / done);
+  spdlog::info(
+      "fit: stage {} done: {} iterations, loss {:.4e}; per iteration: sample {:.1f} ms, primal {:.1f} ms, adjoint "
+      "{:.1f} ms, "
+      "optimiser {:.1f} ms",
+      st.name, st.iterations - firstIteration, lastLoss_, 1e3 * times.sample / done, 1e3 * times.primal / done,
+      1e3 * times.adjoint / done, 1e3 * times.optimiser / done);
   finishStage(st, stageIndex, space);
 }
 
@@ -354,7 +378,6 @@ void Fit::finishStage(const Stage& st, size_t stageIndex, const TexelSpace& spac
   }
   if (hooks_.writeFiles) writeCheckpoint(stageIndex + 1, 0, space);
 }
-
 
 void Fit::appendMetrics(const Json& j) const {
   std::ofstream out(w_.dir / "metrics.jsonl", std::ios::app);
@@ -373,24 +396,30 @@ void Fit::serialiseState(CheckpointIo& io) {
 void Fit::writeCheckpoint(size_t stage, int iteration, const TexelSpace& space) {
   Checkpoint ck;
   writeRunHeader(ck, c_.toJson());
-  FitPosition at{static_cast<int>(stage), iteration, globalIteration_, space.resolution, !appearance_.emissionTextures.empty(),
-                 appearance_.emissionTextures.empty() ? 0 : appearance_.emissionTextures[0].fullWidth, lastLoss_};
+  FitPosition at{static_cast<int>(stage),
+                 iteration,
+                 globalIteration_,
+                 space.resolution,
+                 !appearance_.emissionTextures.empty(),
+                 appearance_.emissionTextures.empty() ? 0 : appearance_.emissionTextures[0].fullWidth,
+                 lastLoss_};
   CheckpointIo io = CheckpointIo::writer(ck);
   at.serialise(io, 0);
   serialiseState(io);
   ck.write(w_.dir / "checkpoint.bin");
 }
 
-
 }  // namespace
 
 FitPhaseTimes& FitPhaseTimes::operator+=(const FitPhaseTimes& o) {
-  sample += o.sample, lights += o.lights, primal += o.primal, loss += o.loss, adjoint += o.adjoint, optimiser += o.optimiser;
+  sample += o.sample, lights += o.lights, primal += o.primal, loss += o.loss, adjoint += o.adjoint,
+      optimiser += o.optimiser;
   return *this;
 }
 
 Json FitPhaseTimes::toJson() const {
-  return {{"sample", sample}, {"lights", lights}, {"primal", primal}, {"loss", loss}, {"adjoint", adjoint}, {"optimiser", optimiser}};
+  return {{"sample", sample}, {"lights", lights},   {"primal", primal},
+          {"loss", loss},     {"adjoint", adjoint}, {"optimiser", optimiser}};
 }
 
 FitSummary runFit(const fs::path& work, const FitConfig& config, bool resume, const FitHooks& hooks) {

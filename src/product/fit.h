@@ -27,9 +27,9 @@ struct FitSummary {
   int finalResolution = 0;
   double finalLoss = 0;
   std::vector<int> emitters;
-  std::filesystem::path resultDir;   // empty when stopped
+  std::filesystem::path resultDir;  // empty when stopped
   bool stopped = false;
-  Json memory;                       // the largest stage's bytes by part
+  Json memory;  // the largest stage's bytes by part
 };
 
 // Seconds spent in each phase of an iteration (or summed over several).
@@ -44,9 +44,9 @@ struct FitPhaseTimes {
 // settings and light sampler it was differentiated with, and the state after the step.
 struct FitIteration {
   const std::string& stage;
-  int iteration = 0;          // global, 1-based after the step
-  double elapsed = 0;         // seconds of fitting so far, time spent in hooks excluded
-  FitPhaseTimes times;        // of this iteration
+  int iteration = 0;    // global, 1-based after the step
+  double elapsed = 0;   // seconds of fitting so far, time spent in hooks excluded
+  FitPhaseTimes times;  // of this iteration
   const std::vector<BatchRay>& rays;
   const std::vector<int>& rayObjects;  // per ray, the object of the surface point it was aimed at
   const Scene& scene;
@@ -55,12 +55,12 @@ struct FitIteration {
   bool albedoCurvature = false;     // the gradient buffer had Gauss-Newton curvature storage
   const Appearance& appearance;     // albedo on `mesh`'s uv at the stage's resolution
   const TriangleMesh& mesh;
-  const Json& memory;         // bytes held by the fit, by part (see memoryBreakdown in fit.cpp)
+  const Json& memory;  // bytes held by the fit, by part (see memoryBreakdown in fit.cpp)
 };
 
 struct FitHooks {
   std::function<bool(const FitIteration&)> afterIteration;  // returns false to stop the fit there
-  bool writeFiles = true;     // metrics, checkpoints and the result (off: a measurement leaves WORK as it was)
+  bool writeFiles = true;  // metrics, checkpoints and the result (off: a measurement leaves WORK as it was)
   // Called once at the end with the final state (Polyak averages applied), files or not.
   std::function<void(const Appearance&, const TriangleMesh&)> finished;
 };

@@ -12,9 +12,11 @@
 
 namespace relume {
 
-Batch FitBatches::sample(const TexelSpace& space, uint64_t iteration, RayFootprint footprint, const BatchFocus& focus) const {
+Batch FitBatches::sample(const TexelSpace& space, uint64_t iteration, RayFootprint footprint,
+                         const BatchFocus& focus) const {
   if (c_.sampler != SamplerKind::Texture)
-    return ImageSpaceSampler(w_.trainingFrames()).sample(c_.seed, iteration, c_.imageRays, *w_.scene, footprint, c_.samplesPerRay);
+    return ImageSpaceSampler(w_.trainingFrames())
+        .sample(c_.seed, iteration, c_.imageRays, *w_.scene, footprint, c_.samplesPerRay);
   const TextureSpaceSampler sampler(*w_.scene, space.map, space.sampleable, w_.vis, w_.trainingFrames());
   Batch b = sampler.sample(c_.seed, iteration, {c_.batchTexels, c_.framesPerTexel, footprint, c_.samplesPerRay});
   auto add = [&](const std::vector<uint32_t>& texels, int count, RayFootprint fp, uint64_t stream) {
@@ -24,28 +26,33 @@ Batch FitBatches::sample(const TexelSpace& space, uint64_t iteration, RayFootpri
   };
   add(focus.objects, c_.materialBatchTexels, c_.materialFootprint, streamTag(RandomStream::MaterialBatch));
   add(focus.highlights, c_.highlightBatchTexels, c_.materialFootprint, streamTag(RandomStream::HighlightBatch));
-  const int perCandidate = focus.candidates.empty() ? 0 : std::max<int>(1, c_.emissionBatchTexels / static_cast<int>(focus.candidates.size()));
+  const int perCandidate = focus.candidates.empty()
+                               ? 0
+                               : std::max<int>(1, c_.emissionBatchTexels / static_cast<int>(focus.candidates.size()));
   for (size_t i = 0; i < focus.candidates.size(); ++i)
     add(focus.candidates[i], perCandidate, footprint, hashTuple({streamTag(RandomStream::EmissionBatch), i}));
   return b;
 }
 
-BatchFocus FitBatches::materialFocus(const TexelSpace& space, const std::vector<uint8_t>& fitted, const Appearance& appearance,
-                                     const std::vector<uint8_t>& emitter) const {
+BatchFocus FitBatches::materialFocus(const TexelSpace& space, const std::vector<uint8_t>& fitted,
+                                     const Appearance& appearance, const std::vector<uint8_t>& emitter) const {
   BatchFocus f;
   for (uint32_t t : space.sampleable)
     if (fitted[space.objectOf(t, w_.mesh)]) f.objects.push_back(t);
   if (f.objects.empty() || c_.highlightBatchTexels == 0) return f;
   const TextureSpaceSampler all(*w_.scene, space.map, f.objects, w_.vis, w_.trainingFrames());
   const int draws = static_cast<int>(std::min<size_t>(8 * f.objects.size(), 1 << 24));
-  const Batch b = all.sample(hashTuple({c_.seed, streamTag(RandomStream::HighlightProbe)}), 0, {draws, 1 << 20, RayFootprint::Point});
+  const Batch b = all.sample(hashTuple({c_.seed, streamTag(RandomStream::HighlightProbe)}), 0,
+                             {draws, 1 << 20, RayFootprint::Point});
   std::vector<uint8_t> lit(space.map.texelCount(), 0);
   tbb::parallel_for(size_t{0}, b.rays.size(), [&](size_t j) {
-    if (seesLightReflected(*w_.scene, appearance, emitter, b.rays[j]) == 1) lit[b.texel[b.slot[j]]] = 1;  // benign race: every writer stores 1
+    if (seesLightReflected(*w_.scene, appearance, emitter, b.rays[j]) == 1)
+      lit[b.texel[b.slot[j]]] = 1;  // benign race: every writer stores 1
   });
   for (uint32_t t : f.objects)
     if (lit[t]) f.highlights.push_back(t);
-  spdlog::info("fit: {} of the fitted objects' {} texels show a light reflected", f.highlights.size(), f.objects.size());
+  spdlog::info("fit: {} of the fitted objects' {} texels show a light reflected", f.highlights.size(),
+               f.objects.size());
   return f;
 }
 

@@ -6,23 +6,31 @@
 namespace relume {
 
 void CheckpointIo::integer(const char* key, int& value, int64_t lo, int64_t hi) {
-  if (out_) out_->meta[key] = value;
-  else value = static_cast<int>(in_->metaInteger(key, lo, hi));
+  if (out_)
+    out_->meta[key] = value;
+  else
+    value = static_cast<int>(in_->metaInteger(key, lo, hi));
 }
 
 void CheckpointIo::number(const char* key, double& value) {
-  if (out_) out_->meta[key] = value;
-  else value = in_->meta.value(key, 0.0);
+  if (out_)
+    out_->meta[key] = value;
+  else
+    value = in_->meta.value(key, 0.0);
 }
 
 void CheckpointIo::boolean(const char* key, bool& value) {
-  if (out_) out_->meta[key] = value;
-  else value = in_->meta.value(key, false);
+  if (out_)
+    out_->meta[key] = value;
+  else
+    value = in_->meta.value(key, false);
 }
 
 void CheckpointIo::json(const char* key, Json& value) {
-  if (out_) out_->meta[key] = value;
-  else value = in_->meta.value(key, Json::array());
+  if (out_)
+    out_->meta[key] = value;
+  else
+    value = in_->meta.value(key, Json::array());
 }
 
 void FitPosition::serialise(CheckpointIo& io, int stageCount) {
@@ -32,7 +40,8 @@ void FitPosition::serialise(CheckpointIo& io, int stageCount) {
   io.integer("resolution", resolution, 1, kMaxTextureResolution);
   io.boolean("emission_textures", emissionTextures);
   if (io.writing() || emissionTextures)
-    io.integer("emission_texture_resolution", emissionTextureResolution, emissionTextures ? 1 : 0, kMaxTextureResolution);
+    io.integer("emission_texture_resolution", emissionTextureResolution, emissionTextures ? 1 : 0,
+               kMaxTextureResolution);
   io.number("loss", loss);
 }
 

@@ -25,8 +25,10 @@ class CheckpointIo {
   // A named array; when reading, `data` must already have the stored size.
   template <typename T>
   void array(const std::string& name, std::span<T> data) {
-    if (out_) out_->put(name, std::span<const T>(data));
-    else in_->get(name, data);
+    if (out_)
+      out_->put(name, std::span<const T>(data));
+    else
+      in_->get(name, data);
   }
   template <typename T>
   void array(const std::string& name, std::vector<T>& data) {
@@ -59,7 +61,7 @@ class CheckpointIo {
 // before the parameters are read.
 struct FitPosition {
   int stage = 0, iteration = 0, globalIteration = 0;
-  int resolution = 0;                 // the albedo's
+  int resolution = 0;  // the albedo's
   bool emissionTextures = false;
   int emissionTextureResolution = 0;  // 0 without emission textures
   double loss = 0;                    // the last iteration's

@@ -14,7 +14,8 @@ using ConfigField = std::variant<int*, float*, bool*, uint64_t*, std::vector<std
                                  LightTest*, RayFootprint*, GradientMode*, EmitterGradients*, Pairing*>;
 
 // The keys, in the order the reference lists them.
-template <typename Fn> void forEachConfigKey(FitConfig& c, Fn&& fn) {
+template <typename Fn>
+void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("sampler", ConfigField(&c.sampler));
   fn("batch_texels", ConfigField(&c.batchTexels));
   fn("frames_per_texel", ConfigField(&c.framesPerTexel));
@@ -88,7 +89,8 @@ void FitConfig::validate(const std::string& where) const {
   need(c.batchTexels >= 1 && c.batchTexels <= (1 << 24), "batch_texels must be in [1, 2^24]");
   need(c.framesPerTexel >= 1 && c.framesPerTexel <= 64, "frames_per_texel must be in [1, 64]");
   need(c.materialBatchTexels >= 0 && c.materialBatchTexels <= (1 << 24), "material_batch_texels must be in [0, 2^24]");
-  need(c.highlightBatchTexels >= 0 && c.highlightBatchTexels <= (1 << 24), "highlight_batch_texels must be in [0, 2^24]");
+  need(c.highlightBatchTexels >= 0 && c.highlightBatchTexels <= (1 << 24),
+       "highlight_batch_texels must be in [0, 2^24]");
   need(c.emissionBatchTexels >= 0 && c.emissionBatchTexels <= (1 << 24), "emission_batch_texels must be in [0, 2^24]");
   need(c.imageRays >= 1 && c.imageRays <= (1 << 24), "image_rays must be in [1, 2^24]");
   need(c.samplesPerRay >= 1 && c.samplesPerRay <= 64, "samples_per_ray must be in [1, 64]");
@@ -97,19 +99,23 @@ void FitConfig::validate(const std::string& where) const {
   // The Gauss-Newton step models a texel's pixels as linear in the albedo at their first vertex;
   // `full` gradients add the albedo's terms at deeper vertices, which that curvature does not
   // hold (docs/design/fit.md).
-  need(c.albedoStep != AlbedoStep::GaussNewton || c.gradients == GradientMode::Direct, "gradients full needs albedo_step adam");
-  need(std::isfinite(c.albedoDamping) && c.albedoDamping > 0 && c.albedoDamping <= 1, "albedo_damping must be in (0, 1]");
+  need(c.albedoStep != AlbedoStep::GaussNewton || c.gradients == GradientMode::Direct,
+       "gradients full needs albedo_step adam");
+  need(std::isfinite(c.albedoDamping) && c.albedoDamping > 0 && c.albedoDamping <= 1,
+       "albedo_damping must be in (0, 1]");
   need(c.lrFinalFraction > 0 && c.lrFinalFraction <= 1, "lr_final_fraction must be in (0, 1]");
   for (float lr : {c.lrAlbedo, c.lrRoughness, c.lrSpecular, c.lrEmission, c.lrEmissionTexture})
     need(std::isfinite(lr) && lr > 0 && lr <= 10, "learning rates must be in (0, 10]");
-  need(std::isfinite(c.emissionFloor) && c.emissionFloor > 0 && c.emissionFloor <= 1, "emission_floor must be in (0, 1]");
+  need(std::isfinite(c.emissionFloor) && c.emissionFloor > 0 && c.emissionFloor <= 1,
+       "emission_floor must be in (0, 1]");
   need(std::isfinite(c.gradientClamp) && c.gradientClamp >= 0, "gradient_clamp must be >= 0 (0 = off)");
   need(c.polyakFraction >= 0 && c.polyakFraction <= 1, "polyak_fraction must be in [0, 1]");
   need(c.materialPolyakFraction >= 0 && c.materialPolyakFraction <= 1, "material_polyak_fraction must be in [0, 1]");
   need(c.emissionIterations >= 0 && c.materialIterations >= 0 && c.emissionTextureIterations >= 0 &&
            c.maxStageIterations >= 1,
        "stage lengths must be >= 0 (max_stage_iterations >= 1)");
-  need(std::isfinite(c.albedoPasses) && c.albedoPasses > 0 && c.albedoPasses <= 1e4, "albedo_passes must be in (0, 1e4]");
+  need(std::isfinite(c.albedoPasses) && c.albedoPasses > 0 && c.albedoPasses <= 1e4,
+       "albedo_passes must be in (0, 1e4]");
   need(c.maxResolution >= 0, "max_resolution must be >= 0");
   need(c.emissionTextureResolution >= 0, "emission_texture_resolution must be >= 0 (0 = the albedo's)");
   need(c.initWhitePoint >= 0 && c.initWhitePoint <= 1, "init_white_point must be in [0, 1] (0 = off)");
@@ -118,7 +124,8 @@ void FitConfig::validate(const std::string& where) const {
   need(std::isfinite(c.lightMinContrast) && c.lightMinContrast >= 0, "light_min_contrast must be >= 0");
   need(c.lightEvidenceTexels >= 1 && c.lightEvidenceTexels <= (1 << 20), "light_evidence_texels must be in [1, 2^20]");
   need(c.emissionRefitIterations >= 0, "emission_refit_iterations must be >= 0");
-  need(std::set<std::string>(c.lights.begin(), c.lights.end()).size() == c.lights.size(), "lights names an object twice");
+  need(std::set<std::string>(c.lights.begin(), c.lights.end()).size() == c.lights.size(),
+       "lights names an object twice");
   need(c.pruneFraction >= 0 && c.pruneFraction < 1, "prune_fraction must be in [0, 1)");
   need(c.emitterRadianceFraction >= 0 && c.emitterRadianceFraction <= 1, "emitter_radiance_fraction must be in [0, 1]");
   need(c.highlightMinPairs >= 1, "highlight_min_pairs must be >= 1");
@@ -127,7 +134,9 @@ void FitConfig::validate(const std::string& where) const {
   need(c.stopAfterIterations >= 0, "stop_after_iterations must be >= 0 (0 = run to the end)");
 }
 
-FitConfig FitConfig::load(const std::filesystem::path& path) { return fromJson(readJson(path), path.string(), FitConfig{}); }
+FitConfig FitConfig::load(const std::filesystem::path& path) {
+  return fromJson(readJson(path), path.string(), FitConfig{});
+}
 
 FitConfig FitConfig::fromJson(const Json& j, const std::string& where, FitConfig c) {
   if (!j.is_object()) fail("{}: a fit config is a JSON object", where);
@@ -147,9 +156,9 @@ FitConfig FitConfig::fromJson(const Json& j, const std::string& where, FitConfig
           } else if constexpr (std::is_same_v<T, std::vector<std::string>>)
             ok = v.is_array() && std::all_of(v.begin(), v.end(), [](const Json& e) { return e.is_string(); });
           else
-            ok = std::is_same_v<T, bool>          ? v.is_boolean()
-                 : std::is_same_v<T, float>       ? v.is_number()
-                                                  : v.is_number_integer();
+            ok = std::is_same_v<T, bool>    ? v.is_boolean()
+                 : std::is_same_v<T, float> ? v.is_number()
+                                            : v.is_number_integer();
           if (!ok) fail("{}: '{}' has the wrong type ({})", where, key, v.type_name());
           *p = v.get<T>();
         },
@@ -166,8 +175,10 @@ Json FitConfig::toJson() const {
   forEachConfigKey(const_cast<FitConfig&>(*this), [&](const char* key, ConfigField field) {
     std::visit(
         [&](auto* p) {
-          if constexpr (std::is_enum_v<std::remove_pointer_t<decltype(p)>>) j[key] = enumName(*p);
-          else j[key] = *p;
+          if constexpr (std::is_enum_v<std::remove_pointer_t<decltype(p)>>)
+            j[key] = enumName(*p);
+          else
+            j[key] = *p;
         },
         field);
   });

@@ -17,7 +17,7 @@
 
 namespace relume {
 
-enum class SamplerKind { Texture, Image };   // texture space (the paper's) or image space (the ablation's baseline)
+enum class SamplerKind { Texture, Image };    // texture space (the paper's) or image space (the ablation's baseline)
 enum class AlbedoStep { GaussNewton, Adam };  // damped diagonal Gauss-Newton (optim/gauss_newton.h) or the paper's Adam
 enum class LightTest { Reflector, RadianceFraction };  // how light sources are told from lit surfaces
 
@@ -40,8 +40,8 @@ struct EnumNames<LightTest> {
 struct FitConfig {
   // Sampling
   SamplerKind sampler = SamplerKind::Texture;
-  int batchTexels = 8192;     // B: texels per iteration (texture sampler)
-  int framesPerTexel = 4;     // K: frames connected per texel
+  int batchTexels = 8192;  // B: texels per iteration (texture sampler)
+  int framesPerTexel = 4;  // K: frames connected per texel
   // While roughness and specular are fitted, this many more texels per iteration from the fitted
   // objects only: a glossy object is a few percent of the texels and its highlight a few percent
   // of its rays, so its per-object gradient is otherwise too noisy to settle.
@@ -82,8 +82,8 @@ struct FitConfig {
   // The settling stage of each kind: constant lr for its first half, then linear down to this.
   float lrFinalFraction = 0.1f;
   bool maskedAdam = true, perEntrySteps = true;
-  float gradientClamp = 10.0f;   // x the median nonzero gradient magnitude of the group; 0 = off
-  float polyakFraction = 0.1f;   // of the settling stage averaged; 0 = off
+  float gradientClamp = 10.0f;  // x the median nonzero gradient magnitude of the group; 0 = off
+  float polyakFraction = 0.1f;  // of the settling stage averaged; 0 = off
   // The same for the per-object roughness and specular, which a few highlight rays touch every
   // iteration, so their last iterates wander by ~lr.
   float materialPolyakFraction = 0.5f;
@@ -93,26 +93,26 @@ struct FitConfig {
   bool materialStageSettles = false;
   // Schedule
   int emissionIterations = 200, materialIterations = 300, emissionTextureIterations = 100;
-  float albedoPasses = 100.0f;    // albedo stage length: expected draws per sampleable texel
-  int maxStageIterations = 2000;  // cap on any albedo stage
-  int maxResolution = 0;          // cap on the final albedo resolution; 0 = what the frames resolve
+  float albedoPasses = 100.0f;           // albedo stage length: expected draws per sampleable texel
+  int maxStageIterations = 2000;         // cap on any albedo stage
+  int maxResolution = 0;                 // cap on the final albedo resolution; 0 = what the frames resolve
   int emissionTextureResolution = 1024;  // cap on the emission textures' atlas resolution; 0 = the albedo's
   // Light sources (docs/design/light-sources.md). Reflector: an object is a light when no
   // reflector with albedo <= 1 and the model's specular lobe returns its observed radiance,
   // decided after the emission stage and again after the first albedo stage. Radiance fraction
   // (the ablation): emission >= emitter_radiance_fraction of its observed radiance, decided once.
   LightTest lightTest = LightTest::Reflector;
-  float lightMinUnexplained = 0.5f;  // share of its radiance no reflector returns
-  float lightSignificance = 3.0f;    // standard errors the unexplained radiance must clear
-  float lightMinContrast = 4.0f;     // a light's radiance over the median object's; 0 = off
-  int lightEvidenceTexels = 256;     // texels per object drawn for each decision
-  bool lightRedecide = true;         // decide again after the first albedo stage
+  float lightMinUnexplained = 0.5f;   // share of its radiance no reflector returns
+  float lightSignificance = 3.0f;     // standard errors the unexplained radiance must clear
+  float lightMinContrast = 4.0f;      // a light's radiance over the median object's; 0 = off
+  int lightEvidenceTexels = 256;      // texels per object drawn for each decision
+  bool lightRedecide = true;          // decide again after the first albedo stage
   int emissionRefitIterations = 100;  // emission-only stage after a re-decision that changed the lights
-  std::vector<std::string> lights;   // hint: exactly these objects (by name) emit; no decision taken
+  std::vector<std::string> lights;    // hint: exactly these objects (by name) emit; no decision taken
   // A light source's radiance is all emission (albedo 0, not fitted): from any view a Lambertian
   // emission and a diffuse reflection look the same, and windows and shades transmit their light.
   bool lightAlbedoZero = true;
-  float pruneFraction = 0.02f;       // light sources below this fraction of the total power go to 0
+  float pruneFraction = 0.02f;            // light sources below this fraction of the total power go to 0
   float emitterRadianceFraction = 0.75f;  // light_test radiance_fraction's threshold
   // Roughness and specular are fitted only where the frames show a highlight: texels seen both
   // with a light in the mirror direction and without, at least `highlightMinPairs` of them,

@@ -9,8 +9,8 @@
 namespace relume {
 namespace fs = std::filesystem;
 
-fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const TexelSpace& space, const ObjectRoles& roles,
-                        const FitConfig& c, const FitProgress& progress) {
+fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const TexelSpace& space,
+                        const ObjectRoles& roles, const FitConfig& c, const FitProgress& progress) {
   const fs::path result = w.dir / "result", staging = w.dir / "result.partial";
   fs::remove_all(staging);
   fs::create_directories(staging);
@@ -29,39 +29,54 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
     }
   for (int o = 0; o < appearance.objectCount(); ++o) {
     const Color e = appearance.meanEmission(o);
-    materials.push_back({{"id", o}, {"name", appearance.names[o]}, {"roughness", appearance.roughness[o]},
-                         {"specular", appearance.specular[o]}, {"emission", {e[0], e[1], e[2]}},
-                         {"is_emitter", appearance.isEmissive(o)}, {"out_of_model", roles.outOfModel[o] != 0},
-                         {"highlight_observed", roles.highlight[o] != 0}, {"highlight_texels", roles.highlightPairs[o]},
+    materials.push_back({{"id", o},
+                         {"name", appearance.names[o]},
+                         {"roughness", appearance.roughness[o]},
+                         {"specular", appearance.specular[o]},
+                         {"emission", {e[0], e[1], e[2]}},
+                         {"is_emitter", appearance.isEmissive(o)},
+                         {"out_of_model", roles.outOfModel[o] != 0},
+                         {"highlight_observed", roles.highlight[o] != 0},
+                         {"highlight_texels", roles.highlightPairs[o]},
                          {"highlight_contrast", roles.highlightContrast[o]},
                          {"observed_texel_fraction", total[o] ? double(observed[o]) / total[o] : 0.0}});
   }
-  Json summary = {{"objects", materials}, {"albedo_resolution", space.resolution}, {"iterations", progress.iterations},
-                  {"final_loss", progress.loss}, {"sampler", progress.sampler.toJson()}, {"config", c.toJson()},
-                  {"peak_rss_mib", peakRssMiB()}, {"memory_bytes", progress.peakMemory}};
+  Json summary = {
+      {"objects", materials},         {"albedo_resolution", space.resolution}, {"iterations", progress.iterations},
+      {"final_loss", progress.loss},  {"sampler", progress.sampler.toJson()},  {"config", c.toJson()},
+      {"peak_rss_mib", peakRssMiB()}, {"memory_bytes", progress.peakMemory}};
   writeJson(staging / "materials.json", summary);
-  writeJson(staging / "lights.json", {{"light_test", enumName(c.lightTest)}, {"hint", c.lights}, {"decisions", roles.lightDecisions}});
+  writeJson(staging / "lights.json",
+            {{"light_test", enumName(c.lightTest)}, {"hint", c.lights}, {"decisions", roles.lightDecisions}});
   fs::remove_all(result);
   fs::rename(staging, result);
   spdlog::info("fit: result in {}", result.string());
   return result;
 }
 
-Json fitMemory(const Workspace& w, Appearance& appearance, const TexelSpace& space, Gradients& grads, const Batch& batch,
-               const AdjointSettings& settings, const GroupOptimiser& optimiser, const LightSampler* lights) {
+Json fitMemory(const Workspace& w, Appearance& appearance, const TexelSpace& space, Gradients& grads,
+               const Batch& batch, const AdjointSettings& settings, const GroupOptimiser& optimiser,
+               const LightSampler* lights) {
   auto floats = [](size_t n) { return static_cast<double>(n * sizeof(float)); };
   double parameters = 0, gradients = floats(grads.albedoCurvature.size()) + grads.bookkeepingBytes();
-  for (ParamGroup& g : paramGroups(appearance, &grads)) parameters += floats(g.values.size()), gradients += floats(g.grads.size());
+  for (ParamGroup& g : paramGroups(appearance, &grads))
+    parameters += floats(g.values.size()), gradients += floats(g.grads.size());
   const double texels = space.map.bytes() + space.sampleable.size() * sizeof(uint32_t) + space.updatable.size();
   const TriangleMesh& m = w.mesh;  // its arrays; Embree's BVH and the shading records not counted
   const double mesh = (m.positions.size() + m.normals.size()) * sizeof(Vec3) + m.uvs.size() * sizeof(Vec2) +
                       m.triangles.size() * (sizeof(Eigen::Vector3i) + sizeof(int32_t));
   const double batchBytes = batch.rays.size() * (sizeof(BatchRay) + sizeof(uint32_t) + sizeof(int) + 3 * sizeof(Color));
   const double records = double(threadCount()) * adjointRecordBytesPerThread(settings.path.maxDepth);
-  Json j = {{"parameters", parameters}, {"gradients", gradients}, {"optimiser_state", optimiser.stateBytes()},
-            {"averages", optimiser.averageBytes()}, {"texel_map", texels}, {"mesh", mesh},
+  Json j = {{"parameters", parameters},
+            {"gradients", gradients},
+            {"optimiser_state", optimiser.stateBytes()},
+            {"averages", optimiser.averageBytes()},
+            {"texel_map", texels},
+            {"mesh", mesh},
             {"visibility_index", static_cast<double>(w.vis.bytes())},
-            {"frame_cache_mapped", static_cast<double>(w.store->mappedBytes())}, {"batch", batchBytes}, {"path_records", records},
+            {"frame_cache_mapped", static_cast<double>(w.store->mappedBytes())},
+            {"batch", batchBytes},
+            {"path_records", records},
             {"gradient_logs", static_cast<double>(grads.logBytes())},
             {"light_sampler", lights ? static_cast<double>(lights->bytes()) : 0.0}};
   double total = 0;

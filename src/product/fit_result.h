@@ -15,9 +15,9 @@ namespace relume {
 
 struct FitProgress {
   int iterations = 0;
-  double loss = 0;          // the last iteration's
+  double loss = 0;              // the last iteration's
   const SamplerStats& sampler;  // summed over the fit
-  const Json& peakMemory;   // the largest fitMemory seen
+  const Json& peakMemory;       // the largest fitMemory seen
 };
 
 // Writes WORK/result/ atomically (WORK/result.partial/, then renamed); returns its path.
@@ -26,7 +26,8 @@ std::filesystem::path writeFitResult(const Workspace& w, const Appearance& appea
 
 // Bytes the fit holds, by part, once a stage's buffers are allocated; "total" leaves out the
 // frame cache, a mapping of frames.bin of which only the pages the sampler touches are resident.
-Json fitMemory(const Workspace& w, Appearance& appearance, const TexelSpace& space, Gradients& grads, const Batch& batch,
-               const AdjointSettings& settings, const GroupOptimiser& optimiser, const LightSampler* lights);
+Json fitMemory(const Workspace& w, Appearance& appearance, const TexelSpace& space, Gradients& grads,
+               const Batch& batch, const AdjointSettings& settings, const GroupOptimiser& optimiser,
+               const LightSampler* lights);
 
 }  // namespace relume

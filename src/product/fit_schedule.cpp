@@ -13,8 +13,9 @@ float Stage::settleScale(int it, float finalFraction) const {
 }
 
 int Stage::averageFrom(ParamKind kind, float fraction) const {
-  return settles.active(kind) && fraction > 0 ? iterations - std::max(1, static_cast<int>(std::lround(fraction * iterations)))
-                                              : iterations;
+  return settles.active(kind) && fraction > 0
+             ? iterations - std::max(1, static_cast<int>(std::lround(fraction * iterations)))
+             : iterations;
 }
 
 std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& resolutions,
@@ -22,12 +23,14 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   using K = ParamKind;
   const int finalRes = resolutions.back();
   auto albedoIterations = [&](int res) {
-    const double n = std::ceil(c.albedoPasses * sampleableAt(res) / std::max(1, c.sampler == SamplerKind::Texture ? c.batchTexels : c.imageRays));
+    const double n = std::ceil(c.albedoPasses * sampleableAt(res) /
+                               std::max(1, c.sampler == SamplerKind::Texture ? c.batchTexels : c.imageRays));
     return static_cast<int>(std::clamp(n, 1.0, static_cast<double>(c.maxStageIterations)));
   };
   std::vector<Stage> s;
   const RayFootprint rays = c.rayFootprint;
-  const ParamMask emission = c.emitterParameterisation ? ParamMask::only({K::Emission}) : ParamMask::only({K::EmissionTexture});
+  const ParamMask emission =
+      c.emitterParameterisation ? ParamMask::only({K::Emission}) : ParamMask::only({K::EmissionTexture});
   if (!c.coarseToFine) {
     ParamMask all = ParamMask::only({K::Albedo, K::Roughness, K::Specular});
     all.bits |= emission.bits;
@@ -38,9 +41,16 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   }
   // Its unknowns are per object (with emitter_parameterisation), so a ray may stand for a whole
   // pixel: an emitter seen as a few pixels is mixed with its surroundings in every one of them,
-  // and a ray through the emitter's own point compared with that mixture dims it (docs/design/fit.md). Per-texel unknowns are better served by points: a pixel ray's residual and
-  // sensitivity belong to different texels, noise a per-texel step cannot average away.
-  s.push_back({"emission", emission, resolutions.front(), c.emissionIterations, c.emitterParameterisation, false, {0},
+  // and a ray through the emitter's own point compared with that mixture dims it (docs/design/fit.md). Per-texel
+  // unknowns are better served by points: a pixel ray's residual and sensitivity belong to different texels, noise a
+  // per-texel step cannot average away.
+  s.push_back({"emission",
+               emission,
+               resolutions.front(),
+               c.emissionIterations,
+               c.emitterParameterisation,
+               false,
+               {0},
                c.emissionFootprint});
   // Then the albedo at the first resolution, and only then roughness and specular with it: while
   // the albedo is still near its (too dark) init, the specular lobe of a rough object makes up
@@ -50,10 +60,12 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   // (I = E), while fitted together with the albedo it drifts along the near-null direction
   // "brighter lights, darker albedo" (room: 3% after stage 1, 10% after the albedo stages).
   const ParamMask albedo = ParamMask::only({K::Albedo});
-  s.push_back({fmt::format("albedo@{}", resolutions.front()), albedo, resolutions.front(), albedoIterations(resolutions.front())});
+  s.push_back({fmt::format("albedo@{}", resolutions.front()), albedo, resolutions.front(),
+               albedoIterations(resolutions.front())});
   // The light sources decided again now that the albedo explains the lit surfaces; when that
   // changed them, their emission is fitted again (the albedo held) before the materials.
-  const bool redecide = c.emitterParameterisation && c.lightTest == LightTest::Reflector && c.lightRedecide && c.lights.empty();
+  const bool redecide =
+      c.emitterParameterisation && c.lightTest == LightTest::Reflector && c.lightRedecide && c.lights.empty();
   s.back().redecideAfter = redecide;
   // The fill belongs to the reflector test's light estimate (with the hint too, so the two compare).
   s.front().fillUnobservedAfter = s.back().fillUnobservedAfter = c.lightTest == LightTest::Reflector;
@@ -68,7 +80,8 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   const size_t materialStage = s.size();
   s.push_back({"materials", materials, resolutions.front(), c.materialIterations});
   for (size_t i = 1; i < resolutions.size(); ++i)
-    s.push_back({fmt::format("albedo@{}", resolutions[i]), afterMaterials, resolutions[i], albedoIterations(resolutions[i])});
+    s.push_back(
+        {fmt::format("albedo@{}", resolutions[i]), afterMaterials, resolutions[i], albedoIterations(resolutions[i])});
   s.back().settles = s.back().active;
   if (c.materialStageSettles) {
     s[materialStage].settles.set(K::Roughness, true);

@@ -25,10 +25,10 @@ struct Stage {
   // average kept): each kind settles in the last stage that fits it.
   ParamMask settles{0};
   RayFootprint footprint = RayFootprint::Point;  // what the uniform batch's rays are compared with
-  bool redecideAfter = false;   // the light sources are decided again at its end
-  bool refit = false;           // emission only, run when the re-decision changed the light sources
-  bool focusEmitters = false;   // draws emission_batch_texels from the light-source candidates
-  bool fillUnobservedAfter = false;  // unobserved texels take their object's mean albedo at its end
+  bool redecideAfter = false;                    // the light sources are decided again at its end
+  bool refit = false;                            // emission only, run when the re-decision changed the light sources
+  bool focusEmitters = false;                    // draws emission_batch_texels from the light-source candidates
+  bool fillUnobservedAfter = false;              // unobserved texels take their object's mean albedo at its end
 
   // The learning-rate factor at iteration `it` for the kinds this stage settles: 1 over its first
   // half, then linear down to `finalFraction` (1 for the kinds it does not settle).

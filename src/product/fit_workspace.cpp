@@ -12,7 +12,8 @@ namespace fs = std::filesystem;
 
 Workspace::Workspace(const fs::path& work) : dir(work) {
   const fs::path pj = work / "prepare.json";
-  if (!fs::exists(pj)) fail("{}: no prepare.json; run `relume prepare CAPTURE --out {}` first", work.string(), work.string());
+  if (!fs::exists(pj))
+    fail("{}: no prepare.json; run `relume prepare CAPTURE --out {}` first", work.string(), work.string());
   prepare = readJson(pj);
   for (const char* f : {"atlas_mesh.ply", "frames.bin", "visibility.bin", "albedo_init.exr", "coverage.exr"})
     if (!fs::exists(work / f)) fail("{}: missing {}; rerun `relume prepare`", work.string(), f);
@@ -24,16 +25,17 @@ Workspace::Workspace(const fs::path& work) : dir(work) {
     if (resolutions.empty()) fail("{}: no resolutions; rerun `relume prepare`", pj.string());
     const Json objectNames = prepare["phases"]["atlas"].value("object_names", Json::object());
     for (const auto& [id, name] : objectNames.items())
-      names.push_back({static_cast<int>(jsonInteger(Json::parse(id, nullptr, false), 0, INT32_MAX, pj.string(), "object_names")),
-                       name.get<std::string>()});
+      names.push_back(
+          {static_cast<int>(jsonInteger(Json::parse(id, nullptr, false), 0, INT32_MAX, pj.string(), "object_names")),
+           name.get<std::string>()});
     return 0;
   });
   mesh = loadMesh(work / "atlas_mesh.ply");
   scene = std::make_unique<Scene>(mesh);
   store = std::make_unique<FrameStore>(work / "frames.bin");
   if (store->frameCount() != frames.size())
-    fail("{}: frames.bin has {} frames but transforms.json {}; rerun `relume prepare`", work.string(), store->frameCount(),
-         frames.size());
+    fail("{}: frames.bin has {} frames but transforms.json {}; rerun `relume prepare`", work.string(),
+         store->frameCount(), frames.size());
   for (uint32_t k : kept)
     if (k >= frames.size()) fail("{}: prepare.json keeps frame {} of {}", pj.string(), k, frames.size());
   vis = VisibilityIndex::read(work / "visibility.bin");
@@ -65,8 +67,9 @@ int Workspace::resolvedResolution(const Batch& batch) const {
     // Pixel footprint on the surface: distance / focal length, stretched by the obliquity.
     footprint.push_back(hit->t / cam->fx / std::max(0.2f, std::abs(hit->ng.dot(r.dir))));
   }
-  const double texelsPerMetreInit = w.prepare["phases"]["atlas"].value("texels_per_metre", 0.0) *
-                                    w.initResolution / w.prepare["phases"]["atlas"].value("gutter_resolution", AtlasOptions{}.gutterResolution);
+  const double texelsPerMetreInit =
+      w.prepare["phases"]["atlas"].value("texels_per_metre", 0.0) * w.initResolution /
+      w.prepare["phases"]["atlas"].value("gutter_resolution", AtlasOptions{}.gutterResolution);
   if (footprint.empty() || texelsPerMetreInit <= 0) return w.resolutions.back();
   std::nth_element(footprint.begin(), footprint.begin() + footprint.size() / 2, footprint.end());
   const double pixelMetres = footprint[footprint.size() / 2];

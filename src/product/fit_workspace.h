@@ -29,7 +29,7 @@ struct Workspace {
   VisibilityIndex vis;
   int initResolution = 0;
   std::vector<int> resolutions;
-  std::vector<float> coverage;  // observations per texel at the init resolution
+  std::vector<float> coverage;                     // observations per texel at the init resolution
   std::vector<std::pair<int, std::string>> names;  // object id, name
   std::vector<uint32_t> kept;
 

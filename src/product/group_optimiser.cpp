@@ -8,13 +8,15 @@
 
 namespace relume {
 
-void GradientMasks::apply(ParamGroup& g, std::vector<float>& albedoCurvature, std::span<const uint32_t> splattedAlbedo) const {
+void GradientMasks::apply(ParamGroup& g, std::vector<float>& albedoCurvature,
+                          std::span<const uint32_t> splattedAlbedo) const {
   switch (g.kind) {
     case ParamKind::Albedo:
       for (uint32_t t : splattedAlbedo) {
         const bool held = albedoHeld[space.objectOf(t, mesh)];
         if (!space.updatable[t] || held) std::fill_n(g.grads.begin() + 3 * static_cast<ptrdiff_t>(t), 3, 0.0f);
-        if (held && !albedoCurvature.empty()) std::fill_n(albedoCurvature.begin() + 3 * static_cast<ptrdiff_t>(t), 3, 0.0f);
+        if (held && !albedoCurvature.empty())
+          std::fill_n(albedoCurvature.begin() + 3 * static_cast<ptrdiff_t>(t), 3, 0.0f);
       }
       break;
     case ParamKind::Roughness:
@@ -26,7 +28,8 @@ void GradientMasks::apply(ParamGroup& g, std::vector<float>& albedoCurvature, st
       for (size_t o = 0; o < emits.size(); ++o)
         if (!emits[o]) g.grads[3 * o] = g.grads[3 * o + 1] = g.grads[3 * o + 2] = 0.0f;
       break;
-    case ParamKind::EmissionTexture: break;
+    case ParamKind::EmissionTexture:
+      break;
   }
 }
 
@@ -35,9 +38,15 @@ AdamSettings GroupOptimiser::adamFor(const ParamGroup& g, float lrScale) const {
   s.masked = c_.maskedAdam;
   s.perEntrySteps = c_.perEntrySteps;
   switch (g.kind) {
-    case ParamKind::Albedo: s.learningRate = c_.lrAlbedo; break;
-    case ParamKind::Roughness: s.learningRate = c_.lrRoughness; break;
-    case ParamKind::Specular: s.learningRate = c_.lrSpecular; break;
+    case ParamKind::Albedo:
+      s.learningRate = c_.lrAlbedo;
+      break;
+    case ParamKind::Roughness:
+      s.learningRate = c_.lrRoughness;
+      break;
+    case ParamKind::Specular:
+      s.learningRate = c_.lrSpecular;
+      break;
     case ParamKind::Emission:
     case ParamKind::EmissionTexture:
       s.learningRate = g.kind == ParamKind::Emission ? c_.lrEmission : c_.lrEmissionTexture;
@@ -48,8 +57,8 @@ AdamSettings GroupOptimiser::adamFor(const ParamGroup& g, float lrScale) const {
   return s;
 }
 
-bool GroupOptimiser::step(ParamGroup& g, std::span<const float> albedoCurvature, std::span<const uint32_t> splattedAlbedo,
-                          const Stage& st, int it) {
+bool GroupOptimiser::step(ParamGroup& g, std::span<const float> albedoCurvature,
+                          std::span<const uint32_t> splattedAlbedo, const Stage& st, int it) {
   CHECK(g.grads.size() == g.values.size());
   const float lrScale = st.settles.active(g.kind) ? st.settleScale(it, c_.lrFinalFraction) : 1.0f;
   if (g.kind == ParamKind::Albedo && newtonAlbedo()) {
@@ -83,7 +92,8 @@ namespace {
 
 std::vector<uint16_t> upsampleSteps(const std::vector<uint16_t>& steps, const TexelSpace& from, const TexelSpace& to,
                                     const TriangleMesh& mesh) {
-  const std::vector<float> up = upsampleTexels(std::vector<float>(steps.begin(), steps.end()), from.map, to.map, mesh, 3);
+  const std::vector<float> up =
+      upsampleTexels(std::vector<float>(steps.begin(), steps.end()), from.map, to.map, mesh, 3);
   std::vector<uint16_t> out(up.size());
   for (size_t i = 0; i < up.size(); ++i) out[i] = static_cast<uint16_t>(std::lround(up[i]));
   return out;
@@ -95,7 +105,8 @@ std::vector<uint16_t> upsampleSteps(const std::vector<uint16_t>& steps, const Te
 // and curvatures are divided by f^2 and Adam's second moment by f^4 (keeps m / sqrt(v), the
 // step, the same).
 void GroupOptimiser::upsampleAlbedo(const TexelSpace& from, const TexelSpace& to, const TriangleMesh& mesh) {
-  const float f2 = static_cast<float>(to.resolution) / from.resolution * static_cast<float>(to.resolution) / from.resolution;
+  const float f2 =
+      static_cast<float>(to.resolution) / from.resolution * static_cast<float>(to.resolution) / from.resolution;
   if (newton_.size() > 0) {
     GaussNewtonState up;
     up.numerator = upsampleTexels(newton_.numerator, from.map, to.map, mesh, 3);
@@ -152,8 +163,10 @@ void GroupOptimiser::serialise(CheckpointIo& io, std::span<ParamGroup> groups, s
 
 double GroupOptimiser::stateBytes() const {
   double bytes = 0;
-  for (const auto& [name, a] : adam_) bytes += (a.m.size() + a.v.size()) * sizeof(float) + a.steps.size() * sizeof(uint16_t);
-  return bytes + (newton_.numerator.size() + newton_.curvature.size()) * sizeof(float) + newton_.steps.size() * sizeof(uint16_t);
+  for (const auto& [name, a] : adam_)
+    bytes += (a.m.size() + a.v.size()) * sizeof(float) + a.steps.size() * sizeof(uint16_t);
+  return bytes + (newton_.numerator.size() + newton_.curvature.size()) * sizeof(float) +
+         newton_.steps.size() * sizeof(uint16_t);
 }
 
 double GroupOptimiser::averageBytes() const {

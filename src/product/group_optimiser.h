@@ -27,9 +27,9 @@ namespace relume {
 struct GradientMasks {
   const TexelSpace& space;
   const TriangleMesh& mesh;
-  std::span<const uint8_t> albedoHeld;        // per object
-  std::span<const uint8_t> materialsFitted;   // per object
-  std::span<const uint8_t> emits;             // per object
+  std::span<const uint8_t> albedoHeld;       // per object
+  std::span<const uint8_t> materialsFitted;  // per object
+  std::span<const uint8_t> emits;            // per object
 
   void apply(ParamGroup& g, std::vector<float>& albedoCurvature, std::span<const uint32_t> splattedAlbedo) const;
 };
@@ -42,8 +42,8 @@ class GroupOptimiser {
 
   // One step of group `g` at iteration `it` of stage `st` (its gradient already masked), then its
   // Polyak average when the stage settles it. Returns whether that average starts here.
-  bool step(ParamGroup& g, std::span<const float> albedoCurvature, std::span<const uint32_t> splattedAlbedo, const Stage& st,
-            int it);
+  bool step(ParamGroup& g, std::span<const float> albedoCurvature, std::span<const uint32_t> splattedAlbedo,
+            const Stage& st, int it);
   // At the end of stage `st`: the groups it settles take their averages.
   void settle(std::span<ParamGroup> groups, const Stage& st) const;
 

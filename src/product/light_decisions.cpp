@@ -20,8 +20,13 @@ constexpr uint64_t kHighlightProbeBatches = 16;
 }  // namespace
 
 ObjectRoles::ObjectRoles(int objects)
-    : emitter(objects, 1), outOfModel(objects, 0), highlight(objects, 0), highlightPairs(objects, 0),
-      highlightContrast(objects, 0.0), observedSum(objects, 0.0), observedCount(objects, 0) {}
+    : emitter(objects, 1),
+      outOfModel(objects, 0),
+      highlight(objects, 0),
+      highlightPairs(objects, 0),
+      highlightContrast(objects, 0.0),
+      observedSum(objects, 0.0),
+      observedCount(objects, 0) {}
 
 void ObjectRoles::serialise(CheckpointIo& io) {
   io.json("light_decisions", lightDecisions);
@@ -71,7 +76,8 @@ void LightDecisions::applyHint() {
     hinted[it - a_.names.begin()] = 1;
   }
   for (int o = 0; o < a_.objectCount(); ++o) {
-    if (hinted[o] && !r_.emitter[o]) spdlog::warn("fit: object {} ({}) is named a light but no frame sees it: its emission stays 0", o, a_.names[o]);
+    if (hinted[o] && !r_.emitter[o])
+      spdlog::warn("fit: object {} ({}) is named a light but no frame sees it: its emission stays 0", o, a_.names[o]);
     r_.emitter[o] = r_.emitter[o] && hinted[o];
   }
 }
@@ -98,7 +104,8 @@ bool LightDecisions::decide(const TexelSpace& space, const std::string& after, b
   std::vector<std::vector<uint32_t>> texels(objects);
   for (uint32_t t : space.sampleable) texels[space.objectOf(t, w_.mesh)].push_back(t);
   std::vector<uint8_t> candidate(objects, 0);
-  for (int o = 0; o < objects; ++o) candidate[o] = !texels[o].empty() && !r_.outOfModel[o] && (first ? r_.emitter[o] != 0 : true);
+  for (int o = 0; o < objects; ++o)
+    candidate[o] = !texels[o].empty() && !r_.outOfModel[o] && (first ? r_.emitter[o] != 0 : true);
   // Each candidate's own texels, the same number for each, through their centres (point rays).
   const uint64_t stream = hashTuple({c_.seed, streamTag(RandomStream::LightDecision), r_.lightDecisions.size()});
   Batch batch;
@@ -137,10 +144,13 @@ bool LightDecisions::decide(const TexelSpace& space, const std::string& after, b
     const bool light = d.verdict == LightVerdict::Light;
     spdlog::info("fit: after {}: object {} ({}) is {}: {}", after, o, a_.names[o], lightVerdictName(d.verdict), d.why);
     if (const UnderLit u = underLit(evidence[o], test); last && u.underLit && d.verdict == LightVerdict::Reflector)
-      spdlog::warn("fit: after {}: object {} ({}) is under-lit: {:.3g} of its radiance no light in view explains; the missing light "
-                   "lands around ({:.2f}, {:.2f}, {:.2f}) and comes from direction ({:.2f}, {:.2f}, {:.2f}) (a light seen only from "
-                   "behind, outside the frames or under a shade?)",
-                   after, o, a_.names[o], u.missing, u.centre[0], u.centre[1], u.centre[2], u.from[0], u.from[1], u.from[2]);
+      spdlog::warn(
+          "fit: after {}: object {} ({}) is under-lit: {:.3g} of its radiance no light in view explains; the missing "
+          "light "
+          "lands around ({:.2f}, {:.2f}, {:.2f}) and comes from direction ({:.2f}, {:.2f}, {:.2f}) (a light seen only "
+          "from "
+          "behind, outside the frames or under a shade?)",
+          after, o, a_.names[o], u.missing, u.centre[0], u.centre[1], u.centre[2], u.from[0], u.from[1], u.from[2]);
     if (d.verdict == LightVerdict::OutOfModel) r_.outOfModel[o] = 1;
     r_.emitter[o] = light;
     if (!light) {
@@ -150,8 +160,10 @@ bool LightDecisions::decide(const TexelSpace& space, const std::string& after, b
       // A light's emission is set when it becomes one (and, with light_albedo_zero, at the
       // first decision, where its albedo goes to 0); a re-decision that agrees changes nothing.
       const bool wasEmitting = a_.isEmissive(o);
-      if (c_.lightAlbedoZero && (first || !wasEmitting)) a_.emission[o] = evidence[o].meanObservedColor();
-      else if (!wasEmitting) a_.emission[o] = evidence[o].emissionEstimate();
+      if (c_.lightAlbedoZero && (first || !wasEmitting))
+        a_.emission[o] = evidence[o].meanObservedColor();
+      else if (!wasEmitting)
+        a_.emission[o] = evidence[o].emissionEstimate();
       changed |= !first && !wasEmitting;
     }
   }
@@ -161,7 +173,8 @@ bool LightDecisions::decide(const TexelSpace& space, const std::string& after, b
     r_.refitEmission = 1;
     restartAlbedo(space, evidence, dropped);
   }
-  r_.lightDecisions.push_back({{"after", after}, {"objects", lightDecisionsJson(evidence, decisions, a_.names, test, last)}});
+  r_.lightDecisions.push_back(
+      {{"after", after}, {"objects", lightDecisionsJson(evidence, decisions, a_.names, test, last)}});
   return changed;
 }
 // Texels no frame saw are never updated; they light the rest of the scene all the same (a
@@ -187,9 +200,10 @@ void LightDecisions::fillUnobservedAlbedo(const TexelSpace& space) {
 }
 // The lights changed, so every albedo was fitted under the wrong light: the running fits start
 // over (their averages hold residuals of the old lights; the caller restarts the optimiser), and
-// an object that stopped being a light, whose albedo had collapsed while its emission made up its radiance, is rescaled to the
-// albedo its evidence implies (what it shows over what albedo 1 returns).
-void LightDecisions::restartAlbedo(const TexelSpace& space, const std::vector<LightEvidence>& evidence, const std::vector<uint8_t>& dropped) {
+// an object that stopped being a light, whose albedo had collapsed while its emission made up its radiance, is rescaled
+// to the albedo its evidence implies (what it shows over what albedo 1 returns).
+void LightDecisions::restartAlbedo(const TexelSpace& space, const std::vector<LightEvidence>& evidence,
+                                   const std::vector<uint8_t>& dropped) {
   const int objects = a_.objectCount();
   std::vector<Eigen::Array3d> sum(objects, Eigen::Array3d::Zero());
   std::vector<size_t> count(objects, 0);
@@ -205,7 +219,8 @@ void LightDecisions::restartAlbedo(const TexelSpace& space, const std::vector<Li
   for (int o = 0; o < objects; ++o)
     if (dropped[o] && count[o] > 0) {
       target[o] = evidence[o].albedoEstimate();
-      for (int c = 0; c < 3; ++c) scale[o][c] = sum[o][c] > 1e-3 * count[o] ? static_cast<float>(target[o][c] * count[o] / sum[o][c]) : 0.0f;
+      for (int c = 0; c < 3; ++c)
+        scale[o][c] = sum[o][c] > 1e-3 * count[o] ? static_cast<float>(target[o][c] * count[o] / sum[o][c]) : 0.0f;
       spdlog::info("fit: object {} ({}) is no light: its albedo restarts at {:.3g} {:.3g} {:.3g}", o, a_.names[o],
                    target[o][0], target[o][1], target[o][2]);
     }
@@ -219,17 +234,18 @@ void LightDecisions::restartAlbedo(const TexelSpace& space, const std::vector<Li
     }
   }
 }
-// light_test radiance_fraction: light sources are the objects whose own emission explains most of how they look (at least
-// r_.emitterradiance_fraction of their mean observed radiance) and that carry at least
-// prune_fraction of the total emitted power. The rest go to 0 and stay frozen. The radiance test
-// matters because during this stage the albedo is the median radiance, darker than the true
-// albedo by the irradiance factor, so lit walls make up for it with a weak emission of their own.
+// light_test radiance_fraction: light sources are the objects whose own emission explains most of how they look (at
+// least r_.emitterradiance_fraction of their mean observed radiance) and that carry at least prune_fraction of the
+// total emitted power. The rest go to 0 and stay frozen. The radiance test matters because during this stage the albedo
+// is the median radiance, darker than the true albedo by the irradiance factor, so lit walls make up for it with a weak
+// emission of their own.
 void LightDecisions::prune() {
   std::vector<double> area(a_.objectCount(), 0.0);
   for (size_t f = 0; f < w_.mesh.triangles.size(); ++f) {
     const auto& t = w_.mesh.triangles[f];
-    area[w_.mesh.faceObject[f]] +=
-        0.5 * (w_.mesh.positions[t[1]] - w_.mesh.positions[t[0]]).cross(w_.mesh.positions[t[2]] - w_.mesh.positions[t[0]]).norm();
+    area[w_.mesh.faceObject[f]] += 0.5 * (w_.mesh.positions[t[1]] - w_.mesh.positions[t[0]])
+                                             .cross(w_.mesh.positions[t[2]] - w_.mesh.positions[t[0]])
+                                             .norm();
   }
   std::vector<double> power(a_.objectCount());
   double totalPower = 0;
@@ -237,14 +253,15 @@ void LightDecisions::prune() {
   for (int o = 0; o < a_.objectCount(); ++o) {
     const double observed = r_.observedCount[o] ? r_.observedSum[o] / r_.observedCount[o] : 0.0;
     r_.emitter[o] = r_.emitter[o] && totalPower > 0 && power[o] >= c_.pruneFraction * totalPower &&
-                  luminance(a_.emission[o]) >= c_.emitterRadianceFraction * observed;
+                    luminance(a_.emission[o]) >= c_.emitterRadianceFraction * observed;
     if (power[o] >= c_.pruneFraction * totalPower && !r_.emitter[o])
       spdlog::info("fit: object {} ({}) emits {:.3g} but looks {:.3g}: lit, not a light source", o, a_.names[o],
                    luminance(a_.emission[o]), observed);
-    if (!r_.emitter[o]) a_.emission[o] = Color::Zero();
-    else spdlog::info("fit: object {} ({}) is a light source: emission {:.3g} {:.3g} {:.3g}, {:.1f}% of the power", o,
-                      a_.names[o], a_.emission[o][0], a_.emission[o][1], a_.emission[o][2],
-                      100 * power[o] / totalPower);
+    if (!r_.emitter[o])
+      a_.emission[o] = Color::Zero();
+    else
+      spdlog::info("fit: object {} ({}) is a light source: emission {:.3g} {:.3g} {:.3g}, {:.1f}% of the power", o,
+                   a_.names[o], a_.emission[o][0], a_.emission[o][1], a_.emission[o][2], 100 * power[o] / totalPower);
   }
 }
 
@@ -264,10 +281,12 @@ void LightDecisions::decideHighlights(const TexelSpace& space, const FitBatches&
   for (int o = 0; o < objects; ++o) {
     r_.highlightPairs[o] = evidence.texels(o), r_.highlightContrast[o] = evidence.contrast(o);
     r_.highlight[o] = !r_.emitter[o] && evidence.observed(o, c_.highlightMinPairs, c_.highlightMinContrast);
-    spdlog::info("fit: object {} ({}): {} texels seen with and without a light reflected, {:+.1f}% +- {:.1f}% brighter with it -> "
-                 "roughness/specular {}",
-                 o, a_.names[o], evidence.texels(o), 100 * evidence.contrast(o), 100 * evidence.standardError(o),
-                 r_.highlight[o] ? "fitted" : "unconstrained (kept at init)");
+    spdlog::info(
+        "fit: object {} ({}): {} texels seen with and without a light reflected, {:+.1f}% +- {:.1f}% brighter with it "
+        "-> "
+        "roughness/specular {}",
+        o, a_.names[o], evidence.texels(o), 100 * evidence.contrast(o), 100 * evidence.standardError(o),
+        r_.highlight[o] ? "fitted" : "unconstrained (kept at init)");
   }
 }
 

@@ -19,11 +19,11 @@
 namespace relume {
 
 struct ObjectRoles {
-  std::vector<uint8_t> emitter;     // a light-source candidate, or a light once decided
-  std::vector<uint8_t> outOfModel;  // excluded from emission and albedo (light_evidence.h)
-  std::vector<uint8_t> highlight;   // roughness and specular fitted
-  uint8_t refitEmission = 0;        // the re-decision changed the light sources: run emission_refit
-  Json lightDecisions = Json::array();  // each decision's evidence (result/lights.json)
+  std::vector<uint8_t> emitter;           // a light-source candidate, or a light once decided
+  std::vector<uint8_t> outOfModel;        // excluded from emission and albedo (light_evidence.h)
+  std::vector<uint8_t> highlight;         // roughness and specular fitted
+  uint8_t refitEmission = 0;              // the re-decision changed the light sources: run emission_refit
+  Json lightDecisions = Json::array();    // each decision's evidence (result/lights.json)
   std::vector<uint64_t> highlightPairs;   // texels compared with and without a light reflected
   std::vector<double> highlightContrast;  // their mean contrast
   std::vector<double> observedSum;        // luminance of the references seen in the emission stage
@@ -67,7 +67,8 @@ class LightDecisions {
 
  private:
   void prune();
-  void restartAlbedo(const TexelSpace& space, const std::vector<LightEvidence>& evidence, const std::vector<uint8_t>& dropped);
+  void restartAlbedo(const TexelSpace& space, const std::vector<LightEvidence>& evidence,
+                     const std::vector<uint8_t>& dropped);
 
   const FitConfig& c_;
   const Workspace& w_;

@@ -41,7 +41,8 @@ namespace {
 // Whether the pixel of `camera` that sees `p` and its 8 neighbours all show `object`.
 bool interiorPixel(const Scene& scene, const Camera& camera, const Vec3& p, int object) {
   const auto pixel = camera.project(p);
-  if (!pixel || pixel->x() < 1 || pixel->y() < 1 || pixel->x() >= camera.width - 1 || pixel->y() >= camera.height - 1) return false;
+  if (!pixel || pixel->x() < 1 || pixel->y() < 1 || pixel->x() >= camera.width - 1 || pixel->y() >= camera.height - 1)
+    return false;
   for (int dy = -1; dy <= 1; ++dy)
     for (int dx = -1; dx <= 1; ++dx) {
       if (dx == 0 && dy == 0) continue;
@@ -55,9 +56,10 @@ bool interiorPixel(const Scene& scene, const Camera& camera, const Vec3& p, int 
 
 }  // namespace
 
-std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const TriangleMesh& mesh, const Appearance& appearance,
-                                               const LightSampler& lights, const std::vector<BatchRay>& rays,
-                                               const std::vector<int>& objects, const PathSettings& path, uint64_t seed,
+std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const TriangleMesh& mesh,
+                                               const Appearance& appearance, const LightSampler& lights,
+                                               const std::vector<BatchRay>& rays, const std::vector<int>& objects,
+                                               const PathSettings& path, uint64_t seed,
                                                const std::vector<const Camera*>* cameras) {
   CHECK(!cameras || cameras->size() == rays.size());
   const size_t n = rays.size();
@@ -70,8 +72,9 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
   std::fill(white.albedoConstant.begin(), white.albedoConstant.end(), Color::Constant(1.0f));
   std::fill(white.albedoFromTexture.begin(), white.albedoFromTexture.end(), 0);
   const AppearanceScope whiteFirst{&appearance, &white, &appearance, &appearance, &appearance};
-  const std::vector<Color> returned =
-      traceRays(scene, lights, whiteFirst, rays, path, [&](size_t j) { return hashTuple({seed, streamTag(RandomStream::ReflectorBound), j}); });
+  const std::vector<Color> returned = traceRays(scene, lights, whiteFirst, rays, path, [&](size_t j) {
+    return hashTuple({seed, streamTag(RandomStream::ReflectorBound), j});
+  });
 
   // Per ray: the own emission seen directly, the model's mirror bound and the perfect mirror's ray.
   std::vector<Color> ownEmission(n, Color::Zero());
@@ -101,8 +104,10 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
       return true;
     });
   });
-  const std::vector<Color> mirrored = traceRays(scene, lights, AppearanceScope::uniform(appearance), mirrorRays, path,
-                                                [&](size_t j) { return hashTuple({seed, streamTag(RandomStream::MirrorPath), j}); });
+  const std::vector<Color> mirrored =
+      traceRays(scene, lights, AppearanceScope::uniform(appearance), mirrorRays, path, [&](size_t j) {
+        return hashTuple({seed, streamTag(RandomStream::MirrorPath), j});
+      });
 
   // An object with fewer than kMinInteriorRays interior rays (a lamp never 3x3 pixels wide in any
   // frame) is judged on all its rays rather than on none.
@@ -111,7 +116,8 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
   for (size_t j = 0; j < n; ++j) interiorRays[objects[j]] += valid[j] && interior[j];
   std::vector<LightEvidence> out(appearance.objectCount());
   for (size_t f = 0; f < mesh.triangles.size(); ++f)
-    if (mesh.faceObject[f] >= 0 && mesh.faceObject[f] < appearance.objectCount()) out[mesh.faceObject[f]].area += mesh.faceArea[f];
+    if (mesh.faceObject[f] >= 0 && mesh.faceObject[f] < appearance.objectCount())
+      out[mesh.faceObject[f]].area += mesh.faceArea[f];
   for (size_t j = 0; j < n; ++j) {
     if (!valid[j] || (!interior[j] && interiorRays[objects[j]] >= kMinInteriorRays)) continue;
     LightEvidence& e = out[objects[j]];
@@ -146,17 +152,22 @@ UnderLit underLit(const LightEvidence& e, const LightTestSettings& s) {
 
 const char* lightVerdictName(LightVerdict v) {
   switch (v) {
-    case LightVerdict::Light: return "light";
-    case LightVerdict::Reflector: return "reflector";
-    case LightVerdict::OutOfModel: return "out_of_model";
-    case LightVerdict::Weak: return "weak";
-    case LightVerdict::NotACandidate: return "not_a_candidate";
+    case LightVerdict::Light:
+      return "light";
+    case LightVerdict::Reflector:
+      return "reflector";
+    case LightVerdict::OutOfModel:
+      return "out_of_model";
+    case LightVerdict::Weak:
+      return "weak";
+    case LightVerdict::NotACandidate:
+      return "not_a_candidate";
   }
   return "?";
 }
 
-std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& evidence, const std::vector<uint8_t>& candidate,
-                                        const LightTestSettings& s) {
+std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& evidence,
+                                        const std::vector<uint8_t>& candidate, const LightTestSettings& s) {
   CHECK_EQ(evidence.size(), candidate.size());
   std::vector<LightDecision> out(evidence.size());
   std::vector<double> power(evidence.size(), 0.0);
@@ -193,23 +204,27 @@ std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& eviden
     const double x = e.meanExcess(), se = e.excessError(), share = e.unexplainedShare();
     if (!passesExcess(e)) {
       d.verdict = LightVerdict::Reflector;
-      d.why = fmt::format("looks {:.3g}; a reflector with albedo <= 1 returns {:.3g} (unexplained {:.0f}% +- {:.0f}%, needs {:.0f}% and {:.0f} sigma)",
-                          e.meanObserved(), e.meanReflector(), 100 * share, 100 * se / std::max(1e-30, e.meanObserved()),
-                          100 * s.minUnexplained, s.significance);
+      d.why = fmt::format(
+          "looks {:.3g}; a reflector with albedo <= 1 returns {:.3g} (unexplained {:.0f}% +- {:.0f}%, needs {:.0f}% "
+          "and {:.0f} sigma)",
+          e.meanObserved(), e.meanReflector(), 100 * share, 100 * se / std::max(1e-30, e.meanObserved()),
+          100 * s.minUnexplained, s.significance);
       continue;
     }
     if (e.meanObserved() < s.minContrast * median) {
       d.verdict = LightVerdict::Reflector;
-      d.why = fmt::format("looks {:.3g}, more than a reflector returns under the lights in view ({:.3g}), but only {:.1f}x the "
-                          "room's median {:.3g} (needs {:.0f}x): lit by a light the frames do not show?",
-                          e.meanObserved(), e.meanReflector(), e.meanObserved() / std::max(1e-30, median), median, s.minContrast);
+      d.why = fmt::format(
+          "looks {:.3g}, more than a reflector returns under the lights in view ({:.3g}), but only {:.1f}x the "
+          "room's median {:.3g} (needs {:.0f}x): lit by a light the frames do not show?",
+          e.meanObserved(), e.meanReflector(), e.meanObserved() / std::max(1e-30, median), median, s.minContrast);
       continue;
     }
     if (e.mirrorResidualSquares < e.constantResidualSquares()) {
       d.verdict = LightVerdict::OutOfModel;
-      d.why = fmt::format("looks {:.3g}, more than a reflector of the model returns ({:.3g}), but a mirror explains its pixels "
-                          "better than an emission does (residual {:.3g} vs {:.3g}): metal, mirror or glass",
-                          e.meanObserved(), e.meanReflector(), e.mirrorResidualSquares / e.rays, e.constantResidualSquares() / e.rays);
+      d.why = fmt::format(
+          "looks {:.3g}, more than a reflector of the model returns ({:.3g}), but a mirror explains its pixels "
+          "better than an emission does (residual {:.3g} vs {:.3g}): metal, mirror or glass",
+          e.meanObserved(), e.meanReflector(), e.mirrorResidualSquares / e.rays, e.constantResidualSquares() / e.rays);
       continue;
     }
     power[o] = e.area * x;
@@ -220,12 +235,13 @@ std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& eviden
     if (out[o].verdict != LightVerdict::Light) continue;
     const LightEvidence& e = evidence[o];
     out[o].powerShare = totalPower > 0 ? power[o] / totalPower : 0.0;
-    const std::string excess = fmt::format("looks {:.3g}; a reflector returns at most {:.3g} (unexplained {:.0f}%, {:.1f} sigma)",
-                                           e.meanObserved(), e.meanReflector(), 100 * e.unexplainedShare(),
-                                           e.meanExcess() / std::max(1e-30, e.excessError()));
+    const std::string excess = fmt::format(
+        "looks {:.3g}; a reflector returns at most {:.3g} (unexplained {:.0f}%, {:.1f} sigma)", e.meanObserved(),
+        e.meanReflector(), 100 * e.unexplainedShare(), e.meanExcess() / std::max(1e-30, e.excessError()));
     if (out[o].powerShare < s.pruneFraction) {
       out[o].verdict = LightVerdict::Weak;
-      out[o].why = fmt::format("{}, but {:.2f}% of the power (needs {:.0f}%)", excess, 100 * out[o].powerShare, 100 * s.pruneFraction);
+      out[o].why = fmt::format("{}, but {:.2f}% of the power (needs {:.0f}%)", excess, 100 * out[o].powerShare,
+                               100 * s.pruneFraction);
     } else {
       out[o].why = fmt::format("{}, {:.1f}% of the power", excess, 100 * out[o].powerShare);
     }
@@ -240,14 +256,20 @@ Json lightDecisionsJson(const std::vector<LightEvidence>& evidence, const std::v
     const LightEvidence& e = evidence[o];
     if (decisions[o].verdict == LightVerdict::NotACandidate && e.rays == 0) continue;
     const Color est = e.emissionEstimate();
-    objects.push_back({{"id", o}, {"name", o < names.size() ? names[o] : std::string()},
-                       {"decision", lightVerdictName(decisions[o].verdict)}, {"why", decisions[o].why}, {"rays", e.rays},
-                       {"observed", e.meanObserved()}, {"reflector_bound", e.meanReflector()},
-                       {"unexplained", e.meanExcess()}, {"unexplained_error", std::isfinite(e.excessError()) ? e.excessError() : -1.0},
+    objects.push_back({{"id", o},
+                       {"name", o < names.size() ? names[o] : std::string()},
+                       {"decision", lightVerdictName(decisions[o].verdict)},
+                       {"why", decisions[o].why},
+                       {"rays", e.rays},
+                       {"observed", e.meanObserved()},
+                       {"reflector_bound", e.meanReflector()},
+                       {"unexplained", e.meanExcess()},
+                       {"unexplained_error", std::isfinite(e.excessError()) ? e.excessError() : -1.0},
                        {"unexplained_share", e.unexplainedShare()},
                        {"mirror_residual", e.rays ? e.mirrorResidualSquares / e.rays : 0.0},
                        {"constant_residual", e.rays ? e.constantResidualSquares() / e.rays : 0.0},
-                       {"emission_estimate", {est[0], est[1], est[2]}}, {"area_m2", e.area},
+                       {"emission_estimate", {est[0], est[1], est[2]}},
+                       {"area_m2", e.area},
                        {"power_share", decisions[o].powerShare}});
     const UnderLit u = underLit(e, settings);
     if (withUnderLit && decisions[o].verdict == LightVerdict::Reflector && u.underLit)

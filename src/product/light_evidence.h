@@ -38,7 +38,8 @@ namespace relume {
 // The mirror direction of `dir` about the geometric normal on the viewer's side, then four
 // directions 10 degrees around it (a glossy lobe's width), those above the surface; fn(d) returns
 // false to stop.
-template <class Fn> void forEachMirrorDirection(const SurfaceHit& hit, const Vec3& dir, Fn&& fn) {
+template <class Fn>
+void forEachMirrorDirection(const SurfaceHit& hit, const Vec3& dir, Fn&& fn) {
   const Vec3 n = hit.ng.dot(dir) < 0 ? hit.ng : Vec3(-hit.ng);
   const ShadingFrame frame(dir - 2.0f * dir.dot(n) * n);
   for (int k = 0; k < 5; ++k) {
@@ -51,15 +52,15 @@ template <class Fn> void forEachMirrorDirection(const SurfaceHit& hit, const Vec
 // Sums over one object's rays; means and errors derived below.
 struct LightEvidence {
   uint64_t rays = 0;
-  double observed = 0;      // sum of I
+  double observed = 0;  // sum of I
   Color observedColor = Color::Zero();
-  double reflector = 0;     // sum of B
+  double reflector = 0;                  // sum of B
   Color reflectorColor = Color::Zero();  // sum of B per channel
-  Color excessColor = Color::Zero();  // sum of the colour excess I - B (per channel)
-  double excess = 0, excessSquares = 0;           // sum of x, x^2
-  double observedSquares = 0;                     // sum of I^2
-  double mirrorResidualSquares = 0;               // sum of (I - P)^2
-  double area = 0;          // of the object's surface, m^2
+  Color excessColor = Color::Zero();     // sum of the colour excess I - B (per channel)
+  double excess = 0, excessSquares = 0;  // sum of x, x^2
+  double observedSquares = 0;            // sum of I^2
+  double mirrorResidualSquares = 0;      // sum of (I - P)^2
+  double area = 0;                       // of the object's surface, m^2
   // Where the radiance is more than a reflector returns (x > 0): the sum of x, and of x times the
   // point and its normal (on the viewer's side): where light is missing and which way it faces.
   double deficit = 0;
@@ -86,9 +87,10 @@ struct LightEvidence {
 // neighbours into the reference, so an object seen only at its silhouette (a thin string in front
 // of a window) would borrow their radiance. An object with fewer than 16 such interior rays is
 // judged on all of its rays.
-std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const TriangleMesh& mesh, const Appearance& appearance,
-                                               const LightSampler& lights, const std::vector<BatchRay>& rays,
-                                               const std::vector<int>& objects, const PathSettings& path, uint64_t seed,
+std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const TriangleMesh& mesh,
+                                               const Appearance& appearance, const LightSampler& lights,
+                                               const std::vector<BatchRay>& rays, const std::vector<int>& objects,
+                                               const PathSettings& path, uint64_t seed,
                                                const std::vector<const Camera*>* cameras = nullptr);
 
 struct LightTestSettings {
@@ -115,7 +117,6 @@ struct UnderLit {
 UnderLit underLit(const LightEvidence& e, const LightTestSettings& settings);
 const char* lightVerdictName(LightVerdict v);
 
-
 struct LightDecision {
   LightVerdict verdict = LightVerdict::NotACandidate;
   double powerShare = 0;  // of the total implied by the objects that pass the excess test
@@ -123,8 +124,8 @@ struct LightDecision {
 };
 
 // One decision per object; objects with candidate[o] == 0 are NotACandidate.
-std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& evidence, const std::vector<uint8_t>& candidate,
-                                        const LightTestSettings& settings);
+std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& evidence,
+                                        const std::vector<uint8_t>& candidate, const LightTestSettings& settings);
 
 // The evidence and decisions as the report shows them: one entry per object with rays (with
 // `under_lit` for the reflectors that are, when `withUnderLit`).

@@ -66,11 +66,11 @@ Image falseColour(const std::vector<uint32_t>& counts, int res) {
     const float t = std::log1p(static_cast<float>(counts[i])) / std::log1p(static_cast<float>(maxCount));
     // Blue (seen once) -> green -> yellow -> red (seen most); black = never.
     const Color c = t < 0.5f ? Color(0, 2 * t, 1 - 2 * t) : Color(2 * (t - 0.5f), 1 - 2 * (t - 0.5f) * 0.5f, 0);
-    img.rgb[3 * i] = srgbToLinear(c[0]), img.rgb[3 * i + 1] = srgbToLinear(c[1]), img.rgb[3 * i + 2] = srgbToLinear(c[2]);
+    img.rgb[3 * i] = srgbToLinear(c[0]), img.rgb[3 * i + 1] = srgbToLinear(c[1]),
+                img.rgb[3 * i + 2] = srgbToLinear(c[2]);
   }
   return img;
 }
-
 
 // The phases, in order; each returns what prepare.json records of it.
 
@@ -87,15 +87,25 @@ Json atlasPhase(const fs::path& capture, const fs::path& meshPath, const fs::pat
   for (size_t id = 0; id < mesh.objectNames.size(); ++id) names[std::to_string(id)] = mesh.objectNames[id];
   if (fs::exists(capture / "objects.json"))
     for (const auto& [id, name] : readObjectNames(capture / "objects.json")) names[std::to_string(id)] = name;
-  return Json{{"triangles", atlas.triangles.size()}, {"objects", atlas.objectCount}, {"dropped_degenerate", mesh.droppedDegenerate},
+  return Json{{"triangles", atlas.triangles.size()},
+              {"objects", atlas.objectCount},
+              {"dropped_degenerate", mesh.droppedDegenerate},
               {"dropped_coincident", mesh.droppedCoincident},
-              {"kept_input_uv", ar.keptInputUv}, {"charts", ar.charts}, {"lscm_charts", ar.lscmCharts},
-              {"split_charts", ar.splitCharts}, {"merged_charts", ar.mergedCharts}, {"hollow_charts", ar.hollowCharts},
-              {"shared_blocks", ar.sharedBlocks}, {"charts_in_shared_blocks", ar.blockedCharts},
-              {"surface_in_shared_blocks", ar.blockedSurface}, {"packing_efficiency", ar.packingEfficiency},
-              {"texels_per_metre", ar.texelsPerMetre}, {"gutter_resolution", o.atlas.gutterResolution},
+              {"kept_input_uv", ar.keptInputUv},
+              {"charts", ar.charts},
+              {"lscm_charts", ar.lscmCharts},
+              {"split_charts", ar.splitCharts},
+              {"merged_charts", ar.mergedCharts},
+              {"hollow_charts", ar.hollowCharts},
+              {"shared_blocks", ar.sharedBlocks},
+              {"charts_in_shared_blocks", ar.blockedCharts},
+              {"surface_in_shared_blocks", ar.blockedSurface},
+              {"packing_efficiency", ar.packingEfficiency},
+              {"texels_per_metre", ar.texelsPerMetre},
+              {"gutter_resolution", o.atlas.gutterResolution},
               {"stretch_p05_median_p95", {ar.stretchP05, ar.stretchMedian, ar.stretchP95}},
-              {"uv_overlaps", ar.uvOverlaps}, {"atlas_seconds", ar.seconds},
+              {"uv_overlaps", ar.uvOverlaps},
+              {"atlas_seconds", ar.seconds},
               {"object_names", names}};
 }
 
@@ -110,13 +120,19 @@ std::string dropReason(const Capture& cap, size_t i, const FrameStats& stats, co
     if (j < 0 || j >= static_cast<long>(cap.frames.size())) continue;
     const Camera& d = cap.frames[j].camera;
     speed = std::min(speed, (c.position - d.position).norm());
-    angle = std::min(angle, std::acos(std::clamp(((c.rotation.transpose() * d.rotation).trace() - 1.0f) / 2.0f, -1.0f, 1.0f)) * 180.0f / kPi);
+    angle = std::min(angle,
+                     std::acos(std::clamp(((c.rotation.transpose() * d.rotation).trace() - 1.0f) / 2.0f, -1.0f, 1.0f)) *
+                         180.0f / kPi);
   }
   if (!std::isfinite(speed)) speed = angle = 0;
-  if (stats.overexposed > o.maxOverexposed) reason = fmt::format("overexposed ({:.0f}% saturated)", 100 * stats.overexposed);
-  else if (stats.underexposed > o.maxUnderexposed) reason = fmt::format("underexposed ({:.0f}% dark)", 100 * stats.underexposed);
-  else if (speed > o.maxSpeed) reason = fmt::format("motion blur (moved {:.2f} m per frame)", speed);
-  else if (angle > o.maxAngularSpeed) reason = fmt::format("motion blur (turned {:.1f} deg per frame)", angle);
+  if (stats.overexposed > o.maxOverexposed)
+    reason = fmt::format("overexposed ({:.0f}% saturated)", 100 * stats.overexposed);
+  else if (stats.underexposed > o.maxUnderexposed)
+    reason = fmt::format("underexposed ({:.0f}% dark)", 100 * stats.underexposed);
+  else if (speed > o.maxSpeed)
+    reason = fmt::format("motion blur (moved {:.2f} m per frame)", speed);
+  else if (angle > o.maxAngularSpeed)
+    reason = fmt::format("motion blur (turned {:.1f} deg per frame)", angle);
   return reason;
 }
 
@@ -124,7 +140,8 @@ std::string dropReason(const Capture& cap, size_t i, const FrameStats& stats, co
 // filtered.
 Json framesPhase(const Capture& cap, const fs::path& work, const PrepareOptions& o) {
   Progress progress("frame cache", cap.frames.size());
-  const std::vector<FrameStats> stats = writeFrameStore(work / "frames.bin", cap.frames, o.downscale, [&] { progress.advance(); });
+  const std::vector<FrameStats> stats =
+      writeFrameStore(work / "frames.bin", cap.frames, o.downscale, [&] { progress.advance(); });
   Json kept = Json::array(), dropped = Json::array();
   std::map<std::string, int> reasons;
   for (size_t i = 0; i < cap.frames.size(); ++i) {
@@ -140,7 +157,10 @@ Json framesPhase(const Capture& cap, const fs::path& work, const PrepareOptions&
   Json masked = Json::object();  // frames with NaN/Inf pixels (masked, never used)
   for (size_t i = 0; i < stats.size(); ++i)
     if (stats[i].masked > 0) masked[std::to_string(i)] = stats[i].masked;
-  return Json{{"frames", cap.frames.size()}, {"kept", kept}, {"dropped", dropped}, {"dropped_by_reason", reasons},
+  return Json{{"frames", cap.frames.size()},
+              {"kept", kept},
+              {"dropped", dropped},
+              {"dropped_by_reason", reasons},
               {"masked_pixel_fraction", masked},
               {"bytes", fs::file_size(work / "frames.bin")}};
 }
@@ -162,8 +182,12 @@ Json visibilityPhase(const Scene& scene, const TexelMap& initMap, const Capture&
       spdlog::warn("frame {} ({}) sees no surface of the mesh: skipped", k, cap.frames[k].image.filename().string());
       blind.push_back(k);
     }
-  return Json{{"tiles", tiles}, {"tiles_seen", seen}, {"entries", vis.frames.size()}, {"bytes", vis.bytes()},
-              {"frames_seeing_nothing", blind}, {"skipped_rays", scene.skippedRays() - skippedBefore},
+  return Json{{"tiles", tiles},
+              {"tiles_seen", seen},
+              {"entries", vis.frames.size()},
+              {"bytes", vis.bytes()},
+              {"frames_seeing_nothing", blind},
+              {"skipped_rays", scene.skippedRays() - skippedBefore},
               {"mean_frames_per_seen_tile", seen ? double(vis.frames.size()) / seen : 0.0}};
 }
 
@@ -174,9 +198,17 @@ class TexelObservations {
  public:
   TexelObservations(const Scene& scene, const TexelMap& initMap, const Capture& cap, const std::vector<size_t>& kept,
                     const VisibilityIndex& vis, const FrameStore& store, int tileTexels)
-      : scene_(scene), map_(initMap), cap_(cap), kept_(kept), store_(store), tileTexels_(tileTexels),
-        tileArea_(static_cast<size_t>(tileTexels) * tileTexels), tilesOf_(cap.frames.size()), seenBits_(vis.offsets.size() - 1),
-        texelPoint_(initMap.texelCount()), texelNormal_(initMap.texelCount()) {
+      : scene_(scene),
+        map_(initMap),
+        cap_(cap),
+        kept_(kept),
+        store_(store),
+        tileTexels_(tileTexels),
+        tileArea_(static_cast<size_t>(tileTexels) * tileTexels),
+        tilesOf_(cap.frames.size()),
+        seenBits_(vis.offsets.size() - 1),
+        texelPoint_(initMap.texelCount()),
+        texelNormal_(initMap.texelCount()) {
     // For each frame, its tiles and its position in each tile's frame list.
     for (size_t t = 0; t + 1 < vis.offsets.size(); ++t)
       for (uint32_t k = vis.offsets[t]; k < vis.offsets[t + 1]; ++k)
@@ -209,7 +241,8 @@ class TexelObservations {
           for (int x = tx * tileTexels_; x < (tx + 1) * tileTexels_; ++x) {
             const size_t texel = static_cast<size_t>(y) * initRes + x;
             if (!map_.valid(texel)) continue;
-            const size_t bit = (static_cast<size_t>(y - ty * tileTexels_) * tileTexels_ + (x - tx * tileTexels_)) + tileArea_ * slot;
+            const size_t bit =
+                (static_cast<size_t>(y - ty * tileTexels_) * tileTexels_ + (x - tx * tileTexels_)) + tileArea_ * slot;
             std::optional<Vec2> px;
             if (traced) {
               if (!(bits[bit / 64] >> (bit % 64) & 1)) continue;
@@ -254,8 +287,8 @@ Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, 
   const VisibilityIndex vis = VisibilityIndex::read(work / "visibility.bin", cap.frames.size());
   const FrameStore store(work / "frames.bin");
   if (store.frameCount() != cap.frames.size())
-    fail("{}: holds {} frames, the capture has {} (rerun with --force)", (work / "frames.bin").string(), store.frameCount(),
-         cap.frames.size());
+    fail("{}: holds {} frames, the capture has {} (rerun with --force)", (work / "frames.bin").string(),
+         store.frameCount(), cap.frames.size());
   TexelObservations observations(scene, initMap, cap, kept, vis, store, o.tileTexels);
   const size_t texels = initMap.texelCount();
   MedianSketch sketch(texels);
@@ -275,7 +308,8 @@ Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, 
   for (size_t t = 0; t < texels; ++t) {
     if (!initMap.valid(t)) continue;
     ++valid;
-    cov.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes), Color::Constant(static_cast<float>(coverage[t])));
+    cov.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes),
+            Color::Constant(static_cast<float>(coverage[t])));
     if (coverage[t] == 0) {
       ++unobserved;
       continue;
@@ -298,9 +332,13 @@ Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, 
   writePng(work / "coverage.png", falseColour(coverage, initRes));
   const double fraction = valid ? double(unobserved) / valid : 0.0;
   spdlog::info("init: {} valid texels at {}^2, {:.2f}% never observed", valid, initRes, 100 * fraction);
-  return Json{{"resolution", initRes}, {"statistic", o.init == InitStatistic::Median ? "median" : "mean"},
-              {"valid_texels", valid}, {"unobserved_texels", unobserved}, {"fraction_unobserved", fraction},
-              {"texels_geometric_normal", observations.texelsWithGeometricNormal()}, {"skipped_rays", scene.skippedRays() - skippedBefore}};
+  return Json{{"resolution", initRes},
+              {"statistic", o.init == InitStatistic::Median ? "median" : "mean"},
+              {"valid_texels", valid},
+              {"unobserved_texels", unobserved},
+              {"fraction_unobserved", fraction},
+              {"texels_geometric_normal", observations.texelsWithGeometricNormal()},
+              {"skipped_rays", scene.skippedRays() - skippedBefore}};
 }
 
 }  // namespace
@@ -308,7 +346,8 @@ Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, 
 PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, const PrepareOptions& o) {
   Timer total;
   fs::create_directories(work);
-  if (const size_t stale = removeStaleTemporaries(work)) spdlog::info("prepare: removed {} temporaries of killed runs", stale);
+  if (const size_t stale = removeStaleTemporaries(work))
+    spdlog::info("prepare: removed {} temporaries of killed runs", stale);
   const fs::path transformsPath = capture / "transforms.json";
   const fs::path meshPath = findMesh(capture);
   const Capture cap = readTransforms(transformsPath);
@@ -316,7 +355,8 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   const Json reportBefore = report;
   Json phases = report.value("phases", Json::object());
   const int initRes = o.resolutions.front();
-  if (initRes % o.tileTexels != 0) fail("prepare: init resolution {} is not a multiple of the tile size {}", initRes, o.tileTexels);
+  if (initRes % o.tileTexels != 0)
+    fail("prepare: init resolution {} is not a multiple of the tile size {}", initRes, o.tileTexels);
   for (int r : o.resolutions)
     if (r < o.atlas.gutterResolution || r % o.atlas.gutterResolution != 0)
       fail("prepare: resolution {} must be a multiple of the atlas gutter resolution {}", r, o.atlas.gutterResolution);
@@ -342,8 +382,9 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
 
   // Atlas.
   // "atlas2": the charting/packing version, so work folders made by an older atlas are re-charted.
-  const std::string atlasPrint = fingerprintOf({meshPath}, fmt::format("atlas2 {} {} {} {}", o.atlas.gutterResolution,
-                                                                       o.atlas.gutterTexels, o.atlas.coneDegrees, o.atlas.planarDegrees));
+  const std::string atlasPrint =
+      fingerprintOf({meshPath}, fmt::format("atlas2 {} {} {} {}", o.atlas.gutterResolution, o.atlas.gutterTexels,
+                                            o.atlas.coneDegrees, o.atlas.planarDegrees));
   runPhase("atlas", atlasPrint, {work / "atlas_mesh.ply"}, [&] { return atlasPhase(capture, meshPath, work, o); });
   const TriangleMesh mesh = loadMesh(work / "atlas_mesh.ply");
   const Scene scene(mesh);
@@ -351,17 +392,19 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   // Frames: convert, then filter.
   std::vector<fs::path> imagePaths{transformsPath};
   for (const Frame& f : cap.frames) imagePaths.push_back(f.image);
-  const std::string framesPrint = fingerprintOf(imagePaths, fmt::format("frames {} {} {} {} {}", o.maxOverexposed, o.maxUnderexposed,
-                                                                         o.maxSpeed, o.maxAngularSpeed, o.downscale));
+  const std::string framesPrint =
+      fingerprintOf(imagePaths, fmt::format("frames {} {} {} {} {}", o.maxOverexposed, o.maxUnderexposed, o.maxSpeed,
+                                            o.maxAngularSpeed, o.downscale));
   runPhase("frames", framesPrint, {work / "frames.bin"}, [&] { return framesPhase(cap, work, o); });
   const std::vector<size_t> kept = phases["frames"]["kept"].get<std::vector<size_t>>();
   if (kept.empty()) fail("prepare: every frame was dropped (see {})", (work / "prepare.json").string());
 
   // Visibility index over tiles of the init resolution.
   const TexelMap initMap(mesh, initRes);
-  const std::string visPrint = fingerprintOf({}, fmt::format("vis {} {} {} {} {}", atlasPrint, framesPrint, initRes, o.tileTexels,
-                                                             o.samplesPerTile));
-  runPhase("visibility", visPrint, {work / "visibility.bin"}, [&] { return visibilityPhase(scene, initMap, cap, kept, work, o); });
+  const std::string visPrint = fingerprintOf(
+      {}, fmt::format("vis {} {} {} {} {}", atlasPrint, framesPrint, initRes, o.tileTexels, o.samplesPerTile));
+  runPhase("visibility", visPrint, {work / "visibility.bin"},
+           [&] { return visibilityPhase(scene, initMap, cap, kept, work, o); });
 
   // Initial albedo (streaming median of observed radiance) and coverage.
   const std::string initPrint = fingerprintOf({}, fmt::format("init {} {}", visPrint, static_cast<int>(o.init)));

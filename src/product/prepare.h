@@ -23,16 +23,16 @@ enum class InitStatistic { Median, Mean };
 
 struct PrepareOptions {
   std::vector<int> resolutions = {1024, 2048, 4096};  // the first is the init resolution
-  float maxOverexposed = 0.3f;      // drop frames with more than this fraction of saturated pixels
-  float maxUnderexposed = 0.6f;     // ... or of pixels at or below clip_low
-  float maxSpeed = 1.0f;            // metres between neighbouring frames (motion blur proxy; photo
-                                    // sets are sparse, so the defaults only catch real jumps)
-  float maxAngularSpeed = 45.0f;    // degrees between neighbouring frames
-  int tileTexels = 32;              // visibility tile size at the init resolution
-  int samplesPerTile = 6;           // surface points tested per tile and frame
-  int downscale = 1;                // box-filter frames by this factor in the cache (disk: 6 B/pixel)
+  float maxOverexposed = 0.3f;                        // drop frames with more than this fraction of saturated pixels
+  float maxUnderexposed = 0.6f;                       // ... or of pixels at or below clip_low
+  float maxSpeed = 1.0f;                              // metres between neighbouring frames (motion blur proxy; photo
+                                                      // sets are sparse, so the defaults only catch real jumps)
+  float maxAngularSpeed = 45.0f;                      // degrees between neighbouring frames
+  int tileTexels = 32;                                // visibility tile size at the init resolution
+  int samplesPerTile = 6;                             // surface points tested per tile and frame
+  int downscale = 1;                                  // box-filter frames by this factor in the cache (disk: 6 B/pixel)
   InitStatistic init = InitStatistic::Median;
-  bool force = false;               // redo every phase
+  bool force = false;  // redo every phase
   AtlasOptions atlas;
 };
 
@@ -46,4 +46,3 @@ PrepareSummary prepareCapture(const std::filesystem::path& capture, const std::f
                               const PrepareOptions& options);
 
 }  // namespace relume
-

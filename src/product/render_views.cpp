@@ -23,7 +23,8 @@ RenderStats renderViews(const std::filesystem::path& sceneFile, const std::files
     const std::string stem = frame.image.stem().string();
     writeExr(out / (stem + ".exr"), r.color);
     writePng(out / (stem + ".png"), r.color);
-    for (size_t k = 0; k < r.aovs.size(); ++k) writeExr(out / fmt::format("{}_{}.exr", stem, aovName(ro.aovs[k])), r.aovs[k]);
+    for (size_t k = 0; k < r.aovs.size(); ++k)
+      writeExr(out / fmt::format("{}_{}.exr", stem, aovName(ro.aovs[k])), r.aovs[k]);
     total.seconds += r.stats.seconds, total.paths += r.stats.paths, total.rays += r.stats.rays;
   }
   spdlog::info("rendered {} views to {} in {:.1f}s: {:.3f} Mpaths/s, {:.2f} Mrays/s", cap.frames.size(), out.string(),

@@ -11,7 +11,7 @@ namespace relume {
 
 struct RenderViewsOptions {
   RenderOptions render;
-  std::string aovs;  // comma list
+  std::string aovs;            // comma list
   std::filesystem::path edit;  // EDIT.json applied to the scene first (product/scene_edit.h); empty: none
 };
 

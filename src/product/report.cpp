@@ -20,7 +20,8 @@ namespace relume {
 
 namespace fs = std::filesystem;
 
-std::string lineChartSvg(const std::string& title, const std::string& xLabel, const std::vector<ChartSeries>& series, bool logY) {
+std::string lineChartSvg(const std::string& title, const std::string& xLabel, const std::vector<ChartSeries>& series,
+                         bool logY) {
   constexpr double W = 420, H = 180, L = 60, R = 10, T = 24, B = 28;
   static const char* const colours[] = {"#1f5fbf", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b"};
   std::vector<std::vector<std::pair<double, double>>> pts(series.size());
@@ -35,9 +36,11 @@ std::string lineChartSvg(const std::string& title, const std::string& xLabel, co
       y0 = std::min(y0, pts[k].back().second), y1 = std::max(y1, pts[k].back().second);
       any = true;
     }
-  std::string svg = fmt::format(R"(<svg xmlns="http://www.w3.org/2000/svg" width="{}" height="{}" viewBox="0 0 {} {}">)", W, H, W, H);
-  svg += fmt::format(R"(<rect width="{}" height="{}" fill="white" stroke="#ccc"/><text x="{}" y="16" font-size="12" font-family="sans-serif">{}</text>)",
-                     W, H, L, title);
+  std::string svg =
+      fmt::format(R"(<svg xmlns="http://www.w3.org/2000/svg" width="{}" height="{}" viewBox="0 0 {} {}">)", W, H, W, H);
+  svg += fmt::format(
+      R"(<rect width="{}" height="{}" fill="white" stroke="#ccc"/><text x="{}" y="16" font-size="12" font-family="sans-serif">{}</text>)",
+      W, H, L, title);
   if (!any) return svg + R"(<text x="60" y="90" font-size="12">no data</text></svg>)";
   if (x1 == x0) x1 = x0 + 1;
   if (y1 == y0) y0 -= 0.5, y1 += 0.5;
@@ -50,13 +53,16 @@ std::string lineChartSvg(const std::string& title, const std::string& xLabel, co
     const char* colour = colours[k % std::size(colours)];
     svg += fmt::format(R"(<polyline fill="none" stroke="{}" stroke-width="1.5" points="{}"/>)", colour, line);
     if (!series[k].name.empty())
-      svg += fmt::format(R"(<text x="{}" y="{}" font-size="10" font-family="sans-serif" fill="{}" text-anchor="end">{}</text>)",
-                         W - R - 2, T + 12 * (k + 1), colour, series[k].name);
+      svg += fmt::format(
+          R"(<text x="{}" y="{}" font-size="10" font-family="sans-serif" fill="{}" text-anchor="end">{}</text>)",
+          W - R - 2, T + 12 * (k + 1), colour, series[k].name);
   }
-  svg += fmt::format(R"(<g font-size="10" font-family="sans-serif"><text x="2" y="{:.0f}">{:.3g}</text><text x="2" y="{:.0f}">{:.3g}</text>)",
-                     sy(y1) + 4, label(y1), sy(y0) + 4, label(y0));
-  svg += fmt::format(R"(<text x="{}" y="{}">{:g}</text><text x="{}" y="{}" text-anchor="end">{:g} ({})</text></g></svg>)",
-                     L, H - 8, x0, W - R, H - 8, x1, xLabel);
+  svg += fmt::format(
+      R"(<g font-size="10" font-family="sans-serif"><text x="2" y="{:.0f}">{:.3g}</text><text x="2" y="{:.0f}">{:.3g}</text>)",
+      sy(y1) + 4, label(y1), sy(y0) + 4, label(y0));
+  svg +=
+      fmt::format(R"(<text x="{}" y="{}">{:g}</text><text x="{}" y="{}" text-anchor="end">{:g} ({})</text></g></svg>)",
+                  L, H - 8, x0, W - R, H - 8, x1, xLabel);
   return svg;
 }
 
@@ -96,13 +102,15 @@ float viewExposure(const std::vector<Image>& references) {
 // smaller than per pixel, and the picture (64x48 of a 256x192 frame) still shows which surface is off.
 constexpr int kErrorBlock = 4;
 
-std::string percentOf(double value, double scale) { return fmt::format("{:.2f}%", 100.0 * value / std::max(scale, 1e-12)); }
+std::string percentOf(double value, double scale) {
+  return fmt::format("{:.2f}%", 100.0 * value / std::max(scale, 1e-12));
+}
 
 // Reference, re-render, error and the noise in that error for a few kept frames. With a ground
 // truth the fit and the truth are rendered with the same random numbers and the error is
 // |fit - truth| (the reconstruction's); without, |re-render - frame| beside the re-render's noise.
-std::string viewsSection(const fs::path& out, const SceneDescription& fit, const SceneDescription* truth, const Json& prepare,
-                         const ReportOptions& o) {
+std::string viewsSection(const fs::path& out, const SceneDescription& fit, const SceneDescription* truth,
+                         const Json& prepare, const ReportOptions& o) {
   const fs::path capture = prepare.at("capture").get<std::string>();
   const std::vector<Frame> frames = readTransforms(capture / "transforms.json").frames;
   const auto kept = prepare.at("phases").at("frames").at("kept").get<std::vector<uint32_t>>();
@@ -146,7 +154,8 @@ std::string viewsSection(const fs::path& out, const SceneDescription& fit, const
     refs.push_back(v.reference);
     const double w = static_cast<double>(v.error.samples);
     all.samples += v.error.samples;
-    all.errorMean += w * v.error.errorMean, all.noiseMean += w * v.error.noiseMean, all.referenceMean += w * v.error.referenceMean;
+    all.errorMean += w * v.error.errorMean, all.noiseMean += w * v.error.noiseMean,
+        all.referenceMean += w * v.error.referenceMean;
     all.errorRms += w * v.error.errorRms * v.error.errorRms, all.noiseRms += w * v.error.noiseRms * v.error.noiseRms;
     truthVsFrame += w * v.truthVsFrame;
   }
@@ -159,40 +168,57 @@ std::string viewsSection(const fs::path& out, const SceneDescription& fit, const
   std::string s;
   if (truth)
     s = fmt::format(
-        "<p>Kept frames re-rendered from the result and from the capture's ground truth with the same random numbers ({} spp "
-        "each, as two halves of {}). Where the two scenes agree their Monte Carlo noise is the same and cancels, so the error "
-        "|fit - truth| is the reconstruction's; the noise left in it (paths the two scenes scatter differently), estimated from "
-        "the halves, is shown beside it. Both are averaged over {}x{}-pixel blocks before their magnitude is taken, which "
-        "divides the noise by {} and keeps what is off at that scale. One exposure ({:.3g}) for all; error and noise x 4; "
-        "masked pixels black.</p><p>Over these frames, as a share of the frames' mean value: |fit - truth| {} on average, of "
-        "which noise {}; RMS {}, noise RMS {}, so the reconstruction's own RMS error is about {}. For comparison, the truth "
-        "itself re-rendered differs from the frames by {} on average at the same scale: the frames' and the re-render's "
+        "<p>Kept frames re-rendered from the result and from the capture's ground truth with the same random numbers "
+        "({} spp "
+        "each, as two halves of {}). Where the two scenes agree their Monte Carlo noise is the same and cancels, so "
+        "the error "
+        "|fit - truth| is the reconstruction's; the noise left in it (paths the two scenes scatter differently), "
+        "estimated from "
+        "the halves, is shown beside it. Both are averaged over {}x{}-pixel blocks before their magnitude is taken, "
+        "which "
+        "divides the noise by {} and keeps what is off at that scale. One exposure ({:.3g}) for all; error and noise x "
+        "4; "
+        "masked pixels black.</p><p>Over these frames, as a share of the frames' mean value: |fit - truth| {} on "
+        "average, of "
+        "which noise {}; RMS {}, noise RMS {}, so the reconstruction's own RMS error is about {}. For comparison, the "
+        "truth "
+        "itself re-rendered differs from the frames by {} on average at the same scale: the frames' and the "
+        "re-render's "
         "noise, which an error against the frames would mostly show.</p>",
-        o.spp, half, kErrorBlock, kErrorBlock, kErrorBlock, exposure, pct(all.errorMean), pct(all.noiseMean), pct(all.errorRms), pct(all.noiseRms),
-        pct(all.beyondNoiseRms()), pct(truthVsFrame));
+        o.spp, half, kErrorBlock, kErrorBlock, kErrorBlock, exposure, pct(all.errorMean), pct(all.noiseMean),
+        pct(all.errorRms), pct(all.noiseRms), pct(all.beyondNoiseRms()), pct(truthVsFrame));
   else
     s = fmt::format(
-        "<p>Kept frames re-rendered from the result ({} spp, as two halves of {}). Error = |re-render - frame|; noise = the "
-        "re-render's own Monte Carlo noise, estimated from its halves' difference (the frame's noise is not known, so not "
-        "shown): error that the noise does not explain is the reconstruction's, or the frame's noise. Both are averaged over "
-        "{}x{}-pixel blocks before their magnitude is taken, which divides the noise by {} and keeps what is off at that "
-        "scale. One exposure ({:.3g}) for all; error and noise x 4; masked pixels black.</p><p>Over these frames, as a share "
-        "of the frames' mean value: error {} on average, the re-render's noise {}; RMS {}, noise RMS {}, so the error beyond "
+        "<p>Kept frames re-rendered from the result ({} spp, as two halves of {}). Error = |re-render - frame|; noise "
+        "= the "
+        "re-render's own Monte Carlo noise, estimated from its halves' difference (the frame's noise is not known, so "
+        "not "
+        "shown): error that the noise does not explain is the reconstruction's, or the frame's noise. Both are "
+        "averaged over "
+        "{}x{}-pixel blocks before their magnitude is taken, which divides the noise by {} and keeps what is off at "
+        "that "
+        "scale. One exposure ({:.3g}) for all; error and noise x 4; masked pixels black.</p><p>Over these frames, as a "
+        "share "
+        "of the frames' mean value: error {} on average, the re-render's noise {}; RMS {}, noise RMS {}, so the error "
+        "beyond "
         "the re-render's noise has an RMS of about {}.</p>",
-        o.spp, half, kErrorBlock, kErrorBlock, kErrorBlock, exposure, pct(all.errorMean), pct(all.noiseMean), pct(all.errorRms), pct(all.noiseRms),
-        pct(all.beyondNoiseRms()));
-  s += fmt::format("<table><tr><th>frame</th><th>reference</th><th>re-render</th><th>{}</th><th>noise in that error</th></tr>",
-                   truth ? "error |fit - truth|" : "error |re-render - frame|");
+        o.spp, half, kErrorBlock, kErrorBlock, kErrorBlock, exposure, pct(all.errorMean), pct(all.noiseMean),
+        pct(all.errorRms), pct(all.noiseRms), pct(all.beyondNoiseRms()));
+  s += fmt::format(
+      "<table><tr><th>frame</th><th>reference</th><th>re-render</th><th>{}</th><th>noise in that error</th></tr>",
+      truth ? "error |fit - truth|" : "error |re-render - frame|");
   for (const Shown& v : shown) {
     const std::string stem = fmt::format("view_{}", v.frame);
     writePng(out / (stem + "_reference.png"), v.reference, exposure);
     writePng(out / (stem + "_render.png"), v.render, exposure);
     writePng(out / (stem + "_error.png"), v.error.error, 4 * exposure);
     writePng(out / (stem + "_noise.png"), v.error.noise, 4 * exposure);
-    s += fmt::format("<tr><td>{}<br>error {}<br>noise {}</td><td><img src=\"{}_reference.png\"></td><td><img src=\"{}_render.png\"></td>"
-                     "<td><img src=\"{}_error.png\"></td><td><img src=\"{}_noise.png\"></td></tr>",
-                     html(frames[v.frame].image.filename().string()), percentOf(v.error.errorMean, v.error.referenceMean),
-                     percentOf(v.error.noiseMean, v.error.referenceMean), stem, stem, stem, stem);
+    s += fmt::format(
+        "<tr><td>{}<br>error {}<br>noise {}</td><td><img src=\"{}_reference.png\"></td><td><img "
+        "src=\"{}_render.png\"></td>"
+        "<td><img src=\"{}_error.png\"></td><td><img src=\"{}_noise.png\"></td></tr>",
+        html(frames[v.frame].image.filename().string()), percentOf(v.error.errorMean, v.error.referenceMean),
+        percentOf(v.error.noiseMean, v.error.referenceMean), stem, stem, stem, stem);
   }
   return s + "</table>";
 }
@@ -235,27 +261,37 @@ std::string texturesSection(const fs::path& work, const fs::path& out, const Sce
       for (float v : img.rgb) peak = std::max(peak, v);
       const std::string file = fmt::format("emission_{}.png", o);
       writePng(out / file, img, peak > 0 ? 1.0f / peak : 1.0f);
-      s += figure(file, fmt::format("emission of {} (divided by its peak {:.3g})", html(fit.appearance.names[o]), peak));
+      s +=
+          figure(file, fmt::format("emission of {} (divided by its peak {:.3g})", html(fit.appearance.names[o]), peak));
     }
   return s;
 }
 
 std::string materialsSection(const Json& materials, const SceneDescription* truth) {
-  std::string s = "<table><tr><th>id</th><th>name</th><th>roughness</th><th>specular</th><th>emission</th><th>light</th>"
-                  "<th>highlights seen</th><th>texels observed</th>";
+  std::string s =
+      "<table><tr><th>id</th><th>name</th><th>roughness</th><th>specular</th><th>emission</th><th>light</th>"
+      "<th>highlights seen</th><th>texels observed</th>";
   if (truth) s += "<th>truth roughness</th><th>truth specular</th><th>truth emission</th>";
   s += "</tr>";
-  auto rgb = [](const Json& e) { return fmt::format("{:.3g} {:.3g} {:.3g}", e[0].get<double>(), e[1].get<double>(), e[2].get<double>()); };
+  auto rgb = [](const Json& e) {
+    return fmt::format("{:.3g} {:.3g} {:.3g}", e[0].get<double>(), e[1].get<double>(), e[2].get<double>());
+  };
   for (const Json& o : materials.at("objects")) {
-    const int id = static_cast<int>(jsonInteger(o.at("id"), 0, INT32_MAX, "materials.json", "id"));  // indexes the truth
-    s += fmt::format("<tr><td>{}</td><td>{}</td><td>{:.3f}</td><td>{:.3f}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.0f}%</td>", id,
-                     html(o.at("name").get<std::string>()), o.at("roughness").get<double>(), o.at("specular").get<double>(),
-                     rgb(o.at("emission")), o.at("is_emitter").get<bool>() ? "yes" : o.value("out_of_model", false) ? "out of model" : "", o.at("highlight_observed").get<bool>() ? "yes" : "no",
-                     100 * o.at("observed_texel_fraction").get<double>());
+    const int id =
+        static_cast<int>(jsonInteger(o.at("id"), 0, INT32_MAX, "materials.json", "id"));  // indexes the truth
+    s += fmt::format(
+        "<tr><td>{}</td><td>{}</td><td>{:.3f}</td><td>{:.3f}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.0f}%</td>", id,
+        html(o.at("name").get<std::string>()), o.at("roughness").get<double>(), o.at("specular").get<double>(),
+        rgb(o.at("emission")),
+        o.at("is_emitter").get<bool>()   ? "yes"
+        : o.value("out_of_model", false) ? "out of model"
+                                         : "",
+        o.at("highlight_observed").get<bool>() ? "yes" : "no", 100 * o.at("observed_texel_fraction").get<double>());
     if (truth && id < truth->appearance.objectCount()) {
       const Appearance& t = truth->appearance;
       const Color e = t.meanEmission(id);
-      s += fmt::format("<td>{:.3f}</td><td>{:.3f}</td><td>{:.3g} {:.3g} {:.3g}</td>", t.roughness[id], t.specular[id], e[0], e[1], e[2]);
+      s += fmt::format("<td>{:.3f}</td><td>{:.3f}</td><td>{:.3g} {:.3g} {:.3g}</td>", t.roughness[id], t.specular[id],
+                       e[0], e[1], e[2]);
     }
     s += "</tr>";
   }
@@ -267,29 +303,36 @@ std::string lightsSection(const fs::path& file) {
   if (!fs::exists(file)) return "<p>No light-source decisions recorded.</p>";
   const Json lights = readJson(file);
   if (!lights.value("hint", Json::array()).empty())
-    return "<p>The light sources were given (<code>lights</code>): " + html(lights["hint"].dump()) + "; no decision taken.</p>";
+    return "<p>The light sources were given (<code>lights</code>): " + html(lights["hint"].dump()) +
+           "; no decision taken.</p>";
   const std::string test = lights.value("light_test", std::string());
-  std::string s = test == "reflector" ? "<p>Test <code>reflector</code>: an object is a light source when a reflector with albedo "
-                                        "&le; 1 and the model's specular lobe cannot return what its pixels show "
-                                        "(docs/design/light-sources.md).</p>"
-                                      : "<p>Test <code>" + html(test) + "</code>.</p>";
+  std::string s = test == "reflector"
+                      ? "<p>Test <code>reflector</code>: an object is a light source when a reflector with albedo "
+                        "&le; 1 and the model's specular lobe cannot return what its pixels show "
+                        "(docs/design/light-sources.md).</p>"
+                      : "<p>Test <code>" + html(test) + "</code>.</p>";
   for (const Json& d : lights.value("decisions", Json::array())) {
-    s += "<h3>After " + html(d.value("after", std::string())) + "</h3><table><tr><th>object</th><th>decision</th><th>rays</th>"
-         "<th>observed</th><th>reflector bound</th><th>unexplained</th><th>power share</th><th>why</th><th>under-lit</th></tr>";
+    s += "<h3>After " + html(d.value("after", std::string())) +
+         "</h3><table><tr><th>object</th><th>decision</th><th>rays</th>"
+         "<th>observed</th><th>reflector bound</th><th>unexplained</th><th>power "
+         "share</th><th>why</th><th>under-lit</th></tr>";
     for (const Json& o : d.value("objects", Json::array())) {
       if (o.value("decision", std::string()) == "not_a_candidate") continue;
       std::string under;
       if (const Json u = o.value("under_lit", Json()); u.is_object())
         under = fmt::format("{:.3g} missing; light from ({:.2f}, {:.2f}, {:.2f})", u.value("missing_radiance", 0.0),
-                            u["light_from"][0].get<double>(), u["light_from"][1].get<double>(), u["light_from"][2].get<double>());
+                            u["light_from"][0].get<double>(), u["light_from"][1].get<double>(),
+                            u["light_from"][2].get<double>());
       const double error = o.value("unexplained_error", -1.0);  // -1: fewer than 2 rays
-      s += fmt::format("<tr><td>{} {}</td><td>{}</td><td>{}</td><td>{:.3g}</td><td>{:.3g}</td><td>{:.0f}% &plusmn; {}</td>"
-                       "<td>{:.1f}%</td><td>{}</td><td>{}</td></tr>",
-                       o.value("id", 0), html(o.value("name", std::string())), html(o.value("decision", std::string())),
-                       o.value("rays", 0), o.value("observed", 0.0), o.value("reflector_bound", 0.0),
-                       100 * o.value("unexplained_share", 0.0),
-                       error < 0 ? std::string("?") : fmt::format("{:.0f}%", 100 * error / std::max(1e-30, o.value("observed", 0.0))),
-                       100 * o.value("power_share", 0.0), html(o.value("why", std::string())), under);
+      s += fmt::format(
+          "<tr><td>{} {}</td><td>{}</td><td>{}</td><td>{:.3g}</td><td>{:.3g}</td><td>{:.0f}% &plusmn; {}</td>"
+          "<td>{:.1f}%</td><td>{}</td><td>{}</td></tr>",
+          o.value("id", 0), html(o.value("name", std::string())), html(o.value("decision", std::string())),
+          o.value("rays", 0), o.value("observed", 0.0), o.value("reflector_bound", 0.0),
+          100 * o.value("unexplained_share", 0.0),
+          error < 0 ? std::string("?")
+                    : fmt::format("{:.0f}%", 100 * error / std::max(1e-30, o.value("observed", 0.0))),
+          100 * o.value("power_share", 0.0), html(o.value("why", std::string())), under);
     }
     s += "</table>";
   }
@@ -320,17 +363,21 @@ std::string stagesSection(const std::vector<Json>& metrics) {
       total += sec.get<double>();
       phases += fmt::format("{} {:.2f} s, ", phase, sec.get<double>());
     }
-    rows += fmt::format("<tr><td>{}</td><td>{}</td><td>{:.3e}</td><td>{:.1f} s</td><td>{}</td></tr>", html(stage),
-                        m.value("stage_iteration", 0), m["loss"].get<double>(), total, phases.substr(0, phases.size() - 2));
+    rows +=
+        fmt::format("<tr><td>{}</td><td>{}</td><td>{:.3e}</td><td>{:.1f} s</td><td>{}</td></tr>", html(stage),
+                    m.value("stage_iteration", 0), m["loss"].get<double>(), total, phases.substr(0, phases.size() - 2));
   }
-  return "<div class=\"curves\">" + svgs + "</div><table><tr><th>stage</th><th>iterations</th><th>final loss</th><th>time</th>"
-         "<th>by phase</th></tr>" + rows + "</table>";
+  return "<div class=\"curves\">" + svgs +
+         "</div><table><tr><th>stage</th><th>iterations</th><th>final loss</th><th>time</th>"
+         "<th>by phase</th></tr>" +
+         rows + "</table>";
 }
 
 std::string prepareSection(const Json& prepare, const Json& materials) {
   std::string s = "<table><tr><th>phase</th><th>time</th></tr>";
   for (const auto& [phase, p] : prepare.at("phases").items())
-    if (p.contains("seconds")) s += fmt::format("<tr><td>prepare: {}</td><td>{:.2f} s</td></tr>", html(phase), p["seconds"].get<double>());
+    if (p.contains("seconds"))
+      s += fmt::format("<tr><td>prepare: {}</td><td>{:.2f} s</td></tr>", html(phase), p["seconds"].get<double>());
   s += "</table>";
   return s + fmt::format("<p>Peak RSS: prepare {:.0f} MiB, fit {:.0f} MiB.</p>", prepare.value("peak_rss_mib", 0.0),
                          materials.value("peak_rss_mib", 0.0));
@@ -362,17 +409,19 @@ body{font-family:sans-serif;margin:1.5em;max-width:1400px} table{border-collapse
 td,th{border:1px solid #ccc;padding:3px 6px;font-size:13px;text-align:left} td img{image-rendering:pixelated;width:320px}
 img.tex{width:256px;height:256px} figure{display:inline-block;margin:4px} figcaption{font-size:12px;max-width:256px}
 .curves svg{margin:4px} pre{background:#f4f4f4;padding:8px;font-size:12px}</style></head><body>)";
-  page += fmt::format("<h1>relume fit report</h1><p>Work folder <code>{}</code>; capture <code>{}</code>. {} iterations, final "
-                      "loss {:.3e}, albedo {}&sup2;.</p>",
-                      html(fs::absolute(work).string()), html(prepare.at("capture").get<std::string>()),
-                      materials.value("iterations", 0), materials.value("final_loss", 0.0), materials.value("albedo_resolution", 0));
+  page += fmt::format(
+      "<h1>relume fit report</h1><p>Work folder <code>{}</code>; capture <code>{}</code>. {} iterations, final "
+      "loss {:.3e}, albedo {}&sup2;.</p>",
+      html(fs::absolute(work).string()), html(prepare.at("capture").get<std::string>()),
+      materials.value("iterations", 0), materials.value("final_loss", 0.0), materials.value("albedo_resolution", 0));
   if (truth)
-    page += fmt::format("<p>Against the capture's ground truth: albedo MAE {:.4f} (PSNR {:.2f} dB) over {} texels observed "
-                        "&ge; 5 times; roughness MAE {:.3f}, specular MAE {:.3f}; emitters {}/{} found; emission error {:.1f}%. "
-                        "Peers' measures: albedo PSNR {:.2f} dB and roughness PSNR {:.2f} dB on 8-bit maps, emission IoU {:.3f}.</p>",
-                        scores.albedoMae, scores.albedoPsnr, scores.albedoTexels, scores.roughnessMae, scores.specularMae,
-                        scores.emittersCorrect, scores.emittersTrue, 100 * scores.emissionRelError, scores.albedoPsnr8,
-                        scores.roughnessPsnr8, scores.emissionIou);
+    page += fmt::format(
+        "<p>Against the capture's ground truth: albedo MAE {:.4f} (PSNR {:.2f} dB) over {} texels observed "
+        "&ge; 5 times; roughness MAE {:.3f}, specular MAE {:.3f}; emitters {}/{} found; emission error {:.1f}%. "
+        "Peers' measures: albedo PSNR {:.2f} dB and roughness PSNR {:.2f} dB on 8-bit maps, emission IoU {:.3f}.</p>",
+        scores.albedoMae, scores.albedoPsnr, scores.albedoTexels, scores.roughnessMae, scores.specularMae,
+        scores.emittersCorrect, scores.emittersTrue, 100 * scores.emissionRelError, scores.albedoPsnr8,
+        scores.roughnessPsnr8, scores.emissionIou);
   page += "<h2>Views</h2>";
   try {
     page += viewsSection(out, fit, truthScene ? &*truthScene : nullptr, prepare, o);  // any truth renders

@@ -25,7 +25,8 @@ struct ChartSeries {
 };
 // A line chart, one polyline per series, with min/max labels and a legend; standalone <svg>
 // text. Non-finite y values are skipped, and on a log-y axis non-positive ones too.
-std::string lineChartSvg(const std::string& title, const std::string& xLabel, const std::vector<ChartSeries>& series, bool logY);
+std::string lineChartSvg(const std::string& title, const std::string& xLabel, const std::vector<ChartSeries>& series,
+                         bool logY);
 // The loss of one stage against the iteration, log-y.
 std::string lossCurveSvg(const std::string& title, const std::vector<double>& x, const std::vector<double>& y);
 

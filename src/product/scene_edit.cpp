@@ -52,7 +52,8 @@ int objectOf(const Json& o, const Appearance& a, const std::string& where) {
     const std::string name = o["name"].get<std::string>();
     const auto it = std::find(a.names.begin(), a.names.end(), name);
     if (it == a.names.end()) fail("{}: no object named '{}'", where, name);
-    if (std::find(it + 1, a.names.end(), name) != a.names.end()) fail("{}: several objects are named '{}'; use 'id'", where, name);
+    if (std::find(it + 1, a.names.end(), name) != a.names.end())
+      fail("{}: several objects are named '{}'; use 'id'", where, name);
     return static_cast<int>(it - a.names.begin());
   }
   fail("{}: needs 'id' or 'name'", where);
@@ -111,7 +112,8 @@ void appendPart(MeshData& scene, const MeshData& part, int object) {
   for (const Eigen::Vector3i& t : part.triangles) {
     Eigen::Vector3i tri = t.array() + base;
     if (flat) {
-      const Vec3 n = (part.positions[t[1]] - part.positions[t[0]]).cross(part.positions[t[2]] - part.positions[t[0]]).normalized();
+      const Vec3 n =
+          (part.positions[t[1]] - part.positions[t[0]]).cross(part.positions[t[2]] - part.positions[t[0]]).normalized();
       for (int k = 0; k < 3; ++k) tri[k] = addVertex(t[k], n);
     }
     scene.triangles.push_back(tri);
@@ -125,7 +127,8 @@ void applyEdit(SceneDescription& s, const Json& j, const fs::path& file) {
   Appearance& a = s.appearance;
   if (j.contains("objects")) {
     if (!j["objects"].is_array()) fail("{}: 'objects' must be an array", name);
-    for (size_t i = 0; i < j["objects"].size(); ++i) editObject(j["objects"][i], a, fmt::format("{}: objects[{}]", name, i));
+    for (size_t i = 0; i < j["objects"].size(); ++i)
+      editObject(j["objects"][i], a, fmt::format("{}: objects[{}]", name, i));
   }
   if (!j.contains("add")) return;
   if (!j["add"].is_array()) fail("{}: 'add' must be an array", name);
@@ -134,9 +137,11 @@ void applyEdit(SceneDescription& s, const Json& j, const fs::path& file) {
   for (size_t i = 0; i < j["add"].size(); ++i) {
     const Json& e = j["add"][i];
     const std::string where = fmt::format("{}: add[{}]", name, i);
-    checkKeys(e, {"rectangle", "mesh", "scale", "translate", "name", "albedo", "roughness", "specular", "emission"}, where);
+    checkKeys(e, {"rectangle", "mesh", "scale", "translate", "name", "albedo", "roughness", "specular", "emission"},
+              where);
     if (e.contains("rectangle") == e.contains("mesh")) fail("{}: needs exactly one of 'rectangle' and 'mesh'", where);
-    const MeshData part = e.contains("rectangle") ? rectangle(e["rectangle"], where) : meshFile(e, file.parent_path(), where);
+    const MeshData part =
+        e.contains("rectangle") ? rectangle(e["rectangle"], where) : meshFile(e, file.parent_path(), where);
     const int id = a.addObject(e.contains("name") ? e["name"].get<std::string>() : fmt::format("added{}", i));
     readConstantFields(e, id, where, a);
     appendPart(data, part, id);

@@ -7,10 +7,14 @@ namespace {
 
 constexpr float kMinCos = 1e-6f;
 
-template <typename T> T pow5(T x) { return (x * x) * (x * x) * x; }
+template <typename T>
+T pow5(T x) {
+  return (x * x) * (x * x) * x;
+}
 
 // GGX terms, templated so the same code runs in double for the derivative tests.
-template <typename T> struct GgxT {
+template <typename T>
+struct GgxT {
   T alpha;
   using V = Eigen::Matrix<T, 3, 1>;
   // D and dD/dalpha of a local half vector. t = sin^2 + alpha^2 cos^2 is formed from the
@@ -66,7 +70,8 @@ constexpr float kMinCosD = 1e-3f;
 // A = x / (g + c)^2 has no cancellation, and dF/dF0 = (dF/dx) (dx/dF0) is formed as
 // [dF/dx / x] [x dx/dF0] with x dx/dF0 = 8 (1 + q) / (1 - q)^5: finite at s = 0, where F ~ F0.
 // Gltf: Schlick with F0 = 0.08 s and F90 = s. dF/ds is 0 unless `derivative`.
-template <typename T> std::pair<T, T> fresnelT(BsdfModel model, T cosD, T specular, bool derivative) {
+template <typename T>
+std::pair<T, T> fresnelT(BsdfModel model, T cosD, T specular, bool derivative) {
   if (model == BsdfModel::Gltf) {
     const T w = pow5(T(1) - std::clamp(cosD, T(0), T(1)));
     return {specular * (T(0.08) + T(0.92) * w), T(0.08) + T(0.92) * w};
@@ -146,7 +151,8 @@ float specularLobeProbability(const BsdfParams& p, const Vec3& wo) {
 
 namespace {
 // f, pdf and derivatives given what depends on (p, wo) alone; ps is read for pdf queries only.
-BsdfEval evaluate(const BsdfParams& p, const Vec3& wo, const Vec3& wi, unsigned query, const Ggx& g, float lo, float ps) {
+BsdfEval evaluate(const BsdfParams& p, const Vec3& wo, const Vec3& wi, unsigned query, const Ggx& g, float lo,
+                  float ps) {
   BsdfEval e;
   const float muO = wo.z(), muI = wi.z();
   if (muO <= kMinCos || muI <= kMinCos) return e;
@@ -157,7 +163,8 @@ BsdfEval evaluate(const BsdfParams& p, const Vec3& wo, const Vec3& wi, unsigned 
     e.pdf = (1.0f - ps) * muI * kInvPi + ps * D / ((1.0f + lo) * 4.0f * muO);
   }
   if (!(query & (kBsdfValue | kBsdfDerivatives))) return e;
-  const auto v = evalValue<float>(p.albedo, p.roughness, p.specular, p.model, wo, wi, h, g, D, lo, query & kBsdfDerivatives);
+  const auto v =
+      evalValue<float>(p.albedo, p.roughness, p.specular, p.model, wo, wi, h, g, D, lo, query & kBsdfDerivatives);
   e.f = v.f;
   e.dAlbedo = v.dAlbedo;
   e.dRoughness = v.dRoughness;

@@ -32,10 +32,10 @@ enum BsdfQuery : unsigned { kBsdfValue = 1, kBsdfPdf = 2, kBsdfDerivatives = 4 }
 // f, the sampling pdf of wi, and derivatives of f w.r.t. the parameters, from one evaluation.
 struct BsdfEval {
   Color f = Color::Zero();
-  float pdf = 0;                             // solid angle, of the whole sampling mixture
-  float dAlbedo = 0;                         // df_c / d albedo_c (same for every channel)
-  Color dRoughness = Color::Zero();          // includes the Burley diffuse's roughness coupling
-  Color dSpecular = Color::Zero();           // includes glTF's diffuse weight 1 - F
+  float pdf = 0;                     // solid angle, of the whole sampling mixture
+  float dAlbedo = 0;                 // df_c / d albedo_c (same for every channel)
+  Color dRoughness = Color::Zero();  // includes the Burley diffuse's roughness coupling
+  Color dSpecular = Color::Zero();   // includes glTF's diffuse weight 1 - F
 };
 
 // The model's Fresnel factor F(cosD) of the specular lobe (specular s included) and dF/ds.
@@ -47,7 +47,8 @@ Fresnel specularFresnel(BsdfModel model, float cosD, float specular);
 // Double-precision evaluation of the same value and derivatives (tests check the analytic
 // derivatives against finite differences of this).
 struct BsdfEvalDouble {
-  template <typename T> struct Of {
+  template <typename T>
+  struct Of {
     Eigen::Array<T, 3, 1> f = Eigen::Array<T, 3, 1>::Zero(), dRoughness = Eigen::Array<T, 3, 1>::Zero(),
                           dSpecular = Eigen::Array<T, 3, 1>::Zero();
     T dAlbedo = 0;
@@ -62,9 +63,9 @@ BsdfEvalDouble evalBsdfDouble(const Eigen::Array3d& albedo, double roughness, do
 
 struct BsdfSample {
   Vec3 wi;
-  float pdf = 0;       // solid angle, of the whole mixture
+  float pdf = 0;  // solid angle, of the whole mixture
   Color f;
-  Color weight;        // f * cos / pdf
+  Color weight;  // f * cos / pdf
 };
 
 // Probability of picking the GGX lobe: a detached function of the parameters (the model's Fresnel

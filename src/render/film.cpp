@@ -18,21 +18,30 @@ std::vector<Aov> parseAovs(const std::string& list) {
   std::string name;
   while (std::getline(ss, name, ',')) {
     if (name.empty()) continue;
-    if (name == "albedo") out.push_back(Aov::Albedo);
-    else if (name == "normal") out.push_back(Aov::Normal);
-    else if (name == "depth") out.push_back(Aov::Depth);
-    else if (name == "object") out.push_back(Aov::Object);
-    else fail("unknown AOV '{}' (albedo, normal, depth, object)", name);
+    if (name == "albedo")
+      out.push_back(Aov::Albedo);
+    else if (name == "normal")
+      out.push_back(Aov::Normal);
+    else if (name == "depth")
+      out.push_back(Aov::Depth);
+    else if (name == "object")
+      out.push_back(Aov::Object);
+    else
+      fail("unknown AOV '{}' (albedo, normal, depth, object)", name);
   }
   return out;
 }
 
 const char* aovName(Aov aov) {
   switch (aov) {
-    case Aov::Albedo: return "albedo";
-    case Aov::Normal: return "normal";
-    case Aov::Depth: return "depth";
-    case Aov::Object: return "object";
+    case Aov::Albedo:
+      return "albedo";
+    case Aov::Normal:
+      return "normal";
+    case Aov::Depth:
+      return "depth";
+    case Aov::Object:
+      return "object";
   }
   return "";
 }
@@ -45,7 +54,9 @@ struct RayCounter : NullPathObserver {
 }  // namespace
 
 CameraSample cameraSample(const Camera& camera, int x, int y, int s, uint64_t seed) {
-  CameraSample cs{Pcg32(hashTuple({static_cast<uint64_t>(y) * camera.width + x, static_cast<uint64_t>(s), seed, streamTag(RandomStream::FilmPixel)})), {}};
+  CameraSample cs{Pcg32(hashTuple({static_cast<uint64_t>(y) * camera.width + x, static_cast<uint64_t>(s), seed,
+                                   streamTag(RandomStream::FilmPixel)})),
+                  {}};
   const Vec2 u = cs.rng.next2D();
   const Vec2 pixel(x + camera.filter.sample(u.x()), y + camera.filter.sample(u.y()));
   cs.dir = camera.rayDirection(pixel);
@@ -78,12 +89,15 @@ RenderResult renderImage(const Scene& scene, const Appearance& appearance, const
       for (size_t k = b; k < e; ++k) {
         const size_t pixel = k / spp;
         const int s = static_cast<int>(k % spp);
-        const int x = r.cols().begin() + static_cast<int>(pixel % tileW), y = r.rows().begin() + static_cast<int>(pixel / tileW);
+        const int x = r.cols().begin() + static_cast<int>(pixel % tileW),
+                  y = r.rows().begin() + static_cast<int>(pixel / tileW);
         const CameraSample cs = cameraSample(camera, x, y, s, options.seed);
-        PathSlot& p = wave.emplace_back(camera.position, cs.dir.value_or(Vec3::UnitZ()), cs.rng, s == 0 ? &first[pixel] : nullptr);
+        PathSlot& p = wave.emplace_back(camera.position, cs.dir.value_or(Vec3::UnitZ()), cs.rng,
+                                        s == 0 ? &first[pixel] : nullptr);
         p.alive = cs.dir.has_value();
       }
-      tracePaths(scene, lights, scope, options.path, std::span<PathSlot>(wave), [&](size_t) -> RayCounter& { return counter; });
+      tracePaths(scene, lights, scope, options.path, std::span<PathSlot>(wave),
+                 [&](size_t) -> RayCounter& { return counter; });
       for (size_t k = b; k < e; ++k)
         if (const Color& L = wave[k - b].L; isFinite(L)) sum[k / spp] += L;
     });
@@ -96,10 +110,18 @@ RenderResult renderImage(const Scene& scene, const Appearance& appearance, const
         for (size_t a = 0; a < options.aovs.size(); ++a) {
           Color v = Color::Zero();
           switch (options.aovs[a]) {
-            case Aov::Albedo: v = appearance.albedoAt(hit.object, hit.uv); break;
-            case Aov::Normal: v = hit.ns.array(); break;
-            case Aov::Depth: v = Color::Constant((hit.p - camera.position).dot(camera.rotation.col(2))); break;
-            case Aov::Object: v = Color::Constant(static_cast<float>(hit.object)); break;
+            case Aov::Albedo:
+              v = appearance.albedoAt(hit.object, hit.uv);
+              break;
+            case Aov::Normal:
+              v = hit.ns.array();
+              break;
+            case Aov::Depth:
+              v = Color::Constant((hit.p - camera.position).dot(camera.rotation.col(2)));
+              break;
+            case Aov::Object:
+              v = Color::Constant(static_cast<float>(hit.object));
+              break;
           }
           result.aovs[a].set(x, y, v);
         }

@@ -51,13 +51,15 @@ LightSampler::LightSampler(const Scene& scene, const Appearance& appearance, con
     }
     if (shapes_[o]->triangles.empty()) continue;
     const double p = shapes_[o]->area * kPi * luminance(mean[o]) + 1e-12;
-    if (!std::isfinite(p)) fail("light sampling: object {} ('{}') emits a non-finite power {}", o, appearance.names[o], p);
+    if (!std::isfinite(p))
+      fail("light sampling: object {} ('{}') emits a non-finite power {}", o, appearance.names[o], p);
     power.push_back(p);
     emitters_.push_back({o, shapes_[o].get()});
   }
   if (!emitters_.empty()) byPower_ = AliasTable(power);
   for (size_t i = 0; i < emitters_.size(); ++i)
-    pdfArea_[emitters_[i].object] = static_cast<float>(byPower_.pmf(static_cast<uint32_t>(i)) / emitters_[i].shape->area);
+    pdfArea_[emitters_[i].object] =
+        static_cast<float>(byPower_.pmf(static_cast<uint32_t>(i)) / emitters_[i].shape->area);
 }
 
 size_t LightSampler::bytes() const {

@@ -256,7 +256,8 @@ Color tracePath(const Scene& scene, const LightSampler& lights, const Appearance
                 const PathSettings& settings, Vec3 origin, Vec3 dir, Pcg32& rng, Observer&& obs = Observer{},
                 SurfaceHit* firstHit = nullptr) {
   PathSlot path(origin, dir, rng, firstHit);
-  tracePaths(scene, lights, scope, settings, std::span<PathSlot>(&path, 1), [&](size_t) -> auto& { return obs; });
+  tracePaths(
+      scene, lights, scope, settings, std::span<PathSlot>(&path, 1), [&](size_t) -> auto& { return obs; });
   rng = path.rng;
   return path.L;
 }

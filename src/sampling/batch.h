@@ -9,8 +9,8 @@
 namespace relume {
 
 struct ClipThresholds {
-  float low = 0.0f;                                       // vmin: at or below, the reference is noise
-  float high = std::numeric_limits<float>::infinity();    // vmax: at or above, it is saturated
+  float low = 0.0f;                                     // vmin: at or below, the reference is noise
+  float high = std::numeric_limits<float>::infinity();  // vmax: at or above, it is saturated
 };
 
 struct BatchRay {

@@ -7,12 +7,14 @@
 
 namespace relume {
 
-HighlightEvidence::HighlightEvidence(int objects) : texels_(objects, 0), sum_(objects, 0.0), sumSquares_(objects, 0.0) {}
+HighlightEvidence::HighlightEvidence(int objects)
+    : texels_(objects, 0), sum_(objects, 0.0), sumSquares_(objects, 0.0) {}
 
-void HighlightEvidence::addBatch(std::span<const uint32_t> slot, std::span<const int> object, std::span<const float> luminance,
-                                 std::span<const int8_t> sawLight) {
+void HighlightEvidence::addBatch(std::span<const uint32_t> slot, std::span<const int> object,
+                                 std::span<const float> luminance, std::span<const int8_t> sawLight) {
   const size_t n = slot.size();
-  if (object.size() != n || luminance.size() != n || sawLight.size() != n) fail("highlight evidence: batch arrays differ in size");
+  if (object.size() != n || luminance.size() != n || sawLight.size() != n)
+    fail("highlight evidence: batch arrays differ in size");
   for (size_t begin = 0, end = 0; begin < n; begin = end) {
     double sum[2] = {0, 0};
     int count[2] = {0, 0};
@@ -36,7 +38,8 @@ double HighlightEvidence::standardError(int o) const {
 }
 
 bool HighlightEvidence::observed(int o, int minTexels, double minContrast) const {
-  return texels_[o] >= static_cast<uint64_t>(std::max(minTexels, 1)) && contrast(o) - 2 * standardError(o) >= minContrast;
+  return texels_[o] >= static_cast<uint64_t>(std::max(minTexels, 1)) &&
+         contrast(o) - 2 * standardError(o) >= minContrast;
 }
 
 }  // namespace relume

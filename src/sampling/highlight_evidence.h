@@ -20,7 +20,7 @@ class HighlightEvidence {
                 std::span<const int8_t> sawLight);
 
   uint64_t texels(int object) const { return texels_[object]; }  // texels seen both ways
-  double contrast(int object) const;                                // mean of (with / without - 1)
+  double contrast(int object) const;                             // mean of (with / without - 1)
   double standardError(int object) const;
   // At least `minTexels` texels, and a mean contrast that exceeds `minContrast` by two standard errors.
   bool observed(int object, int minTexels, double minContrast) const;

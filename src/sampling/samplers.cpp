@@ -16,8 +16,9 @@ void SamplerStats::add(const SamplerStats& o) {
 }
 
 Json SamplerStats::toJson() const {
-  return {{"slots", slots}, {"candidates", candidates}, {"not_seen", notSeen}, {"first_hit_elsewhere", firstHitElsewhere},
-          {"masked", masked}, {"rays", rays}};
+  return {{"slots", slots},      {"candidates", candidates},
+          {"not_seen", notSeen}, {"first_hit_elsewhere", firstHitElsewhere},
+          {"masked", masked},    {"rays", rays}};
 }
 
 void Batch::append(const Batch& other) {
@@ -36,7 +37,8 @@ namespace {
 // the allocations.
 constexpr size_t kChunkSlots = 32;
 
-template <typename ChunkFn> Batch sampleInChunks(size_t slots, ChunkFn&& sampleChunk) {
+template <typename ChunkFn>
+Batch sampleInChunks(size_t slots, ChunkFn&& sampleChunk) {
   std::vector<Batch> chunks((slots + kChunkSlots - 1) / kChunkSlots);
   tbb::parallel_for(size_t{0}, chunks.size(), [&](size_t c) {
     const size_t first = c * kChunkSlots;
@@ -87,8 +89,8 @@ std::optional<Vec3> randomDirectionIn(const Camera& cam, const FrameStore::Store
 // A pixel footprint's rays: `samples` rays compared with `pixel`, each through its own random
 // point of it and with another, independent one for the adjoint pass (BatchRay::adjointDir).
 // `first`, when given, is the first ray's primal direction, already drawn uniformly in the pixel.
-void appendPixelRays(SlotOutput& out, const Camera& cam, const FrameStore::StoredPixel& pixel, const ClipThresholds& clip,
-                     int samples, Pcg32& rng, std::optional<Vec3> first = std::nullopt) {
+void appendPixelRays(SlotOutput& out, const Camera& cam, const FrameStore::StoredPixel& pixel,
+                     const ClipThresholds& clip, int samples, Pcg32& rng, std::optional<Vec3> first = std::nullopt) {
   for (int sample = 0; sample < samples; ++sample) {
     const auto primalDir = sample == 0 && first ? first : randomDirectionIn(cam, pixel, rng);
     const auto adjointDir = randomDirectionIn(cam, pixel, rng);
@@ -106,7 +108,8 @@ TextureSpaceSampler::TextureSpaceSampler(const Scene& scene, const TexelMap& map
                                          const VisibilityIndex& vis, const TrainingFrames& frames)
     : scene_(scene), map_(map), texels_(texels), vis_(vis), frames_(frames), usable_(frames.frames->size(), 0) {
   if (map.resolution() % vis.resolution != 0)
-    fail("texture sampler: resolution {} is not a multiple of the visibility index's {}", map.resolution(), vis.resolution);
+    fail("texture sampler: resolution {} is not a multiple of the visibility index's {}", map.resolution(),
+         vis.resolution);
   for (uint32_t f : frames.usable) usable_[f] = 1;
 }
 
@@ -154,7 +157,8 @@ Batch TextureSpaceSampler::sample(uint64_t seed, uint64_t iteration, const Textu
           ++out.stats().masked;
           continue;
         }
-        for (int sample = 0; sample < s.samplesPerConnection; ++sample) out.add(BatchRay{cam.position, dir, *reference, clipOf(frame)});
+        for (int sample = 0; sample < s.samplesPerConnection; ++sample)
+          out.add(BatchRay{cam.position, dir, *reference, clipOf(frame)});
         continue;
       }
       const auto stored = frames_.store->pixelAt(f, *px);
@@ -228,7 +232,8 @@ Batch ImageSpaceSampler::sample(uint64_t seed, uint64_t iteration, int rays, con
         ++out.stats().masked;
         return;
       }
-      for (int sample = 0; sample < samples; ++sample) out.add(BatchRay{frame.camera.position, ray->second, *reference, clipOf(frame)});
+      for (int sample = 0; sample < samples; ++sample)
+        out.add(BatchRay{frame.camera.position, ray->second, *reference, clipOf(frame)});
       return;
     }
     // The pixel position is uniform in the image, so uniform within the pixel it falls in: with a

@@ -28,12 +28,12 @@ struct TrainingFrames {
 };
 
 struct SamplerStats {
-  size_t slots = 0;            // texels (or pixels) drawn
-  size_t candidates = 0;       // frame connections tried
-  size_t notSeen = 0;          // outside the image, edge-on, occluded
+  size_t slots = 0;              // texels (or pixels) drawn
+  size_t candidates = 0;         // frame connections tried
+  size_t notSeen = 0;            // outside the image, edge-on, occluded
   size_t firstHitElsewhere = 0;  // the camera ray first hits another surface (grazing, self-occlusion)
-  size_t masked = 0;           // reference pixel masked (NaN/Inf in the input)
-  size_t rays = 0;             // training rays produced
+  size_t masked = 0;             // reference pixel masked (NaN/Inf in the input)
+  size_t rays = 0;               // training rays produced
   void add(const SamplerStats& o);
   Json toJson() const;
 };
@@ -41,9 +41,9 @@ struct SamplerStats {
 // A batch and, per ray, the surface it was aimed at (texture space: the texel slot it came from).
 struct Batch {
   std::vector<BatchRay> rays;
-  std::vector<uint32_t> slot;    // which drawn texel (or pixel) produced the ray
-  std::vector<int> object;       // the object of the targeted surface point
-  std::vector<uint32_t> texel;   // per slot: the texel drawn (texture-space sampler; empty for image space)
+  std::vector<uint32_t> slot;   // which drawn texel (or pixel) produced the ray
+  std::vector<int> object;      // the object of the targeted surface point
+  std::vector<uint32_t> texel;  // per slot: the texel drawn (texture-space sampler; empty for image space)
   SamplerStats stats;
   // Appends another texture-space batch: its slots follow this batch's (texel.size() of them).
   void append(const Batch& other);
@@ -54,9 +54,9 @@ struct Batch {
 // is compared with the bilinear interpolation of the frame there. Pixel: the ray goes through a
 // uniformly random point of the (stored) pixel the surface point projects into and is compared
 // with that pixel, so its expectation is the pixel (the frames' box filter); the adjoint pass
-// goes through another, independent point of it (BatchRay::adjointDir). With Point, wherever the radiance varies within a pixel (a highlight on a curved glossy surface: a pixel of a 0.2 m ball 3 m away spans
-// ~9 degrees of reflected directions, a roughness-0.1 lobe ~1) the pixel is a blur the point
-// estimate must reproduce with a rougher material.
+// goes through another, independent point of it (BatchRay::adjointDir). With Point, wherever the radiance varies within
+// a pixel (a highlight on a curved glossy surface: a pixel of a 0.2 m ball 3 m away spans ~9 degrees of reflected
+// directions, a roughness-0.1 lobe ~1) the pixel is a blur the point estimate must reproduce with a rougher material.
 enum class RayFootprint { Pixel, Point };
 template <>
 struct EnumNames<RayFootprint> {
@@ -65,8 +65,8 @@ struct EnumNames<RayFootprint> {
 };
 
 struct TextureSamplerSettings {
-  int texels = 16384;         // B: texels per iteration
-  int framesPerTexel = 4;     // K: frame connections tried per texel
+  int texels = 16384;      // B: texels per iteration
+  int framesPerTexel = 4;  // K: frame connections tried per texel
   RayFootprint footprint = RayFootprint::Point;
   // Rays per connection, each an independent estimate (the solver seeds each ray on its own); with
   // a pixel footprint each also draws its own points of the pixel.
@@ -77,10 +77,11 @@ class TextureSpaceSampler {
  public:
   // `texels` are the sampleable texels of `map` (covered and observed); the sampler keeps a view
   // of them (as of the scene, map and index), not a copy.
-  TextureSpaceSampler(const Scene& scene, const TexelMap& map, std::span<const uint32_t> texels, const VisibilityIndex& vis,
-                      const TrainingFrames& frames);
+  TextureSpaceSampler(const Scene& scene, const TexelMap& map, std::span<const uint32_t> texels,
+                      const VisibilityIndex& vis, const TrainingFrames& frames);
   // A temporary list would be gone before the first sample.
-  TextureSpaceSampler(const Scene&, const TexelMap&, std::vector<uint32_t>&&, const VisibilityIndex&, const TrainingFrames&) = delete;
+  TextureSpaceSampler(const Scene&, const TexelMap&, std::vector<uint32_t>&&, const VisibilityIndex&,
+                      const TrainingFrames&) = delete;
   Batch sample(uint64_t seed, uint64_t iteration, const TextureSamplerSettings& settings) const;
   size_t texelCount() const { return texels_.size(); }
 
@@ -100,8 +101,8 @@ class ImageSpaceSampler {
  public:
   explicit ImageSpaceSampler(const TrainingFrames& frames) : frames_(frames) {}
   // `rays` pixels drawn, `samples` rays each (as TextureSamplerSettings::samplesPerConnection).
-  Batch sample(uint64_t seed, uint64_t iteration, int rays, const Scene& scene, RayFootprint footprint = RayFootprint::Point,
-               int samples = 1) const;
+  Batch sample(uint64_t seed, uint64_t iteration, int rays, const Scene& scene,
+               RayFootprint footprint = RayFootprint::Point, int samples = 1) const;
 
  private:
   TrainingFrames frames_;

@@ -39,7 +39,8 @@ std::optional<Vec2> observe(const Scene& scene, const Camera& cam, const Vec3& p
 
 size_t VisibilityIndex::tileOf(size_t texel, int texelResolution) const {
   const int scale = texelResolution / resolution;
-  const int x = static_cast<int>(texel % texelResolution) / scale, y = static_cast<int>(texel / texelResolution) / scale;
+  const int x = static_cast<int>(texel % texelResolution) / scale,
+            y = static_cast<int>(texel / texelResolution) / scale;
   return static_cast<size_t>(y / tileTexels) * tilesPerSide + x / tileTexels;
 }
 
@@ -102,22 +103,28 @@ VisibilityIndex VisibilityIndex::read(const fs::path& path, size_t frameCount) {
   std::memcpy(header, bytes.data() + 8, sizeof(header));
   // Every number checked here, so tileOf/framesOf can index without checks.
   constexpr uint32_t kMaxResolution = 65536;
-  if (header[0] < 1 || header[0] > kMaxResolution || header[1] < 1 || header[1] > header[0] || header[0] % header[1] != 0 ||
-      header[2] != header[0] / header[1])
-    fail("{}: resolution {}, tile {} texels, {} tiles per side: need resolution in [1, {}] = tile size x tiles per side",
-         file, header[0], header[1], header[2], kMaxResolution);
+  if (header[0] < 1 || header[0] > kMaxResolution || header[1] < 1 || header[1] > header[0] ||
+      header[0] % header[1] != 0 || header[2] != header[0] / header[1])
+    fail(
+        "{}: resolution {}, tile {} texels, {} tiles per side: need resolution in [1, {}] = tile size x tiles per side",
+        file, header[0], header[1], header[2], kMaxResolution);
   VisibilityIndex v;
-  v.resolution = static_cast<int>(header[0]), v.tileTexels = static_cast<int>(header[1]), v.tilesPerSide = static_cast<int>(header[2]);
+  v.resolution = static_cast<int>(header[0]), v.tileTexels = static_cast<int>(header[1]),
+  v.tilesPerSide = static_cast<int>(header[2]);
   const size_t tiles = static_cast<size_t>(v.tilesPerSide) * v.tilesPerSide;
   if (bytes.size() != 24 + (tiles + 1 + header[3]) * sizeof(uint32_t))
-    fail("{}: visibility index is truncated or corrupt ({} bytes for {} tiles and {} entries)", file, bytes.size(), tiles, header[3]);
+    fail("{}: visibility index is truncated or corrupt ({} bytes for {} tiles and {} entries)", file, bytes.size(),
+         tiles, header[3]);
   v.offsets.resize(tiles + 1);
   v.frames.resize(header[3]);
   std::memcpy(v.offsets.data(), bytes.data() + 24, v.offsets.size() * sizeof(uint32_t));
-  // Guarded: an index with no entries has frames.data() == nullptr, and memcpy from/to null is undefined even for 0 bytes.
+  // Guarded: an index with no entries has frames.data() == nullptr, and memcpy from/to null is undefined even for 0
+  // bytes.
   if (!v.frames.empty())
-    std::memcpy(v.frames.data(), bytes.data() + 24 + v.offsets.size() * sizeof(uint32_t), v.frames.size() * sizeof(uint32_t));
-  if (v.offsets.front() != 0 || v.offsets.back() != v.frames.size() || !std::is_sorted(v.offsets.begin(), v.offsets.end()))
+    std::memcpy(v.frames.data(), bytes.data() + 24 + v.offsets.size() * sizeof(uint32_t),
+                v.frames.size() * sizeof(uint32_t));
+  if (v.offsets.front() != 0 || v.offsets.back() != v.frames.size() ||
+      !std::is_sorted(v.offsets.begin(), v.offsets.end()))
     fail("{}: visibility index offsets must rise from 0 to the entry count {}", file, v.frames.size());
   for (const uint32_t f : v.frames)
     if (f >= frameCount) fail("{}: visibility index names frame {}, the capture has {}", file, f, frameCount);

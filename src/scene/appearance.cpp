@@ -10,8 +10,13 @@
 namespace relume {
 
 Appearance::Appearance(int n)
-    : names(n), roughness(n, 0.5f), specular(n, 0.5f), emission(n, Color::Zero()),
-      albedoConstant(n, Color::Constant(0.5f)), albedoFromTexture(n, 0), emissionTextureOf(n, -1) {
+    : names(n),
+      roughness(n, 0.5f),
+      specular(n, 0.5f),
+      emission(n, Color::Zero()),
+      albedoConstant(n, Color::Constant(0.5f)),
+      albedoFromTexture(n, 0),
+      emissionTextureOf(n, -1) {
   for (int i = 0; i < n; ++i) names[i] = fmt::format("object{}", i);
 }
 
@@ -34,7 +39,8 @@ namespace {
 constexpr double kFloatMax = std::numeric_limits<float>::max();
 constexpr const char* kEmissionRange = ">= 0 and finite in float";
 
-float floatIn(const Json& v, double lo, double hi, const char* range, const std::string& where, const std::string& field) {
+float floatIn(const Json& v, double lo, double hi, const char* range, const std::string& where,
+              const std::string& field) {
   if (!v.is_number()) fail("{}: '{}' must be a number", where, field);
   const double d = v.get<double>();
   const float f = static_cast<float>(d);
@@ -64,8 +70,8 @@ Texture readTexture(const std::filesystem::path& path, double lo, double hi, con
          stats.nonFiniteIndex[0] / img.width, range);
   for (size_t i = 0; i < img.rgb.size(); ++i)
     if (!(img.rgb[i] >= lo && img.rgb[i] <= hi))
-      fail("{}: texel ({}, {}) channel {} is {}, must be {}", path.string(), i / 3 % img.width, i / 3 / img.width, i % 3,
-           img.rgb[i], range);
+      fail("{}: texel ({}, {}) channel {} is {}, must be {}", path.string(), i / 3 % img.width, i / 3 / img.width,
+           i % 3, img.rgb[i], range);
   Texture t(img.width, img.height);
   t.rgb = img.rgb;
   return t;
@@ -84,7 +90,8 @@ void readConstantFields(const Json& o, int id, const std::string& where, Appeara
     a.albedoConstant[id] = readColor(o, "albedo", 0.0, 1.0, "in [0, 1]", where);
     a.albedoFromTexture[id] = 0;
   }
-  if (o.contains("roughness")) a.roughness[id] = floatIn(o["roughness"], kRoughnessMin, 1.0, "in [0.035, 1]", where, "roughness");
+  if (o.contains("roughness"))
+    a.roughness[id] = floatIn(o["roughness"], kRoughnessMin, 1.0, "in [0.035, 1]", where, "roughness");
   if (o.contains("specular")) a.specular[id] = floatIn(o["specular"], 0.0, 1.0, "in [0, 1]", where, "specular");
   if (o.contains("emission")) a.emission[id] = readColor(o, "emission", 0.0, kFloatMax, kEmissionRange, where);
 }
@@ -110,11 +117,15 @@ static SceneDescription parseSceneFile(const std::filesystem::path& path) {
   s.mesh = loadMesh(s.meshPath);
   Appearance& a = s.appearance;
   a = Appearance(s.mesh.objectCount);
-  if (j.contains("diffuse")) fail("{}: 'diffuse' is no longer read; name the appearance 'model' (principled-v1 or gltf)", file);
+  if (j.contains("diffuse"))
+    fail("{}: 'diffuse' is no longer read; name the appearance 'model' (principled-v1 or gltf)", file);
   const std::string model = j.value("model", bsdfModelName(BsdfModel::PrincipledV1));
-  if (model == bsdfModelName(BsdfModel::PrincipledV1)) a.model = BsdfModel::PrincipledV1;
-  else if (model == bsdfModelName(BsdfModel::Gltf)) a.model = BsdfModel::Gltf;
-  else fail("{}: 'model' must be principled-v1 or gltf, not '{}'", file, model);
+  if (model == bsdfModelName(BsdfModel::PrincipledV1))
+    a.model = BsdfModel::PrincipledV1;
+  else if (model == bsdfModelName(BsdfModel::Gltf))
+    a.model = BsdfModel::Gltf;
+  else
+    fail("{}: 'model' must be principled-v1 or gltf, not '{}'", file, model);
   if (j.contains("albedo_texture")) {
     if (!s.mesh.hasUv()) fail("{}: 'albedo_texture' given but {} has no valid uv", file, s.meshPath.string());
     a.albedo = readTexture(dir / j["albedo_texture"].get<std::string>(), 0.0, 1.0, "in [0, 1] (albedo)");
@@ -138,7 +149,8 @@ static SceneDescription parseSceneFile(const std::filesystem::path& path) {
         const Json& w = o["emission_window"];
         Texture t = readTexture(dir / o["emission_texture"].get<std::string>(), 0.0, kFloatMax, kEmissionRange);
         const int maxSide = std::numeric_limits<int>::max();
-        t.x0 = intIn(w[0], 0, maxSide, where, "emission_window[0]"), t.y0 = intIn(w[1], 0, maxSide, where, "emission_window[1]");
+        t.x0 = intIn(w[0], 0, maxSide, where, "emission_window[0]"),
+        t.y0 = intIn(w[1], 0, maxSide, where, "emission_window[1]");
         t.fullWidth = intIn(w[2], 1, maxSide, where, "emission_window[2]");
         t.fullHeight = intIn(w[3], 1, maxSide, where, "emission_window[3]");
         a.emissionTextureOf[id] = static_cast<int>(a.emissionTextures.size());
@@ -162,7 +174,10 @@ void saveSceneFile(const std::filesystem::path& path, const SceneDescription& s)
   }
   Json objects = Json::array();
   for (int o = 0; o < a.objectCount(); ++o) {
-    Json obj{{"id", o}, {"name", a.names[o]}, {"roughness", a.roughness[o]}, {"specular", a.specular[o]},
+    Json obj{{"id", o},
+             {"name", a.names[o]},
+             {"roughness", a.roughness[o]},
+             {"specular", a.specular[o]},
              {"emission", {a.emission[o][0], a.emission[o][1], a.emission[o][2]}}};
     if (!a.usesTexture(o)) obj["albedo"] = {a.albedoConstant[o][0], a.albedoConstant[o][1], a.albedoConstant[o][2]};
     if (const Texture* t = a.emissionTexture(o)) {

@@ -24,12 +24,12 @@ struct Appearance {
   BsdfModel model = BsdfModel::PrincipledV1;
   std::vector<std::string> names;
   std::vector<float> roughness, specular;
-  std::vector<Color> emission;             // Lambertian radiance per object (front side)
-  std::vector<Color> albedoConstant;       // used where albedoFromTexture[o] == 0
+  std::vector<Color> emission;        // Lambertian radiance per object (front side)
+  std::vector<Color> albedoConstant;  // used where albedoFromTexture[o] == 0
   std::vector<uint8_t> albedoFromTexture;
-  Texture albedo;                          // uv atlas, row 0 at the top
-  std::vector<int> emissionTextureOf;      // per object: index into emissionTextures or -1
-  std::vector<Texture> emissionTextures;   // windows of the atlas, one per textured emitter
+  Texture albedo;                         // uv atlas, row 0 at the top
+  std::vector<int> emissionTextureOf;     // per object: index into emissionTextures or -1
+  std::vector<Texture> emissionTextures;  // windows of the atlas, one per textured emitter
 
   explicit Appearance(int objectCount = 0);
   int objectCount() const { return static_cast<int>(roughness.size()); }

@@ -79,7 +79,8 @@ void collectVertices(const TriangleMesh& m, Chart& c) {
   c.local.clear();
   for (uint32_t f : c.faces)
     for (int k = 0; k < 3; ++k)
-      if (c.local.emplace(m.triangles[f][k], static_cast<int>(c.vertices.size())).second) c.vertices.push_back(m.triangles[f][k]);
+      if (c.local.emplace(m.triangles[f][k], static_cast<int>(c.vertices.size())).second)
+        c.vertices.push_back(m.triangles[f][k]);
 }
 
 void planarProjection(const TriangleMesh& m, Chart& c, const Vec3& axis) {
@@ -106,7 +107,8 @@ bool lscm(const TriangleMesh& m, Chart& c) {
       if (float d = (m.positions[c.vertices[i]] - p0).squaredNorm(); d > best) best = d, pinA = i;
     best = -1;
     for (int i = 0; i < nv; ++i)
-      if (float d = (m.positions[c.vertices[i]] - m.positions[c.vertices[pinA]]).squaredNorm(); d > best) best = d, pinB = i;
+      if (float d = (m.positions[c.vertices[i]] - m.positions[c.vertices[pinA]]).squaredNorm(); d > best)
+        best = d, pinB = i;
   }
   if (pinA == pinB) return false;
   const double dist = (m.positions[c.vertices[pinA]] - m.positions[c.vertices[pinB]]).cast<double>().norm();
@@ -169,7 +171,8 @@ bool lscm(const TriangleMesh& m, Chart& c) {
   double minRatio = INFINITY, maxRatio = 0;
   for (uint32_t f : c.faces) {
     const auto& tri = m.triangles[f];
-    const double ratio = std::abs(cross2(c.uv[c.local.at(tri[0])], c.uv[c.local.at(tri[1])], c.uv[c.local.at(tri[2])])) / m.faceArea[f];
+    const double ratio =
+        std::abs(cross2(c.uv[c.local.at(tri[0])], c.uv[c.local.at(tri[1])], c.uv[c.local.at(tri[2])])) / m.faceArea[f];
     minRatio = std::min(minRatio, ratio), maxRatio = std::max(maxRatio, ratio);
   }
   if (!(maxRatio <= 1e4 * minRatio)) return false;
@@ -179,7 +182,9 @@ bool lscm(const TriangleMesh& m, Chart& c) {
   std::vector<double> stretch;
   for (uint32_t f : c.faces) {
     const auto& tri = m.triangles[f];
-    const double ratio = std::abs(cross2(c.uv[c.local.at(tri[0])], c.uv[c.local.at(tri[1])], c.uv[c.local.at(tri[2])])) / (2 * m.faceArea[f]);
+    const double ratio =
+        std::abs(cross2(c.uv[c.local.at(tri[0])], c.uv[c.local.at(tri[1])], c.uv[c.local.at(tri[2])])) /
+        (2 * m.faceArea[f]);
     stretch.push_back(std::sqrt(ratio / meanRatio));
   }
   std::nth_element(stretch.begin(), stretch.begin() + static_cast<long>(stretch.size() * 19 / 20), stretch.end());
@@ -208,7 +213,8 @@ bool parameterise(const TriangleMesh& m, const std::vector<Vec3>& normals, float
   const Vec3 axis = sum.normalized();
   double alignedArea = 0;
   float minCos = 1;
-  for (uint32_t f : c.faces) alignedArea += m.faceArea[f] * normals[f].dot(axis), minCos = std::min(minCos, normals[f].dot(axis));
+  for (uint32_t f : c.faces)
+    alignedArea += m.faceArea[f] * normals[f].dot(axis), minCos = std::min(minCos, normals[f].dot(axis));
   c.lscm = false;
   if (alignedArea < cosPlanar * area && lscm(m, c)) {
     c.lscm = true;
@@ -218,14 +224,16 @@ bool parameterise(const TriangleMesh& m, const std::vector<Vec3>& normals, float
     return false;
   }
   return c.faces.size() == 1 ||
-         countOverlaps(c.faces, [&](uint32_t f, int k) { return c.uv[c.local.at(m.triangles[f][k])]; }, 1) == 0;
+         countOverlaps(
+             c.faces, [&](uint32_t f, int k) { return c.uv[c.local.at(m.triangles[f][k])]; }, 1) == 0;
 }
 
 // Rotates the chart to its minimum-area bounding rectangle (rotating calipers on the hull), puts
 // it at the origin, and makes it wider than tall.
 void orientChart(Chart& c) {
   std::vector<Vec2d> pts = c.uv;
-  std::sort(pts.begin(), pts.end(), [](const Vec2d& a, const Vec2d& b) { return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y()); });
+  std::sort(pts.begin(), pts.end(),
+            [](const Vec2d& a, const Vec2d& b) { return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y()); });
   std::vector<Vec2d> hull;
   for (int pass = 0; pass < 2; ++pass) {
     const size_t start = hull.size();
@@ -238,7 +246,9 @@ void orientChart(Chart& c) {
   }
   double bestArea = INFINITY, bestAngle = 0;
   for (size_t i = 0; i < std::max<size_t>(hull.size(), 1); ++i) {
-    const double angle = hull.size() < 2 ? 0.0 : std::atan2(hull[(i + 1) % hull.size()].y() - hull[i].y(), hull[(i + 1) % hull.size()].x() - hull[i].x());
+    const double angle = hull.size() < 2 ? 0.0
+                                         : std::atan2(hull[(i + 1) % hull.size()].y() - hull[i].y(),
+                                                      hull[(i + 1) % hull.size()].x() - hull[i].x());
     const double cs = std::cos(-angle), sn = std::sin(-angle);
     Eigen::AlignedBox2d box;
     for (const Vec2d& p : hull) box.extend(Vec2d(cs * p.x() - sn * p.y(), sn * p.x() + cs * p.y()));
@@ -294,17 +304,20 @@ std::vector<Chart> splitHollow(const TriangleMesh& m, const Topology& topo, cons
   auto hollow = [&](const Chart& part) {
     Eigen::AlignedBox2d box;
     for (const Vec2d& p : part.uv) box.extend(p);
-    return part.faces.size() > 1 && box.volume() * density * density > kMinBoxTexels && uvArea(m, part) < kMinHollowFill * box.volume();
+    return part.faces.size() > 1 && box.volume() * density * density > kMinBoxTexels &&
+           uvArea(m, part) < kMinHollowFill * box.volume();
   };
   if (!hollow(c)) return {};
-  std::unordered_map<uint32_t, uint32_t> index;  // face -> position in c.faces
+  std::unordered_map<uint32_t, uint32_t> index;   // face -> position in c.faces
   std::vector<double> direction(c.faces.size());  // of the longest uv edge, in [0, pi)
   for (uint32_t i = 0; i < c.faces.size(); ++i) {
     index[c.faces[i]] = i;
     const auto& t = m.triangles[c.faces[i]];
     Vec2d longest = Vec2d::Zero();
     for (int k = 0; k < 3; ++k)
-      if (const Vec2d e = c.uv[c.local.at(t[(k + 1) % 3])] - c.uv[c.local.at(t[k])]; e.squaredNorm() > longest.squaredNorm()) longest = e;
+      if (const Vec2d e = c.uv[c.local.at(t[(k + 1) % 3])] - c.uv[c.local.at(t[k])];
+          e.squaredNorm() > longest.squaredNorm())
+        longest = e;
     direction[i] = std::fmod(std::atan2(longest.y(), longest.x()) + kPi, kPi);
   }
   std::vector<uint32_t> parent(c.faces.size());
@@ -363,7 +376,8 @@ void reportCharts(AtlasState& s, const Packing& p) {
 // Emission of the atlas mesh: each chart's vertices duplicated with their stored uvs (a vertex on
 // a seam belongs to every chart it borders), faces renumbered in place; the report gets the
 // packing efficiency, the stretch percentiles, the time and the overlap count of the result.
-TriangleMesh emitAtlasMesh(AtlasState& s, const std::vector<std::vector<Vec2>>& chartUv, double density, const Timer& timer) {
+TriangleMesh emitAtlasMesh(AtlasState& s, const std::vector<std::vector<Vec2>>& chartUv, double density,
+                           const Timer& timer) {
   const TriangleMesh& mesh = s.mesh;
   const std::vector<Chart>& charts = s.charts;
   AtlasReport& r = s.r;
@@ -385,7 +399,8 @@ TriangleMesh emitAtlasMesh(AtlasState& s, const std::vector<std::vector<Vec2>>& 
     for (uint32_t f : c.faces) {
       for (int k = 0; k < 3; ++k) out.triangles[f][k] = base + c.local.at(mesh.triangles[f][k]);
       const auto& t = out.triangles[f];
-      const double a = 0.5 * std::abs(cross2(out.uvs[t[0]].cast<double>(), out.uvs[t[1]].cast<double>(), out.uvs[t[2]].cast<double>()));
+      const double a = 0.5 * std::abs(cross2(out.uvs[t[0]].cast<double>(), out.uvs[t[1]].cast<double>(),
+                                             out.uvs[t[2]].cast<double>()));
       uvArea += a;
       stretch.push_back(std::sqrt(a * R * R / (density * density) / std::max<double>(mesh.faceArea[f], 1e-30)));
     }
@@ -407,7 +422,8 @@ TriangleMesh emitAtlasMesh(AtlasState& s, const std::vector<std::vector<Vec2>>& 
 size_t countUvOverlaps(const TriangleMesh& mesh, size_t stopAfter) {
   std::vector<uint32_t> faces(mesh.triangles.size());
   std::iota(faces.begin(), faces.end(), 0);
-  return countOverlaps(faces, [&](uint32_t f, int k) { return Vec2d(mesh.uvs[mesh.triangles[f][k]].cast<double>()); }, stopAfter);
+  return countOverlaps(
+      faces, [&](uint32_t f, int k) { return Vec2d(mesh.uvs[mesh.triangles[f][k]].cast<double>()); }, stopAfter);
 }
 
 bool hasValidUvAtlas(const TriangleMesh& mesh) {
@@ -416,17 +432,21 @@ bool hasValidUvAtlas(const TriangleMesh& mesh) {
     if (!(uv.minCoeff() >= 0.0f && uv.maxCoeff() <= 1.0f)) return false;
   for (size_t f = 0; f < mesh.triangles.size(); ++f) {
     const auto& t = mesh.triangles[f];
-    if (std::abs(cross2(mesh.uvs[t[0]].cast<double>(), mesh.uvs[t[1]].cast<double>(), mesh.uvs[t[2]].cast<double>())) <= 0) return false;
+    if (std::abs(cross2(mesh.uvs[t[0]].cast<double>(), mesh.uvs[t[1]].cast<double>(), mesh.uvs[t[2]].cast<double>())) <=
+        0)
+      return false;
   }
   return countUvOverlaps(mesh, 1) == 0;
 }
 
 std::string AtlasReport::summary() const {
   if (keptInputUv) return "kept the mesh's own uv atlas (valid, no overlaps)";
-  return fmt::format("{} charts ({} least-squares conformal, {} split for overlaps, {} small ones merged, {} hollow ones cut, {} tiny ones in {} shared blocks holding {:.1f}% of the surface), packing efficiency {:.3f}, {:.1f} texels/m, "
-                     "stretch p05/median/p95 {:.3f}/{:.3f}/{:.3f}, {} uv overlaps, {:.1f}s",
-                     charts, lscmCharts, splitCharts, mergedCharts, hollowCharts, blockedCharts, sharedBlocks, 100 * blockedSurface, packingEfficiency, texelsPerMetre, stretchP05, stretchMedian, stretchP95,
-                     uvOverlaps, seconds);
+  return fmt::format(
+      "{} charts ({} least-squares conformal, {} split for overlaps, {} small ones merged, {} hollow ones cut, {} tiny "
+      "ones in {} shared blocks holding {:.1f}% of the surface), packing efficiency {:.3f}, {:.1f} texels/m, "
+      "stretch p05/median/p95 {:.3f}/{:.3f}/{:.3f}, {} uv overlaps, {:.1f}s",
+      charts, lscmCharts, splitCharts, mergedCharts, hollowCharts, blockedCharts, sharedBlocks, 100 * blockedSurface,
+      packingEfficiency, texelsPerMetre, stretchP05, stretchMedian, stretchP95, uvOverlaps, seconds);
 }
 
 TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasReport* report) {
@@ -449,13 +469,13 @@ TriangleMesh buildAtlas(const TriangleMesh& mesh, const AtlasOptions& o, AtlasRe
   const int ring = (o.gutterTexels + 1) / 2;
   Packing p;
   std::vector<std::vector<Vec2>> chartUv;  // per chart and local vertex: the atlas uv as stored (float)
-  for (;;) {  // until no chart folds in float
+  for (;;) {                               // until no chart folds in float
     sortByFirstFace(s.charts);
     p.groups = groupCharts(s, ring);
     packGroups(s, ring, p);
     const std::vector<char> folded = storeUvs(s, ring, p, chartUv);
-    spdlog::debug("atlas: {} groups packed at {:.1f} texels/m at {:.1f}s, {} charts fold in float", p.groups.size(), p.density, timer.seconds(),
-                  std::count(folded.begin(), folded.end(), 1));
+    spdlog::debug("atlas: {} groups packed at {:.1f} texels/m at {:.1f}s, {} charts fold in float", p.groups.size(),
+                  p.density, timer.seconds(), std::count(folded.begin(), folded.end(), 1));
     if (std::find(folded.begin(), folded.end(), 1) == folded.end()) break;
     rechartFolded(s, folded);
   }

@@ -17,9 +17,9 @@ struct AtlasOptions {
   // one-texel dilation ring per chart never collides with a neighbour at any stage.
   int gutterResolution = 1024;
   int gutterTexels = 2;
-  float coneDegrees = 60.0f;   // faces join a chart while their normal is within this of the seed's
-  float planarDegrees = 20.0f; // charts whose area-weighted mean normal deviation is below this
-                               // use planar projection, others least-squares conformal maps
+  float coneDegrees = 60.0f;    // faces join a chart while their normal is within this of the seed's
+  float planarDegrees = 20.0f;  // charts whose area-weighted mean normal deviation is below this
+                                // use planar projection, others least-squares conformal maps
   // Charts smaller than sharedBlockTexels, or narrower than sharedBlockWidth texels (at the density
   // where the atlas would be full), are packed side by side in shared blocks per object, one gutter
   // around each block: lookups near such a chart's border may read a texel of another tiny chart of
@@ -34,13 +34,13 @@ struct AtlasReport {
   size_t charts = 0, lscmCharts = 0, splitCharts = 0, mergedCharts = 0;
   size_t hollowCharts = 0;                     // frame-like charts cut into straight parts
   size_t sharedBlocks = 0, blockedCharts = 0;  // shared blocks of tiny charts, and the charts in them
-  double blockedSurface = 0;                    // the share of the mesh's area in shared blocks
-  double packingEfficiency = 0;  // charted uv area / atlas area
-  double texelsPerMetre = 0;     // at AtlasOptions::gutterResolution
+  double blockedSurface = 0;                   // the share of the mesh's area in shared blocks
+  double packingEfficiency = 0;                // charted uv area / atlas area
+  double texelsPerMetre = 0;                   // at AtlasOptions::gutterResolution
   // Stretch: sqrt(uv area / 3D area), normalised by the atlas density; 1 = no distortion.
   double stretchP05 = 0, stretchMedian = 0, stretchP95 = 0;
-  size_t uvOverlaps = 0;         // pairs of triangles overlapping in the output (countUvOverlaps): 0
-  double seconds = 0;            // charting and packing (the overlap count is not timed)
+  size_t uvOverlaps = 0;  // pairs of triangles overlapping in the output (countUvOverlaps): 0
+  double seconds = 0;     // charting and packing (the overlap count is not timed)
   std::string summary() const;
 };
 

@@ -41,7 +41,8 @@ Topology buildTopology(const TriangleMesh& m) {
       edges.push_back({std::min(a, b) << 32 | std::max(a, b), f, static_cast<uint8_t>(k), static_cast<uint8_t>(a < b)});
       t.edgeLength[f][k] = (m.positions[m.triangles[f][(k + 1) % 3]] - m.positions[m.triangles[f][k]]).norm();
     }
-  std::sort(edges.begin(), edges.end(), [](const HalfEdge& a, const HalfEdge& b) { return a.key != b.key ? a.key < b.key : a.face < b.face; });
+  std::sort(edges.begin(), edges.end(),
+            [](const HalfEdge& a, const HalfEdge& b) { return a.key != b.key ? a.key < b.key : a.face < b.face; });
   for (size_t i = 0; i < edges.size();) {
     size_t j = i;
     while (j < edges.size() && edges[j].key == edges[i].key) ++j;
@@ -59,12 +60,15 @@ Topology buildTopology(const TriangleMesh& m) {
   return t;
 }
 
-std::vector<std::vector<uint32_t>> growCharts(const TriangleMesh& m, const std::vector<Vec3>& normals, const Topology& topo,
-                                              const std::vector<uint32_t>& region, float coneDegrees, std::vector<int32_t>& state) {
+std::vector<std::vector<uint32_t>> growCharts(const TriangleMesh& m, const std::vector<Vec3>& normals,
+                                              const Topology& topo, const std::vector<uint32_t>& region,
+                                              float coneDegrees, std::vector<int32_t>& state) {
   const float cosCone = std::cos(coneDegrees * kPi / 180.0f);
   constexpr float kBoundaryWeight = 0.5f;
   std::vector<uint32_t> seeds = region;
-  std::sort(seeds.begin(), seeds.end(), [&](uint32_t a, uint32_t b) { return m.faceArea[a] != m.faceArea[b] ? m.faceArea[a] > m.faceArea[b] : a < b; });
+  std::sort(seeds.begin(), seeds.end(), [&](uint32_t a, uint32_t b) {
+    return m.faceArea[a] != m.faceArea[b] ? m.faceArea[a] > m.faceArea[b] : a < b;
+  });
   for (uint32_t f : region) state[f] = -1;
   std::vector<std::vector<uint32_t>> charts;
   using Entry = std::pair<float, uint32_t>;
@@ -175,7 +179,8 @@ void mergeSmallCharts(AtlasState& s) {
   const double maxDensity = s.maxDensity;
   constexpr double kSmallChartTexels = 16, kMinMergedStretch = 0.5;
   constexpr size_t kMaxMergeTarget = 500;
-  std::sort(charts.begin(), charts.end(), [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
+  std::sort(charts.begin(), charts.end(),
+            [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
   std::vector<int32_t> chartOf(mesh.triangles.size());
   std::vector<double> chartArea(charts.size(), 0);
   for (size_t i = 0; i < charts.size(); ++i)
@@ -183,13 +188,15 @@ void mergeSmallCharts(AtlasState& s) {
   std::vector<size_t> order;
   for (size_t i = 0; i < charts.size(); ++i)
     if (chartArea[i] * maxDensity * maxDensity < kSmallChartTexels) order.push_back(i);
-  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return chartArea[a] != chartArea[b] ? chartArea[a] < chartArea[b] : a < b; });
+  std::sort(order.begin(), order.end(),
+            [&](size_t a, size_t b) { return chartArea[a] != chartArea[b] ? chartArea[a] < chartArea[b] : a < b; });
   for (size_t small : order) {
     if (charts[small].faces.empty() || chartArea[small] * maxDensity * maxDensity >= kSmallChartTexels) continue;
     std::map<int32_t, float> border;
     for (uint32_t f : charts[small].faces)
       for (int k = 0; k < 3; ++k)
-        if (const int32_t g = topo.neighbour[f][k]; g >= 0 && chartOf[g] != static_cast<int32_t>(small)) border[chartOf[g]] += topo.edgeLength[f][k];
+        if (const int32_t g = topo.neighbour[f][k]; g >= 0 && chartOf[g] != static_cast<int32_t>(small))
+          border[chartOf[g]] += topo.edgeLength[f][k];
     int32_t target = -1;
     float longest = 0;
     for (const auto& [c, length] : border)
@@ -203,7 +210,8 @@ void mergeSmallCharts(AtlasState& s) {
     bool squashed = false;
     for (uint32_t f : merged.faces) {
       const auto& t = mesh.triangles[f];
-      const double a = 0.5 * std::abs(cross2(merged.uv[merged.local.at(t[0])], merged.uv[merged.local.at(t[1])], merged.uv[merged.local.at(t[2])]));
+      const double a = 0.5 * std::abs(cross2(merged.uv[merged.local.at(t[0])], merged.uv[merged.local.at(t[1])],
+                                             merged.uv[merged.local.at(t[2])]));
       squashed = squashed || !(std::sqrt(a / mesh.faceArea[f]) >= kMinMergedStretch);
     }
     if (squashed) continue;
@@ -248,8 +256,10 @@ void isolateSlivers(AtlasState& s) {
       for (int k = 0; k < 3; ++k) p[k] = c.uv[c.local.at(mesh.triangles[f][k])];
       const double longest = std::max({(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()});
       const double altitude = std::abs(cross2(p[0], p[1], p[2])) / std::max(longest, 1e-300);
-      if (altitude * maxDensity < 1e-3) singles.emplace_back().faces = {f};
-      else keep.push_back(f);
+      if (altitude * maxDensity < 1e-3)
+        singles.emplace_back().faces = {f};
+      else
+        keep.push_back(f);
     }
     if (keep.size() == c.faces.size()) continue;
     c = keep.empty() ? Chart{} : subChart(mesh, c, std::move(keep));
@@ -265,7 +275,8 @@ void isolateSlivers(AtlasState& s) {
 
 // Charts by first face: a deterministic order whatever the work-queue order was.
 void sortByFirstFace(std::vector<Chart>& charts) {
-  std::sort(charts.begin(), charts.end(), [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
+  std::sort(charts.begin(), charts.end(),
+            [](const Chart& a, const Chart& b) { return a.faces.front() < b.faces.front(); });
 }
 
 // Re-charting of the charts whose stored uvs fold: one chart per face (cone 0), which rounding
@@ -274,8 +285,10 @@ void rechartFolded(AtlasState& s, const std::vector<char>& folded) {
   std::vector<Chart> keep;
   std::vector<std::pair<std::vector<uint32_t>, float>> redo;
   for (size_t i = 0; i < s.charts.size(); ++i)
-    if (folded[i]) ++s.r.splitCharts, redo.push_back({std::move(s.charts[i].faces), 0.0f});
-    else keep.push_back(std::move(s.charts[i]));
+    if (folded[i])
+      ++s.r.splitCharts, redo.push_back({std::move(s.charts[i].faces), 0.0f});
+    else
+      keep.push_back(std::move(s.charts[i]));
   s.charts = std::move(keep);
   for (auto& [faces, cone] : redo) chartRegion(s, std::move(faces), cone);
 }

@@ -30,8 +30,9 @@ Topology buildTopology(const TriangleMesh& m);
 // a notch costs less than one sticking out), so charts grow compact; a face joins while its normal
 // stays within `coneDegrees` of the chart's mean normal. `state` holds -1 for the region's faces on
 // entry (-2 elsewhere) and is restored.
-std::vector<std::vector<uint32_t>> growCharts(const TriangleMesh& m, const std::vector<Vec3>& normals, const Topology& topo,
-                                              const std::vector<uint32_t>& region, float coneDegrees, std::vector<int32_t>& state);
+std::vector<std::vector<uint32_t>> growCharts(const TriangleMesh& m, const std::vector<Vec3>& normals,
+                                              const Topology& topo, const std::vector<uint32_t>& region,
+                                              float coneDegrees, std::vector<int32_t>& state);
 
 // A chart's footprint on the packing grid at one density: the texels its triangles touch, grown
 // by `ring` texels (half the gutter, rounded up), as a bitmap with, per
@@ -39,7 +40,7 @@ std::vector<std::vector<uint32_t>> growCharts(const TriangleMesh& m, const std::
 // shiftOf(ring) + uv * density, so the footprint is exactly what the texel map will rasterise there.
 struct Footprint {
   int w = 0, h = 0;
-  std::vector<uint8_t> bits;  // h rows of w
+  std::vector<uint8_t> bits;     // h rows of w
   std::vector<int> bottom, top;  // per column: first occupied row, one past the last (bottom = h if empty)
   bool at(int x, int y) const { return bits[static_cast<size_t>(y) * w + x] != 0; }
 };
@@ -77,7 +78,6 @@ struct Group {
 std::vector<Group> shareBlocks(const std::vector<Eigen::Vector2d>& size, const std::vector<int32_t>& object,
                                const std::vector<char>& tiny, double margin, double maxBlockArea);
 
-
 // Twice the signed area of a 2D triangle.
 inline double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
   return (b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x());
@@ -86,11 +86,11 @@ inline double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const E
 // A connected set of faces mapped to the plane without flips or overlaps, in metres.
 struct Chart {
   std::vector<uint32_t> faces;
-  std::vector<int> vertices;                 // original vertex ids
-  std::unordered_map<int, int> local;        // original vertex -> index in vertices
-  std::vector<Eigen::Vector2d> uv;           // per local vertex, metres
+  std::vector<int> vertices;           // original vertex ids
+  std::unordered_map<int, int> local;  // original vertex -> index in vertices
+  std::vector<Eigen::Vector2d> uv;     // per local vertex, metres
   bool lscm = false;
-  float cone = 0;                            // the normal cone it was grown with
+  float cone = 0;  // the normal cone it was grown with
 };
 
 // Maps a chart (atlas.cpp): false when it has no map without flips or overlaps.
@@ -114,7 +114,7 @@ struct AtlasState {
   const TriangleMesh& mesh;
   const AtlasOptions& o;
   AtlasReport& r;
-  std::vector<Vec3> normals;   // per face
+  std::vector<Vec3> normals;  // per face
   Topology topo;
   std::vector<int32_t> state;  // growCharts' scratch: -2 for every face between calls
   float cosPlanar = 0;         // charts flatter than o.planarDegrees are projected
@@ -147,6 +147,7 @@ void packGroups(const AtlasState& s, int ring, Packing& p);
 std::vector<char> storeUvs(const AtlasState& s, int ring, const Packing& p, std::vector<std::vector<Vec2>>& chartUv);
 void rechartFolded(AtlasState& s, const std::vector<char>& folded);
 void reportCharts(AtlasState& s, const Packing& p);
-TriangleMesh emitAtlasMesh(AtlasState& s, const std::vector<std::vector<Vec2>>& chartUv, double density, const Timer& timer);
+TriangleMesh emitAtlasMesh(AtlasState& s, const std::vector<std::vector<Vec2>>& chartUv, double density,
+                           const Timer& timer);
 
 }  // namespace relume::atlas_detail

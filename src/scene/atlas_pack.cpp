@@ -82,13 +82,15 @@ int profilePack(const std::vector<std::array<Footprint, 4>>& fps, int size, std:
   return used;
 }
 
-std::vector<Group> shareBlocks(const std::vector<Vec2d>& size, const std::vector<int32_t>& object, const std::vector<char>& tiny,
-                               double margin, double maxBlockArea) {
+std::vector<Group> shareBlocks(const std::vector<Vec2d>& size, const std::vector<int32_t>& object,
+                               const std::vector<char>& tiny, double margin, double maxBlockArea) {
   std::vector<Group> groups;
   std::map<int32_t, std::vector<uint32_t>> tinyOf;  // ordered: deterministic block order
   for (uint32_t i = 0; i < size.size(); ++i)
-    if (tiny[i]) tinyOf[object[i]].push_back(i);
-    else groups.push_back({{i}, {Vec2d::Zero()}});
+    if (tiny[i])
+      tinyOf[object[i]].push_back(i);
+    else
+      groups.push_back({{i}, {Vec2d::Zero()}});
   auto cell = [&](uint32_t i) { return (size[i].x() + margin) * (size[i].y() + margin); };
   for (auto& [obj, members] : tinyOf) {
     std::stable_sort(members.begin(), members.end(), [&](uint32_t a, uint32_t b) { return size[a].y() > size[b].y(); });
@@ -96,7 +98,8 @@ std::vector<Group> shareBlocks(const std::vector<Vec2d>& size, const std::vector
     for (size_t first = 0; first < members.size();) {
       size_t last = first;
       double area = 0;
-      while (last < members.size() && (last == first || area + cell(members[last]) <= maxBlockArea)) area += cell(members[last++]);
+      while (last < members.size() && (last == first || area + cell(members[last]) <= maxBlockArea))
+        area += cell(members[last++]);
       double width = std::sqrt(area);
       for (size_t j = first; j < last; ++j) width = std::max(width, size[members[j]].x());
       Group& g = groups.emplace_back();
@@ -121,8 +124,8 @@ namespace {
 
 // The footprint of a group of charts (each at its offset) whose box is `box`. A group larger than
 // `limit` texels gets a stand-in footprint wider than the strip (no bits).
-Footprint footprintOf(const TriangleMesh& m, const std::vector<Chart>& charts, const Group& g, const Eigen::AlignedBox2d& box, double density,
-                      int ring, int limit) {
+Footprint footprintOf(const TriangleMesh& m, const std::vector<Chart>& charts, const Group& g,
+                      const Eigen::AlignedBox2d& box, double density, int ring, int limit) {
   const double shift = shiftOf(ring);
   Footprint fp;
   if (!(std::max(box.sizes().x(), box.sizes().y()) * density < limit)) {  // cannot fit: say so without allocating it
@@ -133,7 +136,7 @@ Footprint footprintOf(const TriangleMesh& m, const std::vector<Chart>& charts, c
   fp.w = static_cast<int>(std::floor(shift + box.sizes().x() * density + 1e-3)) + 1 + ring;
   fp.h = static_cast<int>(std::floor(shift + box.sizes().y() * density + 1e-3)) + 1 + ring;
   std::vector<uint8_t> touched(static_cast<size_t>(fp.w) * fp.h, 0);
-  auto touch = [&](const Vec2d (&v)[3]) {
+  auto touch = [&](const Vec2d(&v)[3]) {
     const double orient = cross2(v[0], v[1], v[2]) >= 0 ? 1.0 : -1.0;
     const int x0 = static_cast<int>(std::floor(std::min({v[0].x(), v[1].x(), v[2].x()}) - 1e-3));
     const int x1 = static_cast<int>(std::floor(std::max({v[0].x(), v[1].x(), v[2].x()}) + 1e-3));
@@ -155,7 +158,8 @@ Footprint footprintOf(const TriangleMesh& m, const std::vector<Chart>& charts, c
     const Chart& c = charts[g.charts[j]];
     for (uint32_t f : c.faces) {
       Vec2d v[3];
-      for (int k = 0; k < 3; ++k) v[k] = Vec2d(shift, shift) + (g.offset[j] + c.uv[c.local.at(m.triangles[f][k])]) * density;
+      for (int k = 0; k < 3; ++k)
+        v[k] = Vec2d(shift, shift) + (g.offset[j] + c.uv[c.local.at(m.triangles[f][k])]) * density;
       touch(v);
     }
   }
@@ -192,8 +196,10 @@ std::vector<Group> groupCharts(const AtlasState& s, int ring) {
     for (uint32_t f : charts[i].faces) area += mesh.faceArea[f];
     size[i] = box.sizes();
     object[i] = mesh.faceObject[charts[i].faces.front()];
-    tiny[i] = area * maxDensity * maxDensity < o.sharedBlockTexels || size[i].minCoeff() * maxDensity < o.sharedBlockWidth;
-    if (tiny[i]) tinyFootprints += (size[i].x() * maxDensity + 1 + 2 * ring) * (size[i].y() * maxDensity + 1 + 2 * ring);
+    tiny[i] =
+        area * maxDensity * maxDensity < o.sharedBlockTexels || size[i].minCoeff() * maxDensity < o.sharedBlockWidth;
+    if (tiny[i])
+      tinyFootprints += (size[i].x() * maxDensity + 1 + 2 * ring) * (size[i].y() * maxDensity + 1 + 2 * ring);
   }
   if (tinyFootprints < 0.01 * G * G) std::fill(tiny.begin(), tiny.end(), 0);
   return shareBlocks(size, object, tiny, 0.1 / maxDensity, 1.0 / 64 * G * G / (maxDensity * maxDensity));
@@ -245,7 +251,8 @@ void packGroups(const AtlasState& s, int ring, Packing& p) {
     }
   }
   p.lastMiss = miss;
-  if (!(fit > 0)) fail("uv atlas: {} charts do not fit a {}^2 atlas with {}-texel gutters", charts.size(), G, o.gutterTexels);
+  if (!(fit > 0))
+    fail("uv atlas: {} charts do not fit a {}^2 atlas with {}-texel gutters", charts.size(), G, o.gutterTexels);
   packAt(fit);  // footprints at the chosen density (the same placement as `placement`)
   p.density = fit;
 }
@@ -262,7 +269,8 @@ std::vector<char> storeUvs(const AtlasState& s, int ring, const Packing& p, std:
     const Chart& c = charts[i];
     const size_t g = p.groupOf[i];
     for (const Vec2d& q0 : c.uv) {
-      const Vec2d q = turn(Vec2d::Constant(shiftOf(ring)) + (p.offsetOf[i] + q0) * p.density, p.placement[g].turns, p.fps[g][0].w, p.fps[g][0].h);
+      const Vec2d q = turn(Vec2d::Constant(shiftOf(ring)) + (p.offsetOf[i] + q0) * p.density, p.placement[g].turns,
+                           p.fps[g][0].w, p.fps[g][0].h);
       chartUv[i].push_back(((Vec2d(p.placement[g].x, p.placement[g].y) + q) / G).cast<float>());
     }
     bad[i] = foldsInFloat(s.mesh, c, chartUv[i]);

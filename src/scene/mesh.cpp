@@ -45,7 +45,8 @@ MeshData TriangleMesh::toData() const {
 TriangleMesh buildMesh(MeshData data, const std::string& source) {
   TriangleMesh m;
   const size_t nv = data.positions.size();
-  if (!data.normals.empty() && data.normals.size() != nv) fail("{}: {} normals for {} vertices", source, data.normals.size(), nv);
+  if (!data.normals.empty() && data.normals.size() != nv)
+    fail("{}: {} normals for {} vertices", source, data.normals.size(), nv);
   if (!data.uvs.empty() && data.uvs.size() != nv) fail("{}: {} uvs for {} vertices", source, data.uvs.size(), nv);
   if (!data.faceObject.empty() && data.faceObject.size() != data.triangles.size())
     fail("{}: {} object ids for {} faces", source, data.faceObject.size(), data.triangles.size());
@@ -54,7 +55,8 @@ TriangleMesh buildMesh(MeshData data, const std::string& source) {
   m.normals = std::move(data.normals);
   m.uvs = std::move(data.uvs);
   bool uvValid = !m.uvs.empty();
-  for (const Vec2& uv : m.uvs) uvValid = uvValid && uv.allFinite() && uv.minCoeff() >= -1e-4f && uv.maxCoeff() <= 1.0001f;
+  for (const Vec2& uv : m.uvs)
+    uvValid = uvValid && uv.allFinite() && uv.minCoeff() >= -1e-4f && uv.maxCoeff() <= 1.0001f;
   if (!m.uvs.empty() && !uvValid) {
     spdlog::warn("{}: uv coordinates outside [0,1] or non-finite; ignoring them", source);
     m.uvs.clear();
@@ -67,7 +69,8 @@ TriangleMesh buildMesh(MeshData data, const std::string& source) {
   for (size_t f = 0; f < data.triangles.size(); ++f) {
     const auto& t = data.triangles[f];
     for (int k = 0; k < 3; ++k)
-      if (t[k] < 0 || static_cast<size_t>(t[k]) >= nv) fail("{}: face {} vertex index {} out of range", source, f, t[k]);
+      if (t[k] < 0 || static_cast<size_t>(t[k]) >= nv)
+        fail("{}: face {} vertex index {} out of range", source, f, t[k]);
     const Vec3 p0 = m.positions[t[0]], p1 = m.positions[t[1]], p2 = m.positions[t[2]];
     const float area = 0.5f * (p1 - p0).cross(p2 - p0).norm();
     // Zero area also relative to the longest edge: a needle whose height is below 1e-6 of its
@@ -87,8 +90,11 @@ TriangleMesh buildMesh(MeshData data, const std::string& source) {
     using Key = std::array<float, 9>;
     std::vector<Key> keys(m.triangles.size());
     for (size_t f = 0; f < keys.size(); ++f) {
-      std::array<Vec3, 3> p{m.positions[m.triangles[f][0]], m.positions[m.triangles[f][1]], m.positions[m.triangles[f][2]]};
-      std::sort(p.begin(), p.end(), [](const Vec3& a, const Vec3& b) { return std::lexicographical_compare(a.data(), a.data() + 3, b.data(), b.data() + 3); });
+      std::array<Vec3, 3> p{m.positions[m.triangles[f][0]], m.positions[m.triangles[f][1]],
+                            m.positions[m.triangles[f][2]]};
+      std::sort(p.begin(), p.end(), [](const Vec3& a, const Vec3& b) {
+        return std::lexicographical_compare(a.data(), a.data() + 3, b.data(), b.data() + 3);
+      });
       for (int k = 0; k < 3; ++k) std::copy(p[k].data(), p[k].data() + 3, keys[f].begin() + 3 * k);
     }
     std::vector<uint32_t> order(keys.size());
@@ -110,7 +116,9 @@ TriangleMesh buildMesh(MeshData data, const std::string& source) {
   }
   if (m.triangles.empty()) fail("{}: every triangle is degenerate", source);
   if (m.droppedDegenerate) spdlog::warn("{}: dropped {} degenerate triangles", source, m.droppedDegenerate);
-  if (m.droppedCoincident) spdlog::warn("{}: dropped {} coincident triangles (same vertex positions as an earlier face)", source, m.droppedCoincident);
+  if (m.droppedCoincident)
+    spdlog::warn("{}: dropped {} coincident triangles (same vertex positions as an earlier face)", source,
+                 m.droppedCoincident);
   m.objectCount = 1 + *std::max_element(m.faceObject.begin(), m.faceObject.end());
   return m;
 }

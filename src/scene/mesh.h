@@ -12,7 +12,7 @@ struct TriangleMesh {
   std::vector<Vec3> normals;  // per vertex, may be empty
   std::vector<Vec2> uvs;      // per vertex, may be empty
   std::vector<Eigen::Vector3i> triangles;
-  std::vector<int32_t> faceObject;  // always one per triangle
+  std::vector<int32_t> faceObject;       // always one per triangle
   std::vector<std::string> objectNames;  // from the file (OBJ groups), may be empty
   std::vector<float> faceArea;
   int objectCount = 1;
@@ -36,7 +36,8 @@ struct TriangleMesh {
 };
 
 // Drops degenerate triangles (zero area, repeated or non-finite vertices) and coincident ones (the
-// same three positions as an earlier face), counting each kind; checks uv/normal counts. Throws relume::Error if nothing usable is left.
+// same three positions as an earlier face), counting each kind; checks uv/normal counts. Throws relume::Error if
+// nothing usable is left.
 TriangleMesh buildMesh(MeshData data, const std::string& source);
 TriangleMesh loadMesh(const std::filesystem::path& path);
 

@@ -2,7 +2,6 @@
 
 #include <spdlog/spdlog.h>
 
-
 #include "core/check.h"
 #include "core/error.h"
 
@@ -78,7 +77,8 @@ SurfaceHit Scene::hitFromFace(uint32_t prim, float b1, float b2) const {
   h.uv = b0 * face.uv[0] + b1 * face.uv[1] + b2 * face.uv[2];
   // A degenerate interpolation (vertex normals that cancel out) falls back to the geometric normal.
   if (!mesh_.normals.empty())
-    if (const auto n = TriangleMesh::shadingNormal(face.n, Vec3(b0, b1, b2), face.ng)) h.ns = n->dot(h.ng) >= 0 ? *n : Vec3(-*n);
+    if (const auto n = TriangleMesh::shadingNormal(face.n, Vec3(b0, b1, b2), face.ng))
+      h.ns = n->dot(h.ng) >= 0 ? *n : Vec3(-*n);
   return h;
 }
 

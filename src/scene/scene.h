@@ -17,7 +17,7 @@ struct SurfaceHit {
   Vec3 p = Vec3::Zero();
   Vec3 ng = Vec3::UnitZ();  // unit geometric normal in winding order (emitters emit on this side)
   Vec3 ns = Vec3::UnitZ();  // unit shading normal, same side as ng
-  Vec2 uv = Vec2::Zero();  // atlas uv (zero when the mesh has none)
+  Vec2 uv = Vec2::Zero();   // atlas uv (zero when the mesh has none)
   uint32_t prim = 0;
   int object = 0;
   float t = 0;

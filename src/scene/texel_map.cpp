@@ -12,10 +12,13 @@ namespace {
 // Barycentrics of p in the uv triangle (a, b, c); the centroid when the triangle has no uv area
 // (never NaN, whatever the uvs).
 Vec3 barycentricOf(const Vec2& p, const Vec2& a, const Vec2& b, const Vec2& c) {
-  const double d = (double(b.x()) - a.x()) * (double(c.y()) - a.y()) - (double(b.y()) - a.y()) * (double(c.x()) - a.x());
+  const double d =
+      (double(b.x()) - a.x()) * (double(c.y()) - a.y()) - (double(b.y()) - a.y()) * (double(c.x()) - a.x());
   if (!(std::abs(d) > 0.0) || !std::isfinite(d)) return Vec3::Constant(1.0f / 3.0f);
-  const double b1 = ((double(p.x()) - a.x()) * (double(c.y()) - a.y()) - (double(p.y()) - a.y()) * (double(c.x()) - a.x())) / d;
-  const double b2 = ((double(b.x()) - a.x()) * (double(p.y()) - a.y()) - (double(b.y()) - a.y()) * (double(p.x()) - a.x())) / d;
+  const double b1 =
+      ((double(p.x()) - a.x()) * (double(c.y()) - a.y()) - (double(p.y()) - a.y()) * (double(c.x()) - a.x())) / d;
+  const double b2 =
+      ((double(b.x()) - a.x()) * (double(p.y()) - a.y()) - (double(b.y()) - a.y()) * (double(p.x()) - a.x())) / d;
   return Vec3d(1.0 - b1 - b2, b1, b2).cast<float>();
 }
 
@@ -31,11 +34,13 @@ TexelMap::TexelMap(const TriangleMesh& mesh, int resolution, int rings) : resolu
   // Conservative rasterisation: a texel belongs to every triangle that touches its square, so
   // no chart loses a sliver thinner than a texel. A triangle covering the texel centre takes
   // priority over one that only touches it; ties go to the lower index, whatever the schedule.
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, mesh.triangles.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, mesh.triangles.size(), 1024), [&](const tbb::blocked_range<size_t>&
+                                                                                        r) {
     for (size_t f = r.begin(); f < r.end(); ++f) {
       const auto& t = mesh.triangles[f];
       const Vec2 v[3] = {mesh.uvs[t[0]] * R, mesh.uvs[t[1]] * R, mesh.uvs[t[2]] * R};
-      const float orient = (v[1] - v[0]).x() * (v[2] - v[0]).y() - (v[1] - v[0]).y() * (v[2] - v[0]).x() >= 0 ? 1.0f : -1.0f;
+      const float orient =
+          (v[1] - v[0]).x() * (v[2] - v[0]).y() - (v[1] - v[0]).y() * (v[2] - v[0]).x() >= 0 ? 1.0f : -1.0f;
       const int x0 = std::max(0, static_cast<int>(std::floor(std::min({v[0].x(), v[1].x(), v[2].x()}))));
       const int x1 = std::min(resolution - 1, static_cast<int>(std::floor(std::max({v[0].x(), v[1].x(), v[2].x()}))));
       const int y0 = std::max(0, static_cast<int>(std::floor(std::min({v[0].y(), v[1].y(), v[2].y()}))));

@@ -16,14 +16,19 @@ struct TexelFootprint {
 };
 
 struct Texture {
-  int fullWidth = 0, fullHeight = 0;  // resolution of the whole atlas this texture lives in
+  int fullWidth = 0, fullHeight = 0;          // resolution of the whole atlas this texture lives in
   int x0 = 0, y0 = 0, width = 0, height = 0;  // the stored window
   std::vector<float> rgb;
 
   Texture() = default;
   Texture(int w, int h, const Color& fill = Color::Zero()) : Texture(w, h, 0, 0, w, h, fill) {}
   Texture(int fullW, int fullH, int wx0, int wy0, int w, int h, const Color& fill = Color::Zero())
-      : fullWidth(fullW), fullHeight(fullH), x0(wx0), y0(wy0), width(w), height(h),
+      : fullWidth(fullW),
+        fullHeight(fullH),
+        x0(wx0),
+        y0(wy0),
+        width(w),
+        height(h),
         rgb(static_cast<size_t>(w) * h * 3) {
     for (size_t i = 0; i < rgb.size(); i += 3) rgb[i] = fill[0], rgb[i + 1] = fill[1], rgb[i + 2] = fill[2];
   }

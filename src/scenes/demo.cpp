@@ -39,15 +39,19 @@ namespace {
 // each against the references (the truth's score is the floor the references' and the
 // re-renders' noise sets), and the fit against the truth, where their common noise cancels.
 struct HeldOut {
-  ViewComparison fit, truth;      // against the references
-  ViewComparison fitVsTruth;      // the reconstruction's error
-  ViewComparison noiseVsTruth;    // the truth plus the noise left in fit - truth: what that noise alone scores
-  double beyondNoisePsnr = 0;     // fitVsTruth with that noise's squared error taken out, mean over frames
-  Json views = Json::array();     // frame names
+  ViewComparison fit, truth;    // against the references
+  ViewComparison fitVsTruth;    // the reconstruction's error
+  ViewComparison noiseVsTruth;  // the truth plus the noise left in fit - truth: what that noise alone scores
+  double beyondNoisePsnr = 0;   // fitVsTruth with that noise's squared error taken out, mean over frames
+  Json views = Json::array();   // frame names
   double seconds = 0;
   Json toJson() const {
-    return {{"views", views}, {"fit", fit.toJson()}, {"truth", truth.toJson()}, {"fit_vs_truth", fitVsTruth.toJson()},
-            {"noise_vs_truth", noiseVsTruth.toJson()}, {"fit_vs_truth_beyond_noise_psnr", beyondNoisePsnr}};
+    return {{"views", views},
+            {"fit", fit.toJson()},
+            {"truth", truth.toJson()},
+            {"fit_vs_truth", fitVsTruth.toJson()},
+            {"noise_vs_truth", noiseVsTruth.toJson()},
+            {"fit_vs_truth_beyond_noise_psnr", beyondNoisePsnr}};
   }
 };
 
@@ -89,7 +93,8 @@ HeldOut scoreHeldOut(const SceneDescription& fitted, const SceneDescription& tru
     Image noisy = tru.mean;
     for (size_t k = 0; k < noisy.rgb.size(); ++k) noisy.rgb[k] += fit.noise.rgb[k] - tru.noise.rgb[k];
     addScore(h.noiseVsTruth, scoreImage(noisy, tru.mean, name));
-    h.beyondNoisePsnr += psnrWithout(h.fitVsTruth.framePsnr.back(), h.noiseVsTruth.framePsnr.back()) / static_cast<double>(cap.frames.size());
+    h.beyondNoisePsnr += psnrWithout(h.fitVsTruth.framePsnr.back(), h.noiseVsTruth.framePsnr.back()) /
+                         static_cast<double>(cap.frames.size());
     const ViewError e = errorAgainstTruth(fit, tru, reference, 2);
     writePng(out / "reference_views" / (stem + ".png"), reference);
     writeExr(out / "test_views" / (stem + ".exr"), fit.mean);
@@ -105,39 +110,47 @@ HeldOut scoreHeldOut(const SceneDescription& fitted, const SceneDescription& tru
 void writeReport(const fs::path& out, const Json& s) {
   const Json& t = s["truth"];
   std::string md = "# relume demo: reconstruction of the synthetic room\n\n";
-  md += fmt::format("Synthetic room, {} training frames; synth {:.0f} s, prepare {:.0f} s, fit {:.0f} s ({} iterations), "
-                    "fit report {:.0f} s, held-out views {:.0f} s; {:.0f} s in all, peak RSS {:.0f} MiB.\n\n",
-                    s["frames"].get<int>(), s["synth_seconds"].get<double>(), s["prepare_seconds"].get<double>(),
-                    s["fit_seconds"].get<double>(), s["fit_iterations"].get<int>(), s["report_seconds"].get<double>(),
-                    s["test_seconds"].get<double>(), s["seconds"].get<double>(), s["peak_rss_mb"].get<double>());
+  md += fmt::format(
+      "Synthetic room, {} training frames; synth {:.0f} s, prepare {:.0f} s, fit {:.0f} s ({} iterations), "
+      "fit report {:.0f} s, held-out views {:.0f} s; {:.0f} s in all, peak RSS {:.0f} MiB.\n\n",
+      s["frames"].get<int>(), s["synth_seconds"].get<double>(), s["prepare_seconds"].get<double>(),
+      s["fit_seconds"].get<double>(), s["fit_iterations"].get<int>(), s["report_seconds"].get<double>(),
+      s["test_seconds"].get<double>(), s["seconds"].get<double>(), s["peak_rss_mb"].get<double>());
   md += "| measure | value |\n| --- | --- |\n";
   md += fmt::format("| albedo MAE (texels observed >= 5 times) | {:.4f} |\n", s["albedo_mae"].get<double>());
   md += fmt::format("| albedo PSNR | {:.2f} dB |\n", s["albedo_psnr"].get<double>());
-  md += fmt::format("| roughness MAE / specular MAE ({} objects with observed highlights) | {:.3f} / {:.3f} |\n",
-                    t["material_objects"].get<int>(), s["roughness_mae"].get<double>(), s["specular_mae"].get<double>());
+  md +=
+      fmt::format("| roughness MAE / specular MAE ({} objects with observed highlights) | {:.3f} / {:.3f} |\n",
+                  t["material_objects"].get<int>(), s["roughness_mae"].get<double>(), s["specular_mae"].get<double>());
   md += fmt::format("| emitters true / found / correct | {} / {} / {} |\n", s["emitters_true"].get<int>(),
                     s["emitters_found"].get<int>(), t["emitters_correct"].get<int>());
   md += fmt::format("| emission relative error | {:.2f}% |\n", 100 * s["emission_rel_error"].get<double>());
-  md += fmt::format("| held-out test views: PSNR / MSRE against the references | {:.2f} dB / {:.4f} |\n", s["test_psnr"].get<double>(),
-                    s["test_msre"].get<double>());
+  md += fmt::format("| held-out test views: PSNR / MSRE against the references | {:.2f} dB / {:.4f} |\n",
+                    s["test_psnr"].get<double>(), s["test_msre"].get<double>());
   md += fmt::format("| the truth re-rendered the same way (the noise floor) | {:.2f} dB / {:.4f} |\n",
                     s["test_noise_floor_psnr"].get<double>(), s["test_noise_floor_msre"].get<double>());
-  md += fmt::format("| held-out views against the truth rendered with the same random numbers | {:.2f} dB (the noise left alone: "
-                    "{:.2f} dB; without it: {:.1f} dB) |\n\n",
-                    s["test_truth_psnr"].get<double>(), s["test_truth_noise_psnr"].get<double>(),
-                    s["test_truth_beyond_noise_psnr"].get<double>());
+  md += fmt::format(
+      "| held-out views against the truth rendered with the same random numbers | {:.2f} dB (the noise left alone: "
+      "{:.2f} dB; without it: {:.1f} dB) |\n\n",
+      s["test_truth_psnr"].get<double>(), s["test_truth_noise_psnr"].get<double>(),
+      s["test_truth_beyond_noise_psnr"].get<double>());
   const auto size = s["test_size"];
   md += fmt::format(
-      "The {} held-out views ({}x{}) have references rendered from the truth at {} spp, as a photo would be taken, and are "
-      "re-rendered from the fit and from the truth at {} spp with the same random numbers. Against the references, noise "
-      "is part of every score: the truth itself scores {:.2f} dB, the ceiling for the fit's {:.2f} dB. Against the truth "
+      "The {} held-out views ({}x{}) have references rendered from the truth at {} spp, as a photo would be taken, and "
+      "are "
+      "re-rendered from the fit and from the truth at {} spp with the same random numbers. Against the references, "
+      "noise "
+      "is part of every score: the truth itself scores {:.2f} dB, the ceiling for the fit's {:.2f} dB. Against the "
+      "truth "
       "re-rendered with the same random numbers the two scenes' common noise cancels, so {:.2f} dB is mostly the "
-      "reconstruction's own error; the noise left in that difference (paths the two scenes scatter differently), measured "
+      "reconstruction's own error; the noise left in that difference (paths the two scenes scatter differently), "
+      "measured "
       "from each re-render's two independent halves, would alone score {:.2f} dB, and without it the fit scores about "
       "{:.1f} dB. The error pictures average |fit - truth| over 2x2 pixels, which halves that noise.\n\n",
-      s["test_views"].size(), size[0].get<int>(), size[1].get<int>(), s["test_reference_spp"].get<int>(), s["test_spp"].get<int>(),
-      s["test_noise_floor_psnr"].get<double>(), s["test_psnr"].get<double>(), s["test_truth_psnr"].get<double>(),
-      s["test_truth_noise_psnr"].get<double>(), s["test_truth_beyond_noise_psnr"].get<double>());
+      s["test_views"].size(), size[0].get<int>(), size[1].get<int>(), s["test_reference_spp"].get<int>(),
+      s["test_spp"].get<int>(), s["test_noise_floor_psnr"].get<double>(), s["test_psnr"].get<double>(),
+      s["test_truth_psnr"].get<double>(), s["test_truth_noise_psnr"].get<double>(),
+      s["test_truth_beyond_noise_psnr"].get<double>());
   md += "## Albedo: median init, reconstruction, ground truth\n\n";
   md += "![init](work/albedo_init.png) ![fit](work/result/albedo.png) ![truth](albedo_truth.png)\n\n";
   md += "## Held-out views: reference, re-rendered reconstruction, |fit - truth| x 4 (same random numbers)\n\n";
@@ -145,15 +158,19 @@ void writeReport(const fs::path& out, const Json& s) {
     for (const auto& name : s["test_views"]) md += fmt::format("![{}]({}/{}.png) ", row, row, name.get<std::string>());
     md += "\n\n";
   }
-  md += "## Per object (fit, truth)\n\n| id | name | roughness | specular | emitter | scored |\n| --- | --- | --- | --- | --- | --- |\n";
+  md +=
+      "## Per object (fit, truth)\n\n| id | name | roughness | specular | emitter | scored |\n| --- | --- | --- | --- "
+      "| --- | --- |\n";
   for (const Json& o : t["objects"])
-    md += fmt::format("| {} | {} | {:.3f}, {:.3f} | {:.3f}, {:.3f} | {}, {} | {} |\n", o["id"].get<int>(), o["name"].get<std::string>(),
-                      o["roughness"][0].get<double>(), o["roughness"][1].get<double>(), o["specular"][0].get<double>(),
-                      o["specular"][1].get<double>(), o["emitter"][0].get<bool>(), o["emitter"][1].get<bool>(),
+    md += fmt::format("| {} | {} | {:.3f}, {:.3f} | {:.3f}, {:.3f} | {}, {} | {} |\n", o["id"].get<int>(),
+                      o["name"].get<std::string>(), o["roughness"][0].get<double>(), o["roughness"][1].get<double>(),
+                      o["specular"][0].get<double>(), o["specular"][1].get<double>(), o["emitter"][0].get<bool>(),
+                      o["emitter"][1].get<bool>(),
                       o["materials_scored"].get<bool>() ? "yes" : "no (no highlight observed)");
-  md += "\nFiles: `work/result/` (scene.json, albedo.exr/.png, materials.json), `work/metrics.jsonl` (loss and "
-        "timings per 10 iterations), `summary.json`. The fit's own report, with loss curves and timings: "
-        "[work/report/index.html](work/report/index.html).\n";
+  md +=
+      "\nFiles: `work/result/` (scene.json, albedo.exr/.png, materials.json), `work/metrics.jsonl` (loss and "
+      "timings per 10 iterations), `summary.json`. The fit's own report, with loss curves and timings: "
+      "[work/report/index.html](work/report/index.html).\n";
   writeTextAtomically(out / "report.md", md);
 }
 
@@ -202,18 +219,38 @@ Json runDemo(const DemoOptions& o) {
   const HeldOut h = scoreHeldOut(fitted, truth, d.capture / "transforms_test.json", o.testSpp, o.out);
   lap("truth_and_test");
   const SynthCaptureOptions so = DemoOptions::captureOptions(d.capture);
-  Json s = {{"fit_seconds", fs.seconds}, {"fit_iterations", fs.iterations}, {"synth_seconds", d.synthSeconds},
-            {"prepare_seconds", d.prepareSeconds}, {"report_seconds", reportSeconds}, {"test_seconds", h.seconds},
+  Json s = {{"fit_seconds", fs.seconds},
+            {"fit_iterations", fs.iterations},
+            {"synth_seconds", d.synthSeconds},
+            {"prepare_seconds", d.prepareSeconds},
+            {"report_seconds", reportSeconds},
+            {"test_seconds", h.seconds},
             {"frames", static_cast<int>(d.frames)},
-            {"albedo_mae", tc.albedoMae}, {"albedo_psnr", tc.albedoPsnr}, {"roughness_mae", tc.roughnessMae},
-            {"specular_mae", tc.specularMae}, {"emitters_true", tc.emittersTrue}, {"emitters_found", tc.emittersFound},
-            {"emission_rel_error", tc.emissionRelError}, {"test_psnr", h.fit.psnr}, {"test_msre", h.fit.msre},
-            {"test_noise_floor_psnr", h.truth.psnr}, {"test_noise_floor_msre", h.truth.msre},
-            {"test_truth_psnr", h.fitVsTruth.psnr}, {"test_truth_noise_psnr", h.noiseVsTruth.psnr},
+            {"albedo_mae", tc.albedoMae},
+            {"albedo_psnr", tc.albedoPsnr},
+            {"roughness_mae", tc.roughnessMae},
+            {"specular_mae", tc.specularMae},
+            {"emitters_true", tc.emittersTrue},
+            {"emitters_found", tc.emittersFound},
+            {"emission_rel_error", tc.emissionRelError},
+            {"test_psnr", h.fit.psnr},
+            {"test_msre", h.fit.msre},
+            {"test_noise_floor_psnr", h.truth.psnr},
+            {"test_noise_floor_msre", h.truth.msre},
+            {"test_truth_psnr", h.fitVsTruth.psnr},
+            {"test_truth_noise_psnr", h.noiseVsTruth.psnr},
             {"test_truth_beyond_noise_psnr", h.beyondNoisePsnr},
-            {"test_reference_spp", so.testSpp}, {"test_spp", o.testSpp}, {"test_size", {so.testWidth, so.testHeight}},
-            {"peak_rss_mb", peakRssMiB()}, {"seconds", total.seconds()}, {"cpu_seconds", cpu}, {"truth", tc.toJson()},
-            {"test", h.fit.toJson()}, {"held_out", h.toJson()}, {"test_views", h.views}, {"fit_config", o.fit.toJson()}};
+            {"test_reference_spp", so.testSpp},
+            {"test_spp", o.testSpp},
+            {"test_size", {so.testWidth, so.testHeight}},
+            {"peak_rss_mb", peakRssMiB()},
+            {"seconds", total.seconds()},
+            {"cpu_seconds", cpu},
+            {"truth", tc.toJson()},
+            {"test", h.fit.toJson()},
+            {"held_out", h.toJson()},
+            {"test_views", h.views},
+            {"fit_config", o.fit.toJson()}};
   writeJson(o.out / "summary.json", s);
   writeReport(o.out, s);
   return s;

@@ -53,18 +53,19 @@ class SceneBuilder {
     const Vec3 ds = edgeS / ls, dt = edgeT / lt;
     const int segS = std::max(1, static_cast<int>(std::ceil(ls / cellSize_)));
     const int segT = std::max(1, static_cast<int>(std::ceil(lt / cellSize_)));
-    patches_.push_back({object, ls, lt, segS, segT, [=](float s, float t) { return Vec3(origin + s * ds + t * dt); }, std::move(albedo)});
+    patches_.push_back({object, ls, lt, segS, segT, [=](float s, float t) { return Vec3(origin + s * ds + t * dt); },
+                        std::move(albedo)});
   }
   // Axis-aligned box, outward normals; bottom face omitted when it rests on the floor.
   void box(int object, const Vec3& lo, const Vec3& hi, const AlbedoPattern& albedo, bool withBottom = false) {
     const Vec3 d = hi - lo;
     const Vec3 X(d.x(), 0, 0), Y(0, d.y(), 0), Z(0, 0, d.z());
-    quad(object, lo + Y, Z, X, albedo);                // top (+y)
-    if (withBottom) quad(object, lo, X, Z, albedo);    // bottom (-y)
-    quad(object, lo, Y, X, albedo);                    // -z
-    quad(object, lo + Z + X, Y, -X, albedo);           // +z
-    quad(object, lo + Z, Y, -Z, albedo);               // -x
-    quad(object, lo + X, Y, Z, albedo);                // +x
+    quad(object, lo + Y, Z, X, albedo);              // top (+y)
+    if (withBottom) quad(object, lo, X, Z, albedo);  // bottom (-y)
+    quad(object, lo, Y, X, albedo);                  // -z
+    quad(object, lo + Z + X, Y, -X, albedo);         // +z
+    quad(object, lo + Z, Y, -Z, albedo);             // -x
+    quad(object, lo + X, Y, Z, albedo);              // +x
   }
   void sphere(int object, const Vec3& centre, float radius, bool inward, AlbedoPattern albedo, int seg = 48) {
     const float sign = inward ? -1.0f : 1.0f;
@@ -186,12 +187,12 @@ struct Shell {
 
 void addShell(SceneBuilder& b, const Shell& s) {
   const Vec3 X(kRoomX, 0, 0), Y(0, kRoomY, 0), Z(0, 0, kRoomZ);
-  b.quad(s.floor, Vec3::Zero(), Z, X, s.floorAlbedo);       // normal +y
-  b.quad(s.ceiling, Y, X, Z, s.ceilingAlbedo);              // normal -y
-  b.quad(s.wallZ0, Vec3::Zero(), X, Y, s.wallZ0Albedo);     // z=0, normal +z
-  b.quad(s.walls, Z + X, -X, Y, s.wallZMaxAlbedo);          // z=max, normal -z
-  b.quad(s.walls, Z, -Z, Y, s.wallX0Albedo);                // x=0, normal +x
-  b.quad(s.walls, X, Z, Y, s.wallXMaxAlbedo);               // x=max, normal -x
+  b.quad(s.floor, Vec3::Zero(), Z, X, s.floorAlbedo);    // normal +y
+  b.quad(s.ceiling, Y, X, Z, s.ceilingAlbedo);           // normal -y
+  b.quad(s.wallZ0, Vec3::Zero(), X, Y, s.wallZ0Albedo);  // z=0, normal +z
+  b.quad(s.walls, Z + X, -X, Y, s.wallZMaxAlbedo);       // z=max, normal -z
+  b.quad(s.walls, Z, -Z, Y, s.wallX0Albedo);             // x=0, normal +x
+  b.quad(s.walls, X, Z, Y, s.wallXMaxAlbedo);            // x=max, normal -x
 }
 
 SceneDescription buildRoom(int resolution, float cellSize = 0.085f) {  // ~35k triangles, a coarse scan
@@ -314,7 +315,8 @@ SceneDescription buildFurnace(int resolution) {
 
 SynthScene makeSynthScene(SynthSceneKind kind, int atlasResolution, size_t scanTriangles) {
   switch (kind) {
-    case SynthSceneKind::Room: return {kind, buildRoom(atlasResolution)};
+    case SynthSceneKind::Room:
+      return {kind, buildRoom(atlasResolution)};
     case SynthSceneKind::Scan: {
       // Same objects and materials as the room; each object's albedo is its texture's mean.
       SceneDescription room = buildRoom(atlasResolution);
@@ -326,15 +328,19 @@ SynthScene makeSynthScene(SynthSceneKind kind, int atlasResolution, size_t scanT
         mean[room.mesh.faceObject[f]] += Eigen::Array4d(c[0], c[1], c[2], 1.0) * room.mesh.faceArea[f];
       }
       for (int o = 0; o < a.objectCount(); ++o)
-        a.albedoConstant[o] = mean[o][3] > 0 ? Color((mean[o].head<3>() / mean[o][3]).cast<float>()) : Color::Constant(0.5f);
+        a.albedoConstant[o] =
+            mean[o][3] > 0 ? Color((mean[o].head<3>() / mean[o][3]).cast<float>()) : Color::Constant(0.5f);
       std::fill(a.albedoFromTexture.begin(), a.albedoFromTexture.end(), 0);
       a.albedo = Texture();
       room.mesh = makeScanLikeRoom(scanTriangles, 0.004f);
       return {kind, std::move(room)};
     }
-    case SynthSceneKind::Cornell: return {kind, buildCornell(atlasResolution)};
-    case SynthSceneKind::Furnace: return {kind, buildFurnace(atlasResolution)};
-    case SynthSceneKind::Lounge: return {kind, buildLounge(atlasResolution)};
+    case SynthSceneKind::Cornell:
+      return {kind, buildCornell(atlasResolution)};
+    case SynthSceneKind::Furnace:
+      return {kind, buildFurnace(atlasResolution)};
+    case SynthSceneKind::Lounge:
+      return {kind, buildLounge(atlasResolution)};
   }
   fail("bad synthetic scene kind");
 }
@@ -345,7 +351,8 @@ TriangleMesh makeScanLikeRoom(size_t targetTriangles, float noiseMetres) {
   TriangleMesh m = buildRoom(2048, cell).mesh;
   for (Vec3& p : m.positions) {
     const Eigen::Vector3i q = (p / 1e-4f).array().round().cast<int>();  // coincident vertices move together
-    const uint64_t h = hashTuple({static_cast<uint64_t>(q.x()), static_cast<uint64_t>(q.y()), static_cast<uint64_t>(q.z())});
+    const uint64_t h =
+        hashTuple({static_cast<uint64_t>(q.x()), static_cast<uint64_t>(q.y()), static_cast<uint64_t>(q.z())});
     Pcg32 rng(h);
     const Vec3 u = rng.next3D();
     p += noiseMetres * Vec3(2 * u.x() - 1, 2 * u.y() - 1, 2 * u.z() - 1);
@@ -382,7 +389,7 @@ std::vector<Camera> synthCameraPath(SynthSceneKind kind, int frames, int width, 
     c.cx = 0.5f * width, c.cy = 0.5f * height;
     const Vec3 fwd = look.normalized();
     const Vec3 right = fwd.cross(Vec3(0, 1, 0)).normalized();  // x right
-    const Vec3 down = fwd.cross(right);                         // y down (OpenCV)
+    const Vec3 down = fwd.cross(right);                        // y down (OpenCV)
     c.rotation.col(0) = right;
     c.rotation.col(1) = down;
     c.rotation.col(2) = fwd;
@@ -401,7 +408,8 @@ int writeSynthCapture(const SynthCaptureOptions& o) {
   if (!o.withUv) capMesh.uvs.clear();
   writePly(o.out / "mesh.ply", capMesh);
   Json objects = Json::array();  // the segmentation's names, as a capture would carry them
-  for (int id = 0; id < gt.appearance.objectCount(); ++id) objects.push_back({{"id", id}, {"name", gt.appearance.names[id]}});
+  for (int id = 0; id < gt.appearance.objectCount(); ++id)
+    objects.push_back({{"id", id}, {"name", gt.appearance.names[id]}});
   writeJson(o.out / "objects.json", Json{{"objects", objects}});
 
   Scene scene(gt.mesh);
@@ -409,7 +417,8 @@ int writeSynthCapture(const SynthCaptureOptions& o) {
   RenderOptions ro;
   ro.path.maxDepth = o.maxDepth;
   int rendered = 0;
-  const int testWidth = o.testWidth > 0 ? o.testWidth : o.width, testHeight = o.testHeight > 0 ? o.testHeight : o.height;
+  const int testWidth = o.testWidth > 0 ? o.testWidth : o.width,
+            testHeight = o.testHeight > 0 ? o.testHeight : o.height;
   for (const auto& [folder, json, count, phase, spp, width, height] :
        {std::tuple{"images", "transforms.json", o.frames, 0.0, o.spp, o.width, o.height},
         std::tuple{"test", "transforms_test.json", o.testFrames, 0.5, o.testSpp, testWidth, testHeight}}) {

@@ -26,8 +26,9 @@ struct Case {
   EmitterGradients emitters = EmitterGradients::Strict;
 };
 
-GradcheckReport check(const GradientExperiment& e, const std::vector<ParamKind>& kinds, GradientMode mode, Pairing pairing,
-                      EmitterGradients emitters = EmitterGradients::Strict, int batches = 24, float eps = 1e-3f) {
+GradcheckReport check(const GradientExperiment& e, const std::vector<ParamKind>& kinds, GradientMode mode,
+                      Pairing pairing, EmitterGradients emitters = EmitterGradients::Strict, int batches = 24,
+                      float eps = 1e-3f) {
   GradcheckOptions o;
   o.eps = eps;
   o.kinds = kinds;
@@ -63,14 +64,16 @@ class GradcheckModes : public ::testing::TestWithParam<std::tuple<GradientMode, 
 TEST_P(GradcheckModes, EveryParameterKindOnCornell) {
   const auto [mode, pairing] = GetParam();
   const std::string name = std::string(mode == GradientMode::Direct ? "direct/" : "full/") + enumName(pairing);
-  expectPass(check(experiment(SynthSceneKind::Cornell, false), kConstantKinds, mode, pairing), name + " constant emission");
+  expectPass(check(experiment(SynthSceneKind::Cornell, false), kConstantKinds, mode, pairing),
+             name + " constant emission");
   expectPass(check(experiment(SynthSceneKind::Cornell, true), {ParamKind::EmissionTexture}, mode, pairing),
              name + " emission texture");
 }
 
 INSTANTIATE_TEST_SUITE_P(AllModes, GradcheckModes,
                          ::testing::Combine(::testing::Values(GradientMode::Direct, GradientMode::Full),
-                                            ::testing::Values(Pairing::Decorrelated, Pairing::Crossfit, Pairing::Reuse)),
+                                            ::testing::Values(Pairing::Decorrelated, Pairing::Crossfit,
+                                                              Pairing::Reuse)),
                          [](const auto& info) {
                            return std::string(std::get<0>(info.param) == GradientMode::Direct ? "direct_" : "full_") +
                                   enumName(std::get<1>(info.param));
@@ -94,12 +97,15 @@ TEST_P(GradcheckModels, EveryParameterKindOnCornell) {
   const std::string name = bsdfModelName(GetParam());
   expectPass(check(e, kConstantKinds, GradientMode::Full, Pairing::Decorrelated), name + " full");
   expectPass(check(e, kConstantKinds, GradientMode::Direct, Pairing::Crossfit), name + " direct/crossfit");
-  expectPass(check(experimentOf(GetParam(), true), {ParamKind::EmissionTexture}, GradientMode::Full, Pairing::Decorrelated),
-             name + " emission texture");
+  expectPass(
+      check(experimentOf(GetParam(), true), {ParamKind::EmissionTexture}, GradientMode::Full, Pairing::Decorrelated),
+      name + " emission texture");
 }
 
 INSTANTIATE_TEST_SUITE_P(BothModels, GradcheckModels, ::testing::Values(BsdfModel::PrincipledV1, BsdfModel::Gltf),
-                         [](const auto& info) { return std::string(info.param == BsdfModel::Gltf ? "gltf" : "principled_v1"); });
+                         [](const auto& info) {
+                           return std::string(info.param == BsdfModel::Gltf ? "gltf" : "principled_v1");
+                         });
 
 TEST(Gradcheck, RoomAllDepthEmitterGradients) {
   const GradientExperiment e = experiment(SynthSceneKind::Room, false);
@@ -111,7 +117,8 @@ TEST(Gradcheck, RoomAllDepthEmitterGradients) {
 TEST(Gradcheck, RoughnessAtDomainMinimum) {
   GradientExperiment e = experiment(SynthSceneKind::Cornell, false);
   std::fill(e.current.roughness.begin(), e.current.roughness.end(), kRoughnessMin);
-  expectPass(check(e, {ParamKind::Roughness, ParamKind::Specular}, GradientMode::Full, Pairing::Decorrelated, EmitterGradients::Strict, 32, 1e-4f),
+  expectPass(check(e, {ParamKind::Roughness, ParamKind::Specular}, GradientMode::Full, Pairing::Decorrelated,
+                   EmitterGradients::Strict, 32, 1e-4f),
              "roughness at r_min");
 }
 
@@ -121,7 +128,8 @@ TEST(Gradcheck, VeryBrightEmitters) {
   o.atlasResolution = 32;
   o.emissionScale = 1e4f;
   const GradientExperiment e = makeGradientExperiment(SynthSceneKind::Cornell, o);
-  expectPass(check(e, {ParamKind::Emission, ParamKind::Albedo}, GradientMode::Full, Pairing::Decorrelated), "emission 1e4");
+  expectPass(check(e, {ParamKind::Emission, ParamKind::Albedo}, GradientMode::Full, Pairing::Decorrelated),
+             "emission 1e4");
 }
 
 // The room's panels at x1e4 give radiances ~1e4 whose float rounding (~1e-3) swallowed a dark
@@ -134,8 +142,8 @@ TEST(Gradcheck, RoomDarkWallEmissionAtScale1e4) {
   o.emissionScale = 1e4f;
   const GradientExperiment e = makeGradientExperiment(SynthSceneKind::Room, o);
   // 64 batches: the old step's bias (18% here) was 10 standard errors, 0.5 now.
-  const GradcheckReport r = check(e, {ParamKind::Emission}, GradientMode::Direct, Pairing::Decorrelated,
-                                  EmitterGradients::Strict, 64);
+  const GradcheckReport r =
+      check(e, {ParamKind::Emission}, GradientMode::Direct, Pairing::Decorrelated, EmitterGradients::Strict, 64);
   expectPass(r, "room emission 1e4");
   const bool checksADarkObject = std::any_of(r.rows.begin(), r.rows.end(), [&](const GradcheckRow& row) {
     return row.level == "loss" && !e.current.isEmissive(row.param.object);
@@ -168,7 +176,8 @@ TEST(Gradcheck, GrazingRays) {
     e.rays[j].origin = target - 0.05f / std::cos(angle) * dir;
   }
   expectPass(check(e, {ParamKind::Albedo, ParamKind::Roughness, ParamKind::Specular}, GradientMode::Direct,
-                   Pairing::Decorrelated), "grazing");
+                   Pairing::Decorrelated),
+             "grazing");
 }
 
 TEST(Gradcheck, RussianRouletteIsADetachedDecision) {
@@ -202,6 +211,7 @@ TEST(Gradcheck, DetectsAWrongGradient) {
   computeGradients(scene, e.current, lights, e.rays, direct, 0, g);
   int differing = 0;
   for (const GradcheckRow& r : full.rows)
-    differing += std::abs(gradientValue(e.current, g, r.param) - r.finiteDifference) > 1e-2 * std::abs(r.finiteDifference);
+    differing +=
+        std::abs(gradientValue(e.current, g, r.param) - r.finiteDifference) > 1e-2 * std::abs(r.finiteDifference);
   EXPECT_GT(differing, 0);
 }

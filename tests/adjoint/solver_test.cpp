@@ -20,7 +20,8 @@ TEST(Loss, OneSidedAtClipThresholds) {
   EXPECT_EQ(rayLoss(Color::Constant(0.005f), Color::Constant(0.0f), clip), 0.0f);
   EXPECT_FLOAT_EQ(rayLoss(Color(0.31f, 0.01f, 0.01f), Color::Constant(0.0f), clip), 0.09f);
   EXPECT_FLOAT_EQ(rayLoss(Color(0.3f, 0.3f, 0.3f), Color(0.1f, 0.3f, 0.5f), {}), 0.08f);
-  EXPECT_TRUE(rayLossDelta(Color(0.3f, 0.3f, 0.3f), Color(0.1f, 0.3f, 0.5f), {}, 0.5f).isApprox(Color(0.2f, 0.0f, -0.2f)));
+  EXPECT_TRUE(
+      rayLossDelta(Color(0.3f, 0.3f, 0.3f), Color(0.1f, 0.3f, 0.5f), {}, 0.5f).isApprox(Color(0.2f, 0.0f, -0.2f)));
   // Continuous where the estimate crosses a bound: a clipped reference is pulled to the bound.
   for (const auto& [reference, bound] : {std::pair{1.2f, 1.0f}, std::pair{0.0f, 0.01f}}) {
     EXPECT_LT(rayLoss(Color::Constant(bound - 1e-4f), Color::Constant(reference), clip), 1e-7f);
@@ -140,7 +141,8 @@ TEST_F(AdjointPassTest, AdjointPassFollowsTheRaysAdjointDirection) {
   const auto firstObject = [&](const Vec3& o, const Vec3& d) { return scene.intersect(o, d)->object; };
   const BatchRay& a = e.rays[0];
   size_t other = 1;  // a ray from the same camera to another object
-  while (other < e.rays.size() && (e.rays[other].origin != a.origin || firstObject(a.origin, e.rays[other].dir) == firstObject(a.origin, a.dir)))
+  while (other < e.rays.size() &&
+         (e.rays[other].origin != a.origin || firstObject(a.origin, e.rays[other].dir) == firstObject(a.origin, a.dir)))
     ++other;
   ASSERT_LT(other, e.rays.size());
   BatchRay split = a, along = a;
@@ -171,7 +173,8 @@ TEST(GradientSums, AreBitIdenticalAtAnyThreadCount) {
       auto gradientsAt = [&](int threads) {
         Gradients g(e.current, true);
         double loss = 0;
-        tbb::task_arena(threads).execute([&] { loss = computeGradients(scene, e.current, lights, e.rays, s, 3, g).loss; });
+        tbb::task_arena(threads).execute(
+            [&] { loss = computeGradients(scene, e.current, lights, e.rays, s, 3, g).loss; });
         return std::pair{std::move(g), loss};
       };
       const auto [one, lossOne] = gradientsAt(1);
@@ -207,13 +210,16 @@ TEST(GradientSums, SubBatchesShrinkWithTheSplattingVerticesAndSumTheSame) {
   const size_t texels = cornell.scene.appearance.albedo.texelCount();
   auto accumulated = [&](size_t splatVertices) {
     Gradients g(cornell.scene.appearance);
-    g.accumulate(40000, [&](Gradients::Chunk& chunk, size_t begin, size_t end) {
-      for (size_t ray = begin; ray < end; ++ray)
-        for (uint64_t v = 0; v < 8; ++v) {
-          const uint64_t h = hashTuple({ray, v});
-          chunk.addAlbedo(static_cast<uint32_t>(h % texels), Color::Constant(1e-3f * static_cast<float>(h % 1000)));
-        }
-    }, splatVertices);
+    g.accumulate(
+        40000,
+        [&](Gradients::Chunk& chunk, size_t begin, size_t end) {
+          for (size_t ray = begin; ray < end; ++ray)
+            for (uint64_t v = 0; v < 8; ++v) {
+              const uint64_t h = hashTuple({ray, v});
+              chunk.addAlbedo(static_cast<uint32_t>(h % texels), Color::Constant(1e-3f * static_cast<float>(h % 1000)));
+            }
+        },
+        splatVertices);
     return std::pair{g.albedo, g.logBytes()};
   };
   const auto [shallow, shallowBytes] = accumulated(1);

@@ -74,8 +74,10 @@ TEST(Transforms, RoundTripThroughWriter) {
 
 TEST(Transforms, PixelFilterDefaultsToCyclesWidth) {
   const std::string frame = R"("file_path": "a.exr", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]])";
-  const Capture cap = readTransforms(writeFile("filter.json", R"({"fl_x": 10, "w": 10, "h": 10, "pixel_filter": {"type": "blackman-harris"},
-    "frames": [{)" + frame + R"(}, {"pixel_filter": {"type": "box"}, )" + frame + "}]}"));
+  const Capture cap = readTransforms(
+      writeFile("filter.json", R"({"fl_x": 10, "w": 10, "h": 10, "pixel_filter": {"type": "blackman-harris"},
+    "frames": [{)" + frame + R"(}, {"pixel_filter": {"type": "box"}, )" +
+                                   frame + "}]}"));
   EXPECT_EQ(cap.frames[0].camera.filter, PixelFilter(PixelFilterType::BlackmanHarris, 1.5f));
   EXPECT_TRUE(cap.frames[1].camera.filter.isUnitBox());
 }
@@ -89,21 +91,34 @@ TEST(Transforms, MalformedInputsGiveOneLineErrors) {
       {R"({"w": 10, "h": 10, "frames": [{)" + frame + "}]}", "missing 'fl_x'"},
       {R"({"fl_x": "ten", "w": 10, "h": 10, "frames": [{)" + frame + "}]}", "'fl_x' must be a finite number"},
       {R"({"fl_x": 10, "w": -1, "h": 10, "frames": [{)" + frame + "}]}", "bad image size"},
-      {R"({"fl_x": 10, "w": 10, "h": 10, "camera_model": "FISHEYE", "frames": [{)" + frame + "}]}", "unsupported camera_model"},
-      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"file_path": "a", "transform_matrix": [[1,0,0]]}]})", "must be a 4x4"},
-      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"file_path": "a", "transform_matrix": [[2,0,0,0],[0,1,0,0],[0,0,1,0]]}]})", "not orthonormal"},
-      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0]]}]})", "missing 'file_path'"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "camera_model": "FISHEYE", "frames": [{)" + frame + "}]}",
+       "unsupported camera_model"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"file_path": "a", "transform_matrix": [[1,0,0]]}]})",
+       "must be a 4x4"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"file_path": "a", "transform_matrix": [[2,0,0,0],[0,1,0,0],[0,0,1,0]]}]})",
+       "not orthonormal"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0]]}]})",
+       "missing 'file_path'"},
       {R"({"fl_x": 10, "w": 10, "h": 10, "exposure": 0, "frames": [{)" + frame + "}]}", "exposure must be positive"},
-      {R"({"fl_x": 10, "w": 10, "h": 10, "camera_model": 3, "frames": [{)" + frame + "}]}", "'camera_model' must be a string"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "camera_model": 3, "frames": [{)" + frame + "}]}",
+       "'camera_model' must be a string"},
       // Finite as a double, infinite as a float: Embree used to abort on the rays.
-      {R"({"fl_x": 1e39, "w": 10, "h": 10, "frames": [{)" + frame + "}]}", "field 'fl_x' must be a finite number (in float)"},
-      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"cx": 1e300, )" + frame + "}]}", "frame 0: field 'cx' must be a finite number (in float)"},
-      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"k1": 1e39, )" + frame + "}]}", "frame 0: field 'k1' must be a finite number (in float)"},
-      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"cx": 1e30, )" + frame + "}]}", "frame 0: 'cx' is 1e+30, must be in [-95, 105]"},
-      {R"({"fl_x": 10, "w": 10, "h": 20, "frames": [{"cy": -201, )" + frame + "}]}", "frame 0: 'cy' is -201, must be in [-190, 210]"},
-      {R"({"fl_x": 1e7, "w": 10, "h": 10, "frames": [{)" + frame + "}]}", "frame 0: 'fl_x' is 10000000, must be in (0, 1e+07) pixels"},
-      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"fl_y": 0, )" + frame + "}]}", "frame 0: 'fl_y' is 0, must be in (0, 1e+07) pixels"},
-      {R"({"fl_x": 10, "w": 1e300, "h": 10, "frames": [{)" + frame + "}]}", "field 'w' must be a finite number (in float)"},
+      {R"({"fl_x": 1e39, "w": 10, "h": 10, "frames": [{)" + frame + "}]}",
+       "field 'fl_x' must be a finite number (in float)"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"cx": 1e300, )" + frame + "}]}",
+       "frame 0: field 'cx' must be a finite number (in float)"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"k1": 1e39, )" + frame + "}]}",
+       "frame 0: field 'k1' must be a finite number (in float)"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"cx": 1e30, )" + frame + "}]}",
+       "frame 0: 'cx' is 1e+30, must be in [-95, 105]"},
+      {R"({"fl_x": 10, "w": 10, "h": 20, "frames": [{"cy": -201, )" + frame + "}]}",
+       "frame 0: 'cy' is -201, must be in [-190, 210]"},
+      {R"({"fl_x": 1e7, "w": 10, "h": 10, "frames": [{)" + frame + "}]}",
+       "frame 0: 'fl_x' is 10000000, must be in (0, 1e+07) pixels"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"fl_y": 0, )" + frame + "}]}",
+       "frame 0: 'fl_y' is 0, must be in (0, 1e+07) pixels"},
+      {R"({"fl_x": 10, "w": 1e300, "h": 10, "frames": [{)" + frame + "}]}",
+       "field 'w' must be a finite number (in float)"},
       {R"({"fl_x": 10, "w": 1e30, "h": 10, "frames": [{)" + frame + "}]}", "frame 0: bad image size 1e+30x10"},
       {R"({"fl_x": 10, "w": 10.5, "h": 10, "frames": [{)" + frame + "}]}", "frame 0: bad image size 10.5x10"},
       {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"file_path": "a", "transform_matrix": [[1,0,0,1e19],[0,1,0,0],[0,0,1,0]]}]})",
@@ -112,7 +127,8 @@ TEST(Transforms, MalformedInputsGiveOneLineErrors) {
        "frame 0: transform_matrix[2][3] (position) is -1000000, must be within +-1e+06 m"},
       {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"file_path": "a", "transform_matrix": [[1,0.5,0,0],[0,1,0,0],[0,0,1,0]]}]})",
        "frame 0: transform_matrix rotation is not orthonormal (det 1, |R^T R - I| 0.5"},
-      {R"({"fl_x": 10, "w": 10, "h": 10, "pixel_filter": "box", "frames": [{)" + frame + "}]}", "'pixel_filter' must be an object with a string 'type'"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "pixel_filter": "box", "frames": [{)" + frame + "}]}",
+       "'pixel_filter' must be an object with a string 'type'"},
       {R"({"fl_x": 10, "w": 10, "h": 10, "pixel_filter": {"type": "mitchell"}, "frames": [{)" + frame + "}]}",
        "pixel filter 'mitchell': must be box, gaussian or blackman-harris"},
       {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"pixel_filter": {"type": "box", "width": 0}, )" + frame + "}]}",

@@ -27,7 +27,8 @@ TEST(Cli, NumericOptionsAreRangeChecked) {
   ASSERT_TRUE(fs::exists(relume)) << relume;
   const fs::path log = fs::temp_directory_path() / "relume_cli_ranges.log";
   const std::vector<std::pair<std::string, std::string>> cases = {
-      {"render --scene /dev/null --cameras /dev/null --out /tmp/relume_cli_x --spp -3", "--spp: -3 is not in [1, 1048576]"},
+      {"render --scene /dev/null --cameras /dev/null --out /tmp/relume_cli_x --spp -3",
+       "--spp: -3 is not in [1, 1048576]"},
       {"synth --out /tmp/relume_cli_x --spp 0", "--spp: 0 is not in [1, 1048576]"},
       {"synth --out /tmp/relume_cli_x --width 4", "--width: 4 is not in [8, 65536]"},
       {"prepare /tmp --out /tmp/relume_cli_x --tile 0", "--tile: 0 is not in [1, 4096]"},
@@ -73,8 +74,9 @@ TEST(Cli, ResultsOutliveClosedOutputStreams) {
   sigaddset(&pipeSignal, SIGPIPE);
   posix_spawnattr_setsigdefault(&attr, &pipeSignal);
   posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGDEF);
-  std::vector<std::string> args = {relume.string(), "--log", "info", "synth", "--scene", "cornell", "--out", out.string(),
-                                   "--frames", "2", "--test-frames", "1", "--width", "16", "--height", "16", "--spp", "1"};
+  std::vector<std::string> args = {relume.string(), "--log",      "info",     "synth", "--scene",       "cornell",
+                                   "--out",         out.string(), "--frames", "2",     "--test-frames", "1",
+                                   "--width",       "16",         "--height", "16",    "--spp",         "1"};
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
@@ -101,7 +103,8 @@ TEST(Cli, LogsGoToStderrAndResultsToStdout) {
   fs::create_directories(dir);
   const int rc = std::system(("'" + relume.string() + "'" +
                               " --log info profile --what render --synth cornell --width 16 --height 16 --spp 1"
-                              " --max-depth 2 --repeats 1 > '" + (dir / "out").string() + "' 2> '" + (dir / "err").string() + "'")
+                              " --max-depth 2 --repeats 1 > '" +
+                              (dir / "out").string() + "' 2> '" + (dir / "err").string() + "'")
                                  .c_str());
   auto read = [&](const char* name) {
     std::stringstream s;

@@ -16,7 +16,8 @@ double exactMass(const PixelFilter& f, double a, double b) {
   const double r = f.radius(), w = f.width();
   a = std::clamp(a, -r, r), b = std::clamp(b, -r, r);
   switch (f.type()) {
-    case PixelFilterType::Box: return b - a;
+    case PixelFilterType::Box:
+      return b - a;
     case PixelFilterType::Gaussian: {  // exp(-8 x^2 / w^2): sigma = w / 4
       const double s = w / 4.0;
       return s * std::sqrt(M_PI / 2.0) * (std::erf(b / (s * std::sqrt(2.0))) - std::erf(a / (s * std::sqrt(2.0))));
@@ -24,7 +25,8 @@ double exactMass(const PixelFilter& f, double a, double b) {
     case PixelFilterType::BlackmanHarris: {  // v = 2 pi (x / 2w + 1/2), dx = w / pi dv
       const auto F = [&](double x) {
         const double v = 2.0 * M_PI * (x / (2.0 * w) + 0.5);
-        return w / M_PI * (0.35875 * v - 0.48829 * std::sin(v) + 0.14128 * std::sin(2 * v) / 2 - 0.01168 * std::sin(3 * v) / 3);
+        return w / M_PI *
+               (0.35875 * v - 0.48829 * std::sin(v) + 0.14128 * std::sin(2 * v) / 2 - 0.01168 * std::sin(3 * v) / 3);
       };
       return F(b) - F(a);
     }
@@ -40,7 +42,7 @@ TEST(PixelFilter, CyclesDefinitions) {
   EXPECT_NEAR(bh.weight(0), 1.0f, 1e-6f);
   EXPECT_NEAR(bh.weight(1.5f), 6e-5f, 1e-6f);
   EXPECT_EQ(bh.weight(1.51f), 0.0f);
-  EXPECT_FLOAT_EQ(g.radius(), 2.25f);  // ... and triples a Gaussian's
+  EXPECT_FLOAT_EQ(g.radius(), 2.25f);                       // ... and triples a Gaussian's
   EXPECT_NEAR(g.weight(1.5f / 4), std::exp(-0.5f), 1e-6f);  // sigma = width / 4
   EXPECT_EQ(PixelFilter().radius(), 0.5f);
 }
@@ -64,8 +66,9 @@ TEST(PixelFilter, UnitBoxSampleIsTheUniformNumberItself) {
 // freedom, 0.1% critical value 58.3. A uniform draw over the support (a box of the same radius)
 // fails it by orders of magnitude.
 TEST(PixelFilter, SamplesFollowTheFilter) {
-  for (const PixelFilter& f : {PixelFilter(PixelFilterType::BlackmanHarris, 1.5f), PixelFilter(PixelFilterType::Gaussian, 1.5f),
-                               PixelFilter(PixelFilterType::BlackmanHarris, 0.7f), PixelFilter(PixelFilterType::Box, 2.5f)}) {
+  for (const PixelFilter& f :
+       {PixelFilter(PixelFilterType::BlackmanHarris, 1.5f), PixelFilter(PixelFilterType::Gaussian, 1.5f),
+        PixelFilter(PixelFilterType::BlackmanHarris, 0.7f), PixelFilter(PixelFilterType::Box, 2.5f)}) {
     const int bins = 30, n = 200000;
     const double r = f.radius(), total = exactMass(f, -r, r);
     std::vector<int> count(bins, 0);
@@ -92,5 +95,6 @@ TEST(PixelFilter, RejectsUnknownTypesAndBadWidths) {
   EXPECT_EQ(PixelFilter::parse("blackman-harris"), PixelFilter(PixelFilterType::BlackmanHarris, 1.5f));
   EXPECT_EQ(PixelFilter::parseSpec("gaussian:2"), PixelFilter(PixelFilterType::Gaussian, 2.0f));
   EXPECT_TRUE(PixelFilter::parseSpec("box").isUnitBox());
-  for (const char* bad : {"box:", "box:wide", "gaussian:1.5px", ":2"}) EXPECT_THROW(PixelFilter::parseSpec(bad), Error) << bad;
+  for (const char* bad : {"box:", "box:wide", "gaussian:1.5px", ":2"})
+    EXPECT_THROW(PixelFilter::parseSpec(bad), Error) << bad;
 }

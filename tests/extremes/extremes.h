@@ -50,8 +50,8 @@ inline GradientExperiment cornell(float emissionScale = 1.0f) {
 }
 
 // Radiance estimates of the batch under `a` (the primal pass's seeds).
-inline std::vector<Color> estimates(const Scene& scene, const Appearance& a, const std::vector<BatchRay>& rays, int maxDepth,
-                                    uint64_t seed = 0) {
+inline std::vector<Color> estimates(const Scene& scene, const Appearance& a, const std::vector<BatchRay>& rays,
+                                    int maxDepth, uint64_t seed = 0) {
   const LightSampler lights(scene, a);
   AdjointSettings s;
   s.seed = seed;

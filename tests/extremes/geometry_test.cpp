@@ -47,7 +47,9 @@ GradientExperiment reaimed(const std::function<std::pair<Vec3, Vec3>(size_t)>& a
 TEST(ExtremeCameras, GrazingAndOneCentimetreFromTheFloor) {
   // The floor is y = 0, x and z in [0, 2] (Cornell); points between the boxes and the front wall,
   // seen along -z from within 0.5 m: no box in between.
-  auto floorPoint = [](size_t j) { return Vec3(0.2f + 0.8f * ((j * 37) % 64) / 64.0f, 0.0f, 1.1f + 0.35f * ((j * 11) % 16) / 16.0f); };
+  auto floorPoint = [](size_t j) {
+    return Vec3(0.2f + 0.8f * ((j * 37) % 64) / 64.0f, 0.0f, 1.1f + 0.35f * ((j * 11) % 16) / 16.0f);
+  };
   const GradientExperiment grazing = reaimed([&](size_t j) {
     const float angle = (85.0f + 4.9f * (j % 16) / 15.0f) * kPi / 180.0f;  // 85 to 89.9 degrees from the normal
     const Vec3 dir(0.0f, -std::cos(angle), -std::sin(angle));
@@ -73,7 +75,8 @@ TEST(ExtremeGeometry, DegenerateTrianglesAreDroppedAndSliversAreRight) {
   MeshData d;
   auto quad = [&](float y, bool up, int object) {
     const int b = static_cast<int>(d.positions.size());
-    for (auto [x, z] : {std::pair{0.0f, 0.0f}, {1.0f, 0.0f}, {1.0f, 1.0f}, {0.0f, 1.0f}}) d.positions.emplace_back(x, y, z);
+    for (auto [x, z] : {std::pair{0.0f, 0.0f}, {1.0f, 0.0f}, {1.0f, 1.0f}, {0.0f, 1.0f}})
+      d.positions.emplace_back(x, y, z);
     // Counter-clockwise seen from +y gives a normal +y.
     d.triangles.push_back(up ? Eigen::Vector3i(b, b + 3, b + 2) : Eigen::Vector3i(b, b + 2, b + 3));
     d.triangles.push_back(up ? Eigen::Vector3i(b, b + 2, b + 1) : Eigen::Vector3i(b, b + 1, b + 2));
@@ -88,9 +91,9 @@ TEST(ExtremeGeometry, DegenerateTrianglesAreDroppedAndSliversAreRight) {
   const float width = 2e-6f, y0 = 1e-3f, y1 = 1.0f - 1e-3f;
   quad(0.0f, true, 0);
   quad(1.0f, false, 1);
-  triangle({0.2f, y0, 0.5f}, {0.5f, y0, 0.5f + width}, {0.8f, y0, 0.5f}, 2);  // normal +y
-  triangle({0.2f, y1, 0.5f}, {0.8f, y1, 0.5f}, {0.5f, y1, 0.5f + width}, 3);  // normal -y
-  triangle({0.1f, 0.5f, 0.1f}, {0.2f, 0.5f, 0.2f}, {0.3f, 0.5f, 0.3f}, 0);     // collinear
+  triangle({0.2f, y0, 0.5f}, {0.5f, y0, 0.5f + width}, {0.8f, y0, 0.5f}, 2);        // normal +y
+  triangle({0.2f, y1, 0.5f}, {0.8f, y1, 0.5f}, {0.5f, y1, 0.5f + width}, 3);        // normal -y
+  triangle({0.1f, 0.5f, 0.1f}, {0.2f, 0.5f, 0.2f}, {0.3f, 0.5f, 0.3f}, 0);          // collinear
   triangle({0.1f, 0.5f, 0.9f}, {0.9f, 0.5f, 0.9f}, {0.5f, 0.5f, 0.9f + 1e-7f}, 0);  // needle
   SceneDescription truth{{}, buildMesh(d, "slivers"), Appearance(4)};
   EXPECT_EQ(truth.mesh.droppedDegenerate, 2u);
@@ -118,11 +121,11 @@ TEST(ExtremeGeometry, DegenerateTrianglesAreDroppedAndSliversAreRight) {
   e.current = perturbAppearance(e.truth.appearance, 7);
   // Bound: gradients within gradcheck's 2e-3 of the frozen-sampling finite difference, the sliver
   // light's included (its area pdf is 1/6e-7).
-  const GradcheckReport r = expectFiniteAndRight(e, {ParamKind::Roughness, ParamKind::Specular, ParamKind::Emission}, "slivers");
+  const GradcheckReport r =
+      expectFiniteAndRight(e, {ParamKind::Roughness, ParamKind::Specular, ParamKind::Emission}, "slivers");
   auto checked = [&](ParamKind kind, int object) {
-    return std::any_of(r.rows.begin(), r.rows.end(), [&](const GradcheckRow& row) {
-      return row.param.kind == kind && row.param.object == object;
-    });
+    return std::any_of(r.rows.begin(), r.rows.end(),
+                       [&](const GradcheckRow& row) { return row.param.kind == kind && row.param.object == object; });
   };
   EXPECT_TRUE(checked(ParamKind::Roughness, 2) && checked(ParamKind::Emission, 3)) << r.table();
 }
@@ -178,7 +181,8 @@ TEST(ExtremeCameras, ACaptureWithFramesOneCentimetreFromAWallAndGrazingTheFloor)
   ASSERT_GT(grazing.size(), 0u);
   float nearest = INFINITY, mostGrazing = 1;
   for (const BatchRay& r : close) nearest = std::min(nearest, scene.intersect(r.origin, r.dir)->t);
-  for (const BatchRay& r : grazing) mostGrazing = std::min(mostGrazing, std::abs(scene.intersect(r.origin, r.dir)->ng.dot(r.dir)));
+  for (const BatchRay& r : grazing)
+    mostGrazing = std::min(mostGrazing, std::abs(scene.intersect(r.origin, r.dir)->ng.dot(r.dir)));
   EXPECT_LT(nearest, 0.1f);      // texels within 10 cm (a Jacobian's 1 / d^2 would be >= 100)
   EXPECT_LT(mostGrazing, 0.1f);  // and seen at more than 84 degrees (its cos would be < 0.1)
   const SceneDescription truth = loadSceneFile(dir / "capture" / "gt" / "scene.json");

@@ -20,13 +20,14 @@ struct Optimisers {
     for (ParamGroup& group : paramGroups(a, &g)) {
       if (group.kind == ParamKind::Albedo) {
         if (newton.size() == 0) newton = GaussNewtonState(group.values.size());
-        newton.stepTexels(group.values, group.grads, g.albedoCurvature, group.lo, group.hi, {}, g.splattedAlbedoTexels());
+        newton.stepTexels(group.values, group.grads, g.albedoCurvature, group.lo, group.hi, {},
+                          g.splattedAlbedoTexels());
       } else {
         AdamSettings s;
         s.learningRate = 0.01f;
         s.relativeFloor = group.kind == ParamKind::Emission ? 0.02f : 0.0f;
-        adam.try_emplace(group.name(), group.values.size()).first->second.step(group.values, group.grads, group.lo, group.hi, s,
-                                                                               iteration);
+        adam.try_emplace(group.name(), group.values.size())
+            .first->second.step(group.values, group.grads, group.lo, group.hi, s, iteration);
       }
     }
   }
@@ -35,7 +36,8 @@ struct Optimisers {
       const AdamState& t = o.adam.at(name);
       if (s.m != t.m || s.v != t.v || s.steps != t.steps) return false;
     }
-    return newton.numerator == o.newton.numerator && newton.curvature == o.newton.curvature && newton.steps == o.newton.steps;
+    return newton.numerator == o.newton.numerator && newton.curvature == o.newton.curvature &&
+           newton.steps == o.newton.steps;
   }
 };
 
@@ -60,7 +62,9 @@ TEST(ExtremeOptimiser, AZeroGradientIterationLeavesAdamAndGaussNewtonUntouched) 
     computeGradients(scene, e.current, lights, e.rays, settings, it, g);
     opt.step(e.current, g, it);
   }
-  ASSERT_GT(opt.newton.steps[std::max_element(opt.newton.steps.begin(), opt.newton.steps.end()) - opt.newton.steps.begin()], 0);
+  ASSERT_GT(
+      opt.newton.steps[std::max_element(opt.newton.steps.begin(), opt.newton.steps.end()) - opt.newton.steps.begin()],
+      0);
   // A zero-gradient iteration from the solver itself: every reference dark below a threshold no
   // estimate reaches, so the one-sided loss and all its derivatives are exactly 0.
   for (BatchRay& r : e.rays) r.reference = Color::Zero(), r.clip.low = 1e6f;

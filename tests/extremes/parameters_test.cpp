@@ -76,7 +76,8 @@ TEST(ExtremeParameters, SpecularZeroAndOne) {
     settings.path.maxDepth = 4;
     computeGradients(scene, e.current, lights, e.rays, settings, 0, g);
     EXPECT_TRUE(allFinite(g)) << "principled specular " << s;
-    return std::vector<float>(g.objects.begin() + g.specularSlot(0), g.objects.begin() + g.specularSlot(0) + e.current.objectCount());
+    return std::vector<float>(g.objects.begin() + g.specularSlot(0),
+                              g.objects.begin() + g.specularSlot(0) + e.current.objectCount());
   };
   const std::vector<float> at0 = specularGradient(0.0f);
   for (float s : {1e-6f, 1e-8f, 1e-10f}) {

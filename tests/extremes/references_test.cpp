@@ -45,7 +45,7 @@ TEST(ExtremeReferences, ClippedReferencesCarryNoGradientOnTheFreeSideAndPullOneW
   // All saturated at a threshold every estimate reaches (0), or all dark below a threshold no
   // estimate reaches: the one-sided loss has nothing to say. Bound: loss and every gradient 0.
   for (const auto& [reference, clip] : {std::pair{Color::Zero().eval(), ClipThresholds{-1.0f, 0.0f}},
-                                         std::pair{Color::Zero().eval(), ClipThresholds{big, INFINITY}}}) {
+                                        std::pair{Color::Zero().eval(), ClipThresholds{big, INFINITY}}}) {
     const ClippedBatch b = withReferences(e, reference, clip);
     EXPECT_EQ(b.loss, 0.0);
     EXPECT_TRUE(allZero(b.grads.albedo) && allZero(b.grads.objects) && allZero(b.grads.albedoCurvature));

@@ -80,7 +80,7 @@ TEST(ExtremeResume, FromEachStageBoundaryEndsBitExactAsAnUninterruptedRun) {
   FitConfig c = tinyFit();
   c.maxResolution = 64;
   c.checkpointEvery = 1000000;  // checkpoints at stage ends only
-  tbb::task_arena one(1);  // the resumed runs on one thread, the whole one on all: bit-exact anyway
+  tbb::task_arena one(1);       // the resumed runs on one thread, the whole one on all: bit-exact anyway
   CheckpointRecorder recorder(work);
   runFit(work, c, false, recorder.hooks());
   const std::vector<fs::path> boundaries = recorder.stop();

@@ -97,7 +97,8 @@ TEST(GltfWriter, ReadsBackWithMaterialsSpecularEmissionUvAndTexture) {
   EXPECT_EQ(emissive.image[4 * (1 * 6 + 5) + 0], 255);
   EXPECT_EQ(emissive.image[4 * (1 * 6 + 5) + 1], std::lround(linearToSrgb(0.5f) * 255));
   // The albedo texture decodes to the sRGB encoding of the linear albedo, row 0 at the top.
-  const tinygltf::Image& albedo = m.images[m.textures[m.materials[0].pbrMetallicRoughness.baseColorTexture.index].source];
+  const tinygltf::Image& albedo =
+      m.images[m.textures[m.materials[0].pbrMetallicRoughness.baseColorTexture.index].source];
   ASSERT_EQ(albedo.width, 6);
   ASSERT_EQ(albedo.height, 2);
   const int comps = albedo.component;
@@ -118,7 +119,8 @@ TEST(GltfWriter, ReadsBackWithMaterialsSpecularEmissionUvAndTexture) {
     EXPECT_FLOAT_EQ(uvs[2 * k + 1], s.mesh.uvs[4 + k].y());
   }
   const tinygltf::BufferView& nView = m.bufferViews[nrm.bufferView];
-  EXPECT_FLOAT_EQ(reinterpret_cast<const float*>(m.buffers[0].data.data() + nView.byteOffset + nrm.byteOffset)[2], 1.0f);
+  EXPECT_FLOAT_EQ(reinterpret_cast<const float*>(m.buffers[0].data.data() + nView.byteOffset + nrm.byteOffset)[2],
+                  1.0f);
 }
 
 TEST(MitsubaWriter, OneShapePerObjectWithPrincipledParametersAndEmitters) {
@@ -147,7 +149,8 @@ TEST(MitsubaWriter, OneShapePerObjectWithPrincipledParametersAndEmitters) {
     EXPECT_EQ(mesh.triangles.size(), 2u);
     ASSERT_EQ(mesh.uvs.size(), 4u);
     EXPECT_EQ(mesh.uvs[1], s.mesh.uvs[4 * o + 1]);
-    EXPECT_EQ(body.find(R"(<ref name="base_color" id="albedo"/>)") != std::string::npos, s.materials[o].baseColorTextured);
+    EXPECT_EQ(body.find(R"(<ref name="base_color" id="albedo"/>)") != std::string::npos,
+              s.materials[o].baseColorTextured);
     EXPECT_EQ(body.find("<emitter type=\"area\">") != std::string::npos, o >= 1);
   }
   EXPECT_EQ(o, 3);

@@ -26,8 +26,8 @@ fs::path freshDir(const std::string& name) {
 
 // Every reader on `path`: each must throw relume::Error whose message names the path and contains `why`.
 void expectEveryReaderRejects(const fs::path& path, const std::string& why) {
-  const std::vector<std::function<void()>> readers = {
-      [&] { readImage(path); }, [&] { readJson(path); }, [&] { readPly(path); }, [&] { readObj(path); }};
+  const std::vector<std::function<void()>> readers = {[&] { readImage(path); }, [&] { readJson(path); },
+                                                      [&] { readPly(path); }, [&] { readObj(path); }};
   for (const auto& read : readers) {
     try {
       read();
@@ -64,7 +64,8 @@ TEST(HostileFiles, DirectoryWhereAFileIsExpectedIsNamed) {
 TEST(AtomicFile, TemporariesOfDeadWritersAreRemovedOthersKept) {
   const fs::path dir = freshDir("relume_stale_tmp");
   // pid_max is at most 2^22 on Linux, so pid 999999999 never runs.
-  const std::vector<std::string> stale = {".frames.tmp999999999.bin", ".albedo_init.tmp999999999.exr", ".prepare.tmp999999999.json"};
+  const std::vector<std::string> stale = {".frames.tmp999999999.bin", ".albedo_init.tmp999999999.exr",
+                                          ".prepare.tmp999999999.json"};
   const std::vector<std::string> kept = {fmt::format(".checkpoint.tmp{}.bin", getpid()),  // our own, being written
                                          "frames.bin", "notes.tmp999999999", ".tmp999999999"};
   for (const auto& name : stale) std::ofstream(dir / name) << "partial";

@@ -24,7 +24,8 @@ fs::path writeBytes(const std::string& name, const std::string& bytes) {
   std::ofstream(p, std::ios::binary) << bytes;
   return p;
 }
-template <typename F> std::string errorOf(F&& f) {
+template <typename F>
+std::string errorOf(F&& f) {
   try {
     f();
   } catch (const Error& e) {
@@ -39,8 +40,11 @@ const std::string kAsciiBody = "0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3 7\n";
 
 std::string binaryPly(bool bigEndian, int faceIndex = 2, uint32_t declaredFaces = 1) {
   std::string s = std::string("ply\nformat ") + (bigEndian ? "binary_big_endian" : "binary_little_endian") +
-                  " 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nproperty float u\nproperty float v\n"
-                  "element face " + std::to_string(declaredFaces) + "\nproperty list uchar uint vertex_indices\nproperty uchar object_id\nend_header\n";
+                  " 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nproperty float "
+                  "u\nproperty float v\n"
+                  "element face " +
+                  std::to_string(declaredFaces) +
+                  "\nproperty list uchar uint vertex_indices\nproperty uchar object_id\nend_header\n";
   auto put = [&](auto v) {
     char b[sizeof(v)];
     std::memcpy(b, &v, sizeof(v));
@@ -95,20 +99,33 @@ TEST(Ply, MalformedFilesGiveOneLineErrors) {
       {"noend.ply", "ply\nformat ascii 1.0\nelement vertex 1\n", "no 'end_header'"},
       {"truncated.ply", good.substr(0, good.size() - 7), "truncated"},
       {"wrongcount.ply", binaryPly(false, 2, 3), "truncated binary data while reading face"},
-      {"huge.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n", "declares 4000000000"},
+      {"huge.ply",
+       "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\nproperty "
+       "float z\nend_header\n",
+       "declares 4000000000"},
       {"oob.ply", binaryPly(false, 9), "out of range"},
       {"negidx.ply", kAsciiHeader + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 -1 2 0\n", "out of range"},
       {"token.ply", kAsciiHeader + "0 0 0\n1 zero 0\n1 1 0\n0 1 0\n3 0 1 2 0\n", "non-numeric token 'zero'"},
-      {"badtype.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty quaternion x\nend_header\n0\n", "unknown property type"},
+      {"badtype.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty quaternion x\nend_header\n0\n",
+       "unknown property type"},
       {"badformat.ply", "ply\nformat binary_middle_endian 1.0\nend_header\n", "unknown PLY format"},
       {"noxyz.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float a\nend_header\n0\n", "lacks x/y/z"},
-      {"noface.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n", "no faces"},
+      {"noface.ply",
+       "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 "
+       "0\n",
+       "no faces"},
       {"badlabel.ply", kAsciiHeader + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2 -4\n", "not a non-negative integer"},
       {"hugelist.ply", kAsciiHeader + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n200 0 1 2\n", "unexpected end of file"},
-      {"noprops.ply", "ply\nformat ascii 1.0\nelement junk 18446744073709551615\n" + kAsciiHeader.substr(21), "element 'junk' declares 18446744073709551615 entries but no properties"},
+      {"noprops.ply", "ply\nformat ascii 1.0\nelement junk 18446744073709551615\n" + kAsciiHeader.substr(21),
+       "element 'junk' declares 18446744073709551615 entries but no properties"},
       {"nanlist.ply", kAsciiHeader + "0 0 0\n1 0 0\n1 1 0\n0 1 0\nnan 0 1 2 0\n", "face 0: bad list length nan"},
-      {"nanvertlist.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nproperty list float int extra\nend_header\n0 0 0 nan\n", "vertex 0: bad list length nan"},
-      {"nanjunklist.ply", "ply\nformat ascii 1.0\nelement junk 1\nproperty list float int extra\n" + kAsciiHeader.substr(21) + "nan\n", "element 'junk' 0: bad list length nan"},
+      {"nanvertlist.ply",
+       "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nproperty list "
+       "float int extra\nend_header\n0 0 0 nan\n",
+       "vertex 0: bad list length nan"},
+      {"nanjunklist.ply",
+       "ply\nformat ascii 1.0\nelement junk 1\nproperty list float int extra\n" + kAsciiHeader.substr(21) + "nan\n",
+       "element 'junk' 0: bad list length nan"},
       {"fraclist.ply", kAsciiHeader + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n3.5 0 1 2 0\n", "face 0: bad list length 3.5"},
       {"nanvert.ply", kAsciiHeader + "0 0 nan\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2 0\n", "non-finite position"},
   };
@@ -188,19 +205,30 @@ TEST(SceneFile, RejectsBadFields) {
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 4}]})", "id 4 not in the mesh"},
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "roughness": "rough"}]})", "'roughness' must be a number"},
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": [1, 2]}]})", "[r,g,b]"},
-      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": [-1, 0, 0]}]})", "objects[0]: 'emission[0]' is -1, must be >= 0 and finite in float"},
-      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": 1e39}]})", "objects[0]: 'emission' is 1e+39, must be >= 0 and finite in float"},
-      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": [0, 1e300, 0]}]})", "'emission[1]' is 1e+300, must be >= 0 and finite in float"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": [-1, 0, 0]}]})",
+       "objects[0]: 'emission[0]' is -1, must be >= 0 and finite in float"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": 1e39}]})",
+       "objects[0]: 'emission' is 1e+39, must be >= 0 and finite in float"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": [0, 1e300, 0]}]})",
+       "'emission[1]' is 1e+300, must be >= 0 and finite in float"},
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "albedo": 1.5}]})", "'albedo' is 1.5, must be in [0, 1]"},
-      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "albedo": [0.5, 0.5, -0.1]}]})", "'albedo[2]' is -0.1, must be in [0, 1]"},
-      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "roughness": 0.01}]})", "'roughness' is 0.01, must be in [0.035, 1]"},
-      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "roughness": 1e39}]})", "'roughness' is 1e+39, must be in [0.035, 1]"},
-      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "specular": 1.01}]})", "'specular' is 1.01, must be in [0, 1]"},
-      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "specular": -0.5}]})", "'specular' is -0.5, must be in [0, 1]"},
-      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 4294967296}]})", "objects[0]: 'id' is 4294967296, must be in [0, 2147483647]"},
-      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 2147483648}]})", "'id' is 2147483648, must be in [0, 2147483647]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "albedo": [0.5, 0.5, -0.1]}]})",
+       "'albedo[2]' is -0.1, must be in [0, 1]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "roughness": 0.01}]})",
+       "'roughness' is 0.01, must be in [0.035, 1]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "roughness": 1e39}]})",
+       "'roughness' is 1e+39, must be in [0.035, 1]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "specular": 1.01}]})",
+       "'specular' is 1.01, must be in [0, 1]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "specular": -0.5}]})",
+       "'specular' is -0.5, must be in [0, 1]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 4294967296}]})",
+       "objects[0]: 'id' is 4294967296, must be in [0, 2147483647]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 2147483648}]})",
+       "'id' is 2147483648, must be in [0, 2147483647]"},
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": -1}]})", "'id' is -1, must be in [0, 2147483647]"},
-      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 18446744073709551615}]})", "'id' is 18446744073709551615, must be in [0, 2147483647]"},
+      {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 18446744073709551615}]})",
+       "'id' is 18446744073709551615, must be in [0, 2147483647]"},
       {R"({"mesh": "scene_mesh.ply", "albedo_texture": "a.exr"})", "has no valid uv"},
       {R"({"mesh": "missing.ply"})", "not found"},
       {R"({"mesh": "scene_mesh.ply", "model": 3})", "type must be string"},
@@ -228,7 +256,8 @@ TEST(SceneFile, RejectsTexelsOutsideTheirDomain) {
     loadSceneFile(writeBytes("tex_albedo.json", R"({"mesh": "uv_mesh.ply", "albedo_texture": "bright_albedo.exr"})"));
   });
   EXPECT_NE(err.find((tmpDir() / "bright_albedo.exr").string() + ": texel (1, 1) channel 1 is 1.5, must be in [0, 1]"),
-            std::string::npos) << err;
+            std::string::npos)
+      << err;
   img.rgb[3 * 3 + 1] = -2.0f;
   writeExr(tmpDir() / "negative_emission.exr", img);
   err = errorOf([] {

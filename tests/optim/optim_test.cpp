@@ -47,8 +47,10 @@ TEST(Adam, EntryFirstSeenLateTakesAFirstStepOfLr) {
     std::vector<float> x = {0.5f};
     s.step(x, std::vector<float>{2.0f}, 0.0f, 1.0f, a, 5000);
     const float step = 0.5f - x[0];
-    if (perEntry) EXPECT_NEAR(step, 0.01f, 1e-5f);
-    else EXPECT_NEAR(step, 0.01f * 0.1f / std::sqrt(0.001f / (1.0f - std::pow(0.999f, 5000.0f))), 1e-5f);
+    if (perEntry)
+      EXPECT_NEAR(step, 0.01f, 1e-5f);
+    else
+      EXPECT_NEAR(step, 0.01f * 0.1f / std::sqrt(0.001f / (1.0f - std::pow(0.999f, 5000.0f))), 1e-5f);
   }
 }
 
@@ -72,8 +74,8 @@ TEST(Adam, RelativeStepsScaleWithTheValue) {
   AdamState s(2);
   std::vector<float> x = {1000.0f, 0.0f};
   s.step(x, std::vector<float>{1.0f, -1.0f}, 0.0f, INFINITY, a, 1);
-  EXPECT_NEAR(x[0], 900.0f, 0.01f);   // 10% of its value
-  EXPECT_NEAR(x[1], 0.001f, 1e-6f);   // the floor from zero
+  EXPECT_NEAR(x[0], 900.0f, 0.01f);  // 10% of its value
+  EXPECT_NEAR(x[1], 0.001f, 1e-6f);  // the floor from zero
 }
 
 TEST(Adam, ClampBoundsOutliersAndDropsNonFinite) {
@@ -164,8 +166,10 @@ TEST(GaussNewton, ATextureSizedStepIsEachEntryStepAlone) {
     if (i % 7 == 0) continue;  // untouched
     h[i] = 0.01f + static_cast<float>(i % 13);
     g[i] = (x[i] - 0.5f) * h[i] * (i % 3 == 0 ? -3.0f : 1.0f);
-    if (i % 11 == 0) h[i] = -1.0f;  // rejected
-    else ++eligible;
+    if (i % 11 == 0)
+      h[i] = -1.0f;  // rejected
+    else
+      ++eligible;
   }
   GaussNewtonSettings settings;
   GaussNewtonState whole(n);
@@ -188,7 +192,8 @@ TEST(GaussNewton, AStepOverTheSplattedTexelsIsTheWholeTexturesStep) {
   std::vector<float> x(3 * texels), g(3 * texels, 0.0f), h(3 * texels, 0.0f);
   std::vector<uint32_t> splatted;
   for (uint32_t t = 0; t < texels; ++t) {
-    for (size_t i = 3 * t; i < 3 * t + 3; ++i) x[i] = 0.1f + 0.8f * static_cast<float>((i * 2654435761u) % 1000) / 1000.0f;
+    for (size_t i = 3 * t; i < 3 * t + 3; ++i)
+      x[i] = 0.1f + 0.8f * static_cast<float>((i * 2654435761u) % 1000) / 1000.0f;
     if (t % 5 != 0) continue;
     splatted.push_back(t);
     for (size_t i = 3 * t; i < 3 * t + 3; ++i) {
@@ -206,7 +211,8 @@ TEST(GaussNewton, AStepOverTheSplattedTexelsIsTheWholeTexturesStep) {
     EXPECT_EQ(sparse.stepTexels(xs, g, h, 0.0f, 1.0f, settings, splatted), updated);
   }
   EXPECT_TRUE(xs == xw);
-  EXPECT_TRUE(sparse.numerator == whole.numerator && sparse.curvature == whole.curvature && sparse.steps == whole.steps);
+  EXPECT_TRUE(sparse.numerator == whole.numerator && sparse.curvature == whole.curvature &&
+              sparse.steps == whole.steps);
   // Left off the list: a gradient there is not stepped.
   GaussNewtonState partial(x.size());
   std::vector<float> xp = x;
@@ -265,7 +271,9 @@ TEST(Checkpoint, NumbersThatAreNotIntegersInRangeAreCleanErrors) {
   EXPECT_THROW(Checkpoint::read(path), Error);
   writeRaw(R"({"meta":{},"arrays":[["a",-4]]})", "");
   EXPECT_THROW(Checkpoint::read(path), Error);
-  writeRaw(R"({"meta":{"stage":1.6e85,"iteration":-1,"resolution":4294967808,"global_iteration":3},"arrays":[["a",4]]})", "abcd");
+  writeRaw(
+      R"({"meta":{"stage":1.6e85,"iteration":-1,"resolution":4294967808,"global_iteration":3},"arrays":[["a",4]]})",
+      "abcd");
   const Checkpoint c = Checkpoint::read(path);
   EXPECT_EQ(c.bytes("a"), 4u);
   EXPECT_THROW(c.metaInteger("stage", 0, 10), Error);
@@ -281,7 +289,8 @@ TEST(Upsample, KeepsConstantsAndNeverBleedsAcrossObjects) {
   // Two unit squares side by side in uv, objects 0 and 1, albedo 0.2 and 0.9.
   MeshData d;
   d.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {2, 0, 0}, {3, 0, 0}, {3, 1, 0}, {2, 1, 0}};
-  d.uvs = {{0.05f, 0.1f}, {0.45f, 0.1f}, {0.45f, 0.9f}, {0.05f, 0.9f}, {0.55f, 0.1f}, {0.95f, 0.1f}, {0.95f, 0.9f}, {0.55f, 0.9f}};
+  d.uvs = {{0.05f, 0.1f}, {0.45f, 0.1f}, {0.45f, 0.9f}, {0.05f, 0.9f},
+           {0.55f, 0.1f}, {0.95f, 0.1f}, {0.95f, 0.9f}, {0.55f, 0.9f}};
   d.triangles = {{0, 1, 2}, {0, 2, 3}, {4, 5, 6}, {4, 6, 7}};
   d.faceObject = {0, 0, 1, 1};
   const TriangleMesh mesh = buildMesh(d, "t");

@@ -62,7 +62,9 @@ TEST(Gradients, ListsEverySplattedAlbedoTexelOnceAndClearZeroesEveryBuffer) {
   allocateEmissionTextures(a, mesh, 64, [](float, float) { return 1.0f; });
   Gradients g(a, true);
   const auto allZero = [&] {
-    auto zero = [](const std::vector<float>& v) { return std::all_of(v.begin(), v.end(), [](float x) { return x == 0.0f; }); };
+    auto zero = [](const std::vector<float>& v) {
+      return std::all_of(v.begin(), v.end(), [](float x) { return x == 0.0f; });
+    };
     return zero(g.albedo) && zero(g.albedoCurvature) && zero(g.emissionTexture[0]) && zero(g.objects);
   };
   for (int round = 0; round < 2; ++round) {  // the second round reuses what the first cleared
@@ -70,8 +72,10 @@ TEST(Gradients, ListsEverySplattedAlbedoTexelOnceAndClearZeroesEveryBuffer) {
       for (size_t ray = begin; ray < end; ++ray) {
         const auto texel = static_cast<uint32_t>((ray * 7 + round) % 4096);
         if (ray % 3 != 2) chunk.addAlbedo(texel, Color::Constant(0.25f));
-        if (ray % 3 != 0) chunk.addAlbedoCurvature((texel + 1) % 4096, Color::Constant(1.0f));  // some texels: curvature alone
-        if (ray % 5 == 0) chunk.addEmissionTexel(0, static_cast<uint32_t>(ray % (g.emissionTexture[0].size() / 3)), Color::Ones());
+        if (ray % 3 != 0)
+          chunk.addAlbedoCurvature((texel + 1) % 4096, Color::Constant(1.0f));  // some texels: curvature alone
+        if (ray % 5 == 0)
+          chunk.addEmissionTexel(0, static_cast<uint32_t>(ray % (g.emissionTexture[0].size() / 3)), Color::Ones());
         chunk.addRoughness(1, 0.5);
       }
     });

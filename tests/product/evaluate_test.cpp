@@ -64,7 +64,8 @@ Camera cornellCamera() { return synthCameraPath(SynthSceneKind::Cornell, 1, 32, 
 }  // namespace
 
 TEST(Evaluate, SameRandomNumbersCancelTheNoiseOfTwoCopiesOfAScene) {
-  const Rendered fit(makeSynthScene(SynthSceneKind::Cornell, 64).scene), truth(makeSynthScene(SynthSceneKind::Cornell, 64).scene);
+  const Rendered fit(makeSynthScene(SynthSceneKind::Cornell, 64).scene),
+      truth(makeSynthScene(SynthSceneKind::Cornell, 64).scene);
   const SplitRender a = fit.render(cornellCamera(), 4, 7), b = truth.render(cornellCamera(), 4, 7);
   const ViewError e = errorAgainstTruth(a, b, b.mean);
   EXPECT_EQ(e.samples, b.mean.rgb.size());
@@ -82,7 +83,8 @@ TEST(Evaluate, TheNoiseEstimateExplainsIndependentRendersAndNotAReconstructionEr
   const Camera camera = cornellCamera();
   const Rendered truth(makeSynthScene(SynthSceneKind::Cornell, 64).scene);
   // The same scene with other random numbers: the difference is all noise, and the halves say how much.
-  const ViewError noise = errorAgainstTruth(truth.render(camera, 8, 1), truth.render(camera, 8, 2), truth.render(camera, 8, 1).mean);
+  const ViewError noise =
+      errorAgainstTruth(truth.render(camera, 8, 1), truth.render(camera, 8, 2), truth.render(camera, 8, 1).mean);
   EXPECT_GT(noise.noiseRms, 0.0);
   EXPECT_GT(noise.errorRms / noise.noiseRms, 0.7);
   EXPECT_LT(noise.errorRms / noise.noiseRms, 1.4);
@@ -103,7 +105,8 @@ TEST(Evaluate, BlocksAverageTheNoiseDownAndKeepSmoothErrors) {
   Image photo = r.mean;  // 0.05 brighter everywhere, the first pixel masked
   for (float& v : photo.rgb) v += 0.05f;
   for (int k = 0; k < 3; ++k) photo.rgb[k] = -1.0f;
-  const ViewError pixels = errorAgainstPhoto(r, photo), blocks = errorAgainstPhoto(r, photo, 4), odd = errorAgainstPhoto(r, photo, 5);
+  const ViewError pixels = errorAgainstPhoto(r, photo), blocks = errorAgainstPhoto(r, photo, 4),
+                  odd = errorAgainstPhoto(r, photo, 5);
   EXPECT_EQ(pixels.samples, 32u * 24 * 3 - 3);
   EXPECT_EQ(blocks.error.width, 8);
   EXPECT_EQ(blocks.error.height, 6);

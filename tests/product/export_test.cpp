@@ -41,16 +41,18 @@ TEST(Export, RoomArrivesInGltfMitsubaAndTextures) {
     EXPECT_NEAR(mat.pbrMetallicRoughness.roughnessFactor, a.roughness[id], 1e-6);
     EXPECT_EQ(mat.pbrMetallicRoughness.baseColorTexture.index >= 0, a.usesTexture(id));
     const Color e = a.emission[id];
-    const double strength = mat.extensions.count("KHR_materials_emissive_strength")
-                                ? mat.extensions.at("KHR_materials_emissive_strength").Get("emissiveStrength").Get<double>()
-                                : 1.0;
+    const double strength =
+        mat.extensions.count("KHR_materials_emissive_strength")
+            ? mat.extensions.at("KHR_materials_emissive_strength").Get("emissiveStrength").Get<double>()
+            : 1.0;
     for (int k = 0; k < 3; ++k) EXPECT_NEAR(mat.emissiveFactor[k] * strength, e[k], 1e-4 * (1 + e[k])) << a.names[id];
     triangles += m.accessors[m.meshes[node.mesh].primitives[0].indices].count / 3;
   }
   EXPECT_EQ(triangles, truth.mesh.triangles.size());
 
   size_t mitsubaTriangles = 0;
-  for (const auto& entry : fs::directory_iterator(o.mitsuba / "meshes")) mitsubaTriangles += readPly(entry.path()).triangles.size();
+  for (const auto& entry : fs::directory_iterator(o.mitsuba / "meshes"))
+    mitsubaTriangles += readPly(entry.path()).triangles.size();
   EXPECT_EQ(mitsubaTriangles, truth.mesh.triangles.size());
   EXPECT_TRUE(fs::exists(o.mitsuba / "scene.xml"));
   EXPECT_TRUE(fs::exists(o.mitsuba / "textures" / "albedo.exr"));

@@ -22,8 +22,10 @@ std::map<std::string, std::string> documentedKeys(const std::filesystem::path& f
   const std::regex row(R"(^\| `([a-z_0-9]+)` \| `([^`]*)` \|)");
   bool inTable = false;
   for (std::string line; std::getline(in, line);) {
-    if (line.rfind("| key | default | range | meaning |", 0) == 0) inTable = true;
-    else if (line.rfind("|", 0) != 0) inTable = false;
+    if (line.rfind("| key | default | range | meaning |", 0) == 0)
+      inTable = true;
+    else if (line.rfind("|", 0) != 0)
+      inTable = false;
     std::smatch m;
     if (inTable && std::regex_search(line, m, row)) {
       EXPECT_FALSE(keys.count(m[1])) << m[1] << " is documented twice";
@@ -34,7 +36,8 @@ std::map<std::string, std::string> documentedKeys(const std::filesystem::path& f
 }
 
 TEST(FitConfig, TheReferenceListsEveryKeyWithItsDefault) {
-  const auto doc = documentedKeys(std::filesystem::path(RELUME_TEST_DATA) / ".." / ".." / "docs" / "user" / "fit-config.md");
+  const auto doc =
+      documentedKeys(std::filesystem::path(RELUME_TEST_DATA) / ".." / ".." / "docs" / "user" / "fit-config.md");
   const Json code = FitConfig{}.toJson();
   ASSERT_GT(code.size(), 50u);
   for (const auto& [key, value] : code.items()) {
@@ -50,13 +53,15 @@ TEST(FitConfig, TheReferenceListsEveryKeyWithItsDefault) {
     else
       EXPECT_EQ(documented, value) << key;
   }
-  for (const auto& [key, value] : doc) EXPECT_TRUE(code.contains(key)) << "docs/user/fit-config.md lists '" << key << "', which no code reads";
+  for (const auto& [key, value] : doc)
+    EXPECT_TRUE(code.contains(key)) << "docs/user/fit-config.md lists '" << key << "', which no code reads";
 }
 
 TEST(FitConfig, EnumerationsAreNamesAndOthersAreRejectedWithTheChoices) {
-  const FitConfig c = FitConfig::fromJson(Json::parse(R"({"sampler": "image", "albedo_step": "adam", "light_test": "radiance_fraction",
+  const FitConfig c =
+      FitConfig::fromJson(Json::parse(R"({"sampler": "image", "albedo_step": "adam", "light_test": "radiance_fraction",
                                                           "ray_footprint": "pixel", "pairing": "reuse"})"),
-                                          "test", FitConfig{});
+                          "test", FitConfig{});
   EXPECT_EQ(c.sampler, SamplerKind::Image);
   EXPECT_EQ(c.albedoStep, AlbedoStep::Adam);
   EXPECT_EQ(c.lightTest, LightTest::RadianceFraction);

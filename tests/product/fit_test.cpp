@@ -22,7 +22,8 @@ namespace {
 
 // A small capture of a synthetic scene: 16 frames of 64x48 at `spp`, prepared at the resolutions
 // given. Each test gets its own folder (CTest runs tests in parallel processes).
-fs::path smallWork(const std::string& name, SynthSceneKind kind, int spp, int atlasResolution, const std::vector<int>& resolutions) {
+fs::path smallWork(const std::string& name, SynthSceneKind kind, int spp, int atlasResolution,
+                   const std::vector<int>& resolutions) {
   const fs::path dir = fs::temp_directory_path() / ("relume_fit_" + name);
   fs::remove_all(dir);
   SynthCaptureOptions so;
@@ -129,17 +130,17 @@ TEST(Fit, BadInputIsAOneLineError) {
     writeTextAtomically(dir / "cfg.json", text);
     return FitConfig::load(dir / "cfg.json");
   };
-  EXPECT_THROW(loadText(R"({"batch_texel": 100})"), Error);        // unknown key (typo)
-  EXPECT_THROW(loadText(R"({"batch_texels": "many"})"), Error);    // wrong type
-  EXPECT_THROW(loadText(R"({"batch_texels": 1.5})"), Error);       // not an integer
-  EXPECT_THROW(loadText(R"({"lr_albedo": -1})"), Error);           // out of range
+  EXPECT_THROW(loadText(R"({"batch_texel": 100})"), Error);      // unknown key (typo)
+  EXPECT_THROW(loadText(R"({"batch_texels": "many"})"), Error);  // wrong type
+  EXPECT_THROW(loadText(R"({"batch_texels": 1.5})"), Error);     // not an integer
+  EXPECT_THROW(loadText(R"({"lr_albedo": -1})"), Error);         // out of range
   EXPECT_THROW(loadText(R"({"pairing": "both"})"), Error);
   EXPECT_THROW(loadText(R"({"ray_footprint": "area"})"), Error);
   EXPECT_THROW(loadText(R"({"emission_footprint": "area"})"), Error);
   EXPECT_THROW(loadText(R"({"material_batch_texels": -1})"), Error);
   EXPECT_THROW(loadText(R"({"roulette_depth": 0})"), Error);
   EXPECT_NO_THROW(loadText(R"({"ray_footprint": "pixel", "material_batch_texels": 0})"));
-  EXPECT_THROW(loadText(R"({"gradients": "full"})"), Error);      // the Gauss-Newton step is first-vertex only
+  EXPECT_THROW(loadText(R"({"gradients": "full"})"), Error);  // the Gauss-Newton step is first-vertex only
   EXPECT_NO_THROW(loadText(R"({"gradients": "full", "albedo_step": "adam"})"));
   EXPECT_THROW(loadText(R"([1, 2])"), Error);
   const FitConfig c = loadText(R"({"batch_texels": 100, "masked_adam": false, "lr_albedo": 0.5})");
@@ -377,7 +378,8 @@ TEST(Fit, MaterialsSettleInTheirOwnStage) {
 // the adjoint pass, a point ray aims both passes at its texel.
 TEST(Fit, EachStageComparesItsRaysWithItsOwnFootprint) {
   const fs::path dir = cornellWork("stage_footprints");
-  for (const auto& [emission, rest] : {std::pair{RayFootprint::Pixel, RayFootprint::Point}, std::pair{RayFootprint::Point, RayFootprint::Pixel}}) {
+  for (const auto& [emission, rest] :
+       {std::pair{RayFootprint::Pixel, RayFootprint::Point}, std::pair{RayFootprint::Point, RayFootprint::Pixel}}) {
     FitConfig c = smallConfig();
     c.emissionIterations = 3, c.materialIterations = 3, c.albedoPasses = 1, c.materialBatchTexels = 0;
     c.emissionFootprint = emission, c.rayFootprint = rest;
@@ -446,7 +448,8 @@ fs::path loungeWork(const std::string& name) { return smallWork(name, SynthScene
 
 std::map<std::string, std::string> decisionsOf(const Json& decision) {
   std::map<std::string, std::string> out;
-  for (const Json& o : decision.at("objects")) out[o.at("name").get<std::string>()] = o.at("decision").get<std::string>();
+  for (const Json& o : decision.at("objects"))
+    out[o.at("name").get<std::string>()] = o.at("decision").get<std::string>();
   return out;
 }
 
@@ -557,7 +560,8 @@ TEST(Fit, UnobservedTexelsTakeTheirObjectsMeanAlbedoOnceItIsFitted) {
     std::ifstream metrics(dir / "work" / "metrics.jsonl");
     for (std::string line; std::getline(metrics, line);) {
       const Json m = Json::parse(line);
-      if (m.at("stage").get<std::string>().rfind("albedo@", 0) == 0) albedoEnd = std::max(albedoEnd, m.at("iteration").get<int>());
+      if (m.at("stage").get<std::string>().rfind("albedo@", 0) == 0)
+        albedoEnd = std::max(albedoEnd, m.at("iteration").get<int>());
     }
   }
   ASSERT_GT(albedoEnd, c.emissionIterations);
@@ -596,9 +600,11 @@ TEST(Fit, UnobservedTexelsTakeTheirObjectsMeanAlbedoOnceItIsFitted) {
   int checked = 0;
   for (int o = 0; o < mesh.objectCount; ++o) {
     if (unseen[o].empty()) continue;
-    const Eigen::Array3d expected = seen[o][3] > 0 ? Eigen::Array3d(seen[o].head<3>() / seen[o][3]) : Eigen::Array3d::Constant(0.5);
+    const Eigen::Array3d expected =
+        seen[o][3] > 0 ? Eigen::Array3d(seen[o].head<3>() / seen[o][3]) : Eigen::Array3d::Constant(0.5);
     for (size_t t : unseen[o])
-      for (int ch = 0; ch < 3; ++ch) ASSERT_NEAR(albedo[3 * t + ch], expected[ch], 0.02) << "object " << o << " texel " << t;
+      for (int ch = 0; ch < 3; ++ch)
+        ASSERT_NEAR(albedo[3 * t + ch], expected[ch], 0.02) << "object " << o << " texel " << t;
     ++checked;
   }
   EXPECT_GE(checked, 3);

@@ -40,8 +40,10 @@ Observed observe(const Scene& scene, const Appearance& truth, int width, int hei
   std::vector<Color> sum(o.rays.size(), Color::Zero());
   constexpr int kPaths = 64;
   for (int s = 0; s < kPaths; ++s) {
-    const std::vector<Color> L = traceRays(scene, lights, AppearanceScope::uniform(truth), o.rays, PathSettings{},
-                                           [&](size_t j) { return hashTuple({uint64_t(s), j, 0x7465}); });
+    const std::vector<Color> L =
+        traceRays(scene, lights, AppearanceScope::uniform(truth), o.rays, PathSettings{}, [&](size_t j) {
+          return hashTuple({uint64_t(s), j, 0x7465});
+        });
     for (size_t j = 0; j < L.size(); ++j) sum[j] += L[j];
   }
   for (size_t j = 0; j < o.rays.size(); ++j) o.rays[j].reference = sum[j] / float(kPaths);
@@ -53,7 +55,8 @@ std::map<std::string, LightDecision> decide(const SceneDescription& s, const Sce
   const LightSampler lights(scene, current);
   const std::vector<LightEvidence> evidence =
       gatherLightEvidence(scene, s.mesh, current, lights, o.rays, o.objects, PathSettings{}, 5);
-  const std::vector<LightDecision> d = decideLights(evidence, std::vector<uint8_t>(evidence.size(), 1), LightTestSettings{});
+  const std::vector<LightDecision> d =
+      decideLights(evidence, std::vector<uint8_t>(evidence.size(), 1), LightTestSettings{});
   std::map<std::string, LightDecision> byName;
   for (size_t i = 0; i < d.size(); ++i) byName[current.names[i]] = d[i];
   if (evidenceOut) *evidenceOut = evidence;
@@ -90,7 +93,8 @@ TEST_F(LightEvidenceTest, UnderTheTrueAppearanceExactlyTheLightsAreLights) {
   const auto d = decide(lounge_->scene, *scene_, truth, *observed_, &evidence);
   for (const auto& [name, decision] : d) {
     if (evidence[objectNamed(truth, name)].rays == 0) continue;
-    EXPECT_EQ(decision.verdict, kLights.count(name) ? LightVerdict::Light : LightVerdict::Reflector) << name << ": " << decision.why;
+    EXPECT_EQ(decision.verdict, kLights.count(name) ? LightVerdict::Light : LightVerdict::Reflector)
+        << name << ": " << decision.why;
   }
   // The reflector bound is the albedo-1 reflection: an object of albedo a returns a of it, so its
   // unexplained share is 1 - 1/a (within the paths' noise). Sofa 0.95: -5%; rug 0.25 red: far below.
@@ -162,19 +166,23 @@ TEST_F(LightEvidenceTest, AMirrorShowingTheLampIsOutOfModelNotALight) {
   // Drop the table's own pixels: the mirror's rays alone stand for it.
   Observed mirrorOnly;
   for (size_t j = 0; j < o.rays.size(); ++j)
-    if (o.objects[j] != table || j >= observed_->rays.size()) mirrorOnly.rays.push_back(o.rays[j]), mirrorOnly.objects.push_back(o.objects[j]);
+    if (o.objects[j] != table || j >= observed_->rays.size())
+      mirrorOnly.rays.push_back(o.rays[j]), mirrorOnly.objects.push_back(o.objects[j]);
   const LightSampler lights(*scene_, truth);
   std::vector<Color> sum(mirror.size(), Color::Zero());
   for (int s = 0; s < 32; ++s) {
-    const std::vector<Color> L = traceRays(*scene_, lights, AppearanceScope::uniform(truth), mirror, PathSettings{},
-                                           [&](size_t j) { return hashTuple({uint64_t(s), j, 0x6d69}); });
+    const std::vector<Color> L =
+        traceRays(*scene_, lights, AppearanceScope::uniform(truth), mirror, PathSettings{}, [&](size_t j) {
+          return hashTuple({uint64_t(s), j, 0x6d69});
+        });
     for (size_t j = 0; j < L.size(); ++j) sum[j] += L[j];
   }
   const size_t first = mirrorOnly.rays.size() - mirror.size();
   for (size_t j = 0; j < mirror.size(); ++j) mirrorOnly.rays[first + j].reference = sum[j] / 32.0f;
   std::vector<LightEvidence> evidence;
   const auto d = decide(lounge_->scene, *scene_, truth, mirrorOnly, &evidence);
-  ASSERT_GT(evidence[table].meanObserved(), 2 * evidence[table].meanReflector()) << "the mirror must look brighter than a reflector";
+  ASSERT_GT(evidence[table].meanObserved(), 2 * evidence[table].meanReflector())
+      << "the mirror must look brighter than a reflector";
   EXPECT_EQ(d.at("red_glossy_table").verdict, LightVerdict::OutOfModel) << d.at("red_glossy_table").why;
   for (const std::string& light : kLights) EXPECT_EQ(d.at(light).verdict, LightVerdict::Light) << light;
 }
@@ -205,7 +213,8 @@ TEST_F(LightEvidenceTest, ALightNoFrameShowsLeavesItsSurfacesUnderLitFromItsDire
   std::vector<LightEvidence> lit;
   decide(lounge_->scene, *scene_, lounge_->scene.appearance, *observed_, &lit);
   for (size_t k = 0; k < lit.size(); ++k)
-    if (!kLights.count(lounge_->scene.appearance.names[k])) EXPECT_FALSE(underLit(lit[k], LightTestSettings{}).underLit) << k;
+    if (!kLights.count(lounge_->scene.appearance.names[k]))
+      EXPECT_FALSE(underLit(lit[k], LightTestSettings{}).underLit) << k;
 }
 
 TEST(LightDecisions, SignificanceShareAndPowerEachDecide) {
@@ -215,18 +224,19 @@ TEST(LightDecisions, SignificanceShareAndPowerEachDecide) {
     for (uint64_t j = 0; j < n; ++j) {
       const double noise = (j % 2 ? 1 : -1) * spread;
       const double I = observed + noise, x = I - reflector;
-      ++e.rays, e.observed += I, e.observedSquares += I * I, e.reflector += reflector, e.excess += x, e.excessSquares += x * x;
+      ++e.rays, e.observed += I, e.observedSquares += I * I, e.reflector += reflector, e.excess += x,
+          e.excessSquares += x * x;
       e.mirrorResidualSquares += 100 * I * I;  // no mirror explains these
       if (x > 0) e.deficit += x, e.deficitNormal += x * Eigen::Vector3d::UnitY();
     }
     return e;
   };
   std::vector<LightEvidence> ev = {
-      evidence(10, 1, 0.1, 100, 1.0),    // a light
-      evidence(10, 1, 60, 4, 1.0),       // as bright on average, but 4 rays of huge spread: not significant
-      evidence(1.2, 1, 0.01, 100, 1.0),  // significant, but 17% unexplained: a reflector
-      evidence(10, 1, 0.1, 100, 0.001),  // a light, but 0.1% of the power
-      evidence(10, 1, 0.1, 100, 1.0),    // not a candidate
+      evidence(10, 1, 0.1, 100, 1.0),      // a light
+      evidence(10, 1, 60, 4, 1.0),         // as bright on average, but 4 rays of huge spread: not significant
+      evidence(1.2, 1, 0.01, 100, 1.0),    // significant, but 17% unexplained: a reflector
+      evidence(10, 1, 0.1, 100, 0.001),    // a light, but 0.1% of the power
+      evidence(10, 1, 0.1, 100, 1.0),      // not a candidate
       evidence(1.5, 0.2, 0.05, 100, 1.0),  // 87% unexplained, but only 3x the room's median: under-lit
   };
   for (int k = 0; k < 5; ++k) ev.push_back(evidence(0.5, 1, 0.05, 100, 1.0));  // the room: reflectors

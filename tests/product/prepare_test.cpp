@@ -34,7 +34,8 @@ fs::path makeFloorCapture(const std::string& name, int n, const std::vector<int>
     Camera& c = f.camera;
     c.width = 64, c.height = 48, c.fx = c.fy = 40, c.cx = 32, c.cy = 24;
     c.position = Vec3(0.1f * (i % 3) - 0.1f, 2.0f, 0.1f * (i / 3) - 0.1f + (i == jumpFrame ? 3.0f : 0.0f));
-    c.rotation.col(0) = Vec3(1, 0, 0), c.rotation.col(1) = Vec3(0, 0, 1), c.rotation.col(2) = Vec3(0, -1, 0);  // looking down
+    c.rotation.col(0) = Vec3(1, 0, 0), c.rotation.col(1) = Vec3(0, 0, 1),
+    c.rotation.col(2) = Vec3(0, -1, 0);  // looking down
     Image img(c.width, c.height);
     const bool bright = std::find(highlighted.begin(), highlighted.end(), i) != highlighted.end();
     for (int y = 0; y < c.height; ++y)
@@ -87,7 +88,7 @@ TEST(Prepare, MedianSuppressesAMinorityHighlightMeanDoesNot) {
   const float median = centreValue(cap / "work_median"), mean = centreValue(cap / "work_mean");
   EXPECT_NEAR(median, 0.3f, 0.3f * 0.05f);
   EXPECT_NEAR(centreValue(cap / "work_half"), 0.3f, 0.3f * 0.05f);  // same answer from a downscaled cache
-  EXPECT_GT(mean, 3.0f);  // (7 x 0.3 + 2 x 20) / 9 = 4.7
+  EXPECT_GT(mean, 3.0f);                                            // (7 x 0.3 + 2 x 20) / 9 = 4.7
   const Json report = readJson(cap / "work_median" / "prepare.json");
   EXPECT_EQ(report["phases"]["init"]["statistic"], "median");
   EXPECT_LT(report["phases"]["init"]["fraction_unobserved"].get<double>(), 0.05);
@@ -117,7 +118,8 @@ TEST(Prepare, RerunSkipsEveryPhaseAndChangesNothing) {
   for (const char* f : outputs) written[f] = fs::last_write_time(cap / "work" / f);
   const auto before = written["frames.bin"];
   prepareCapture(cap, cap / "work", smallOptions());
-  for (const char* f : outputs) EXPECT_EQ(fs::last_write_time(cap / "work" / f), written[f]) << f << " was written again";
+  for (const char* f : outputs)
+    EXPECT_EQ(fs::last_write_time(cap / "work" / f), written[f]) << f << " was written again";
   // Touching an image invalidates the frame phase and what depends on it.
   const Image img = readImage(cap / "images" / "00.exr");
   writeExr(cap / "images" / "00.exr", img);
@@ -194,8 +196,9 @@ TEST(FrameStore, RoundTripMaskingAndCorruptFiles) {
   writeFrameStore(dir / "half.bin", {f}, 2);
   const FrameStore half(dir / "half.bin");
   EXPECT_EQ(half.stats(0).width, 4u);
-  EXPECT_NEAR(half.pixel(0, 1, 0)[0], 2.5f, 1e-3f);                    // mean of columns 2 and 3
-  EXPECT_NEAR((*half.bilinear(0, Vec2(4.0f, 2.0f)))[0], 3.5f, 1e-3f);  // original x = 4 -> halfway between blocks 1 and 2
+  EXPECT_NEAR(half.pixel(0, 1, 0)[0], 2.5f, 1e-3f);  // mean of columns 2 and 3
+  EXPECT_NEAR((*half.bilinear(0, Vec2(4.0f, 2.0f)))[0], 3.5f,
+              1e-3f);                                    // original x = 4 -> halfway between blocks 1 and 2
   const auto block = half.pixelAt(0, Vec2(3.5f, 1.0f));  // original pixel 3 is in block 1: columns 2-3, rows 0-1
   ASSERT_TRUE(block);
   EXPECT_NEAR(block->value[0], 2.5f, 1e-3f);

@@ -47,13 +47,15 @@ TEST(Report, FitWritesASelfContainedPageWithCurvesImagesAndMaterials) {
   for (std::string line; std::getline(metrics, line);) records += !line.empty();
   const std::regex polyline(R"re(<polyline[^>]*points="([^"]*)")re");
   size_t curves = 0, points = 0;
-  for (auto it = std::sregex_iterator(html.begin(), html.end(), polyline); it != std::sregex_iterator(); ++it, ++curves) {
+  for (auto it = std::sregex_iterator(html.begin(), html.end(), polyline); it != std::sregex_iterator();
+       ++it, ++curves) {
     const std::string p = (*it)[1];
     points += static_cast<size_t>(std::count(p.begin(), p.end(), ','));
   }
   EXPECT_EQ(curves, 3u);  // emission, albedo@64, materials
   EXPECT_EQ(points, records);
-  const Json materials = readJson(dir / "work" / "result" / "materials.json");  // a range-for over a temporary's member dangles
+  const Json materials =
+      readJson(dir / "work" / "result" / "materials.json");  // a range-for over a temporary's member dangles
   for (const Json& o : materials["objects"])
     EXPECT_NE(html.find("<td>" + o["name"].get<std::string>() + "</td>"), std::string::npos);
   EXPECT_NE(html.find("\"lr_albedo\""), std::string::npos);  // the config

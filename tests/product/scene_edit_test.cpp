@@ -57,8 +57,10 @@ TEST(SceneEdit, SwitchesLightsChangesMaterialsAndAppendsGeometry) {
   // A cube as OBJ, inserted at half size (its faces become one object).
   std::ofstream(dir / "cube.obj") << "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
                                      "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 3 4 8 7\nf 1 5 8 4\nf 2 3 7 6\n";
-  const SceneDescription e = edited(room, dir, R"({
-    "objects": [{"name": "ceiling_light_a", "emission_scale": 0}, {"id": )" + std::to_string(lightB) + R"(, "emission_scale": 2},
+  const SceneDescription e = edited(room, dir,
+                                    R"({
+    "objects": [{"name": "ceiling_light_a", "emission_scale": 0}, {"id": )" +
+                                        std::to_string(lightB) + R"(, "emission_scale": 2},
                 {"id": 0, "albedo": [0.9, 0.1, 0.1], "roughness": 0.2, "specular": 0.8}],
     "add": [{"rectangle": {"center": [2.5, 2.5, 2], "edge_u": [0.5, 0, 0], "edge_v": [0, 0, 0.4]}, "name": "new_light", "emission": [20, 20, 20]},
             {"mesh": "cube.obj", "scale": 0.5, "translate": [1, 0, 1], "name": "box", "albedo": 0.7, "roughness": 0.4}]})");
@@ -95,14 +97,19 @@ TEST(SceneEdit, BadEditsAreOneLineErrors) {
   const SceneDescription room = makeSynthScene(SynthSceneKind::Room, 64).scene;
   const std::string unknownName = errorOf(room, dir, R"({"objects": [{"name": "chandelier", "emission_scale": 0}]})");
   EXPECT_NE(unknownName.find("edit.json: objects[0]: no object named 'chandelier'"), std::string::npos) << unknownName;
-  EXPECT_NE(errorOf(room, dir, R"({"objects": [{"id": 99, "emission_scale": 0}]})").find("no object with id 99"), std::string::npos);
-  EXPECT_NE(errorOf(room, dir, R"({"objects": [{"id": 1, "emision_scale": 0}]})").find("unknown key 'emision_scale'"), std::string::npos);
-  EXPECT_NE(errorOf(room, dir, R"({"objects": [{"id": 1, "emission_scale": -1}]})").find("must be >= 0"), std::string::npos);
+  EXPECT_NE(errorOf(room, dir, R"({"objects": [{"id": 99, "emission_scale": 0}]})").find("no object with id 99"),
+            std::string::npos);
+  EXPECT_NE(errorOf(room, dir, R"({"objects": [{"id": 1, "emision_scale": 0}]})").find("unknown key 'emision_scale'"),
+            std::string::npos);
+  EXPECT_NE(errorOf(room, dir, R"({"objects": [{"id": 1, "emission_scale": -1}]})").find("must be >= 0"),
+            std::string::npos);
   EXPECT_NE(errorOf(room, dir, R"({"objects": [{"id": 1, "roughness": 2}]})").find("roughness"), std::string::npos);
-  EXPECT_NE(errorOf(room, dir, R"({"add": [{"name": "x"}]})").find("exactly one of 'rectangle' and 'mesh'"), std::string::npos);
+  EXPECT_NE(errorOf(room, dir, R"({"add": [{"name": "x"}]})").find("exactly one of 'rectangle' and 'mesh'"),
+            std::string::npos);
   EXPECT_NE(errorOf(room, dir, R"({"add": [{"mesh": "missing.ply"}]})").find("missing.ply"), std::string::npos);
   EXPECT_NE(errorOf(room, dir, R"({"add": [{"rectangle": {"center": [0,0,0], "edge_u": [1,0,0], "edge_v": [2,0,0]}}]})")
-                .find("span a rectangle"), std::string::npos);
+                .find("span a rectangle"),
+            std::string::npos);
   for (const std::string& msg : {unknownName, errorOf(room, dir, "{\"objects\": 3}")})
     EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
 }
@@ -143,9 +150,10 @@ fs::path editTruthByHand(const fs::path& gtDir, const fs::path& out) {
   addTriangle(c - u - w, c + u + w, c - u + w, newLight);
   // Cube [0,1]^3 scaled by 0.5, moved to (2.2, 0, 2.6); outward winding.
   auto P = [](int x, int y, int z) { return Vec3(2.2f + 0.5f * x, 0.5f * y, 2.6f + 0.5f * z); };
-  const int quads[6][4][3] = {{{0, 0, 0}, {0, 1, 0}, {1, 1, 0}, {1, 0, 0}}, {{0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}},
-                              {{0, 0, 0}, {1, 0, 0}, {1, 0, 1}, {0, 0, 1}}, {{1, 1, 0}, {0, 1, 0}, {0, 1, 1}, {1, 1, 1}},
-                              {{0, 0, 0}, {0, 0, 1}, {0, 1, 1}, {0, 1, 0}}, {{1, 0, 0}, {1, 1, 0}, {1, 1, 1}, {1, 0, 1}}};
+  const int quads[6][4][3] = {
+      {{0, 0, 0}, {0, 1, 0}, {1, 1, 0}, {1, 0, 0}}, {{0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}},
+      {{0, 0, 0}, {1, 0, 0}, {1, 0, 1}, {0, 0, 1}}, {{1, 1, 0}, {0, 1, 0}, {0, 1, 1}, {1, 1, 1}},
+      {{0, 0, 0}, {0, 0, 1}, {0, 1, 1}, {0, 1, 0}}, {{1, 0, 0}, {1, 1, 0}, {1, 1, 1}, {1, 0, 1}}};
   for (const auto& q : quads) {
     auto p = [&](int k) { return P(q[k][0], q[k][1], q[k][2]); };
     addTriangle(p(0), p(1), p(2), box);
@@ -168,7 +176,8 @@ double psnr(const std::vector<Image>& a, const std::vector<Image>& b) {
   size_t n = 0;
   for (size_t v = 0; v < a.size(); ++v)
     for (size_t i = 0; i < a[v].rgb.size(); ++i, ++n) {
-      const double d = linearToSrgb(std::clamp(a[v].rgb[i], 0.0f, 1.0f)) - linearToSrgb(std::clamp(b[v].rgb[i], 0.0f, 1.0f));
+      const double d =
+          linearToSrgb(std::clamp(a[v].rgb[i], 0.0f, 1.0f)) - linearToSrgb(std::clamp(b[v].rgb[i], 0.0f, 1.0f));
       se += d * d;
     }
   return 10.0 * std::log10(1.0 / std::max(se / n, 1e-12));
@@ -190,7 +199,8 @@ std::vector<Image> renderAll(const SceneDescription& s, const std::vector<Camera
 TEST(SceneEdit, RelightingTheReconstructionMatchesTheEditedTruth) {
   SynthCaptureOptions so;
   so.kind = SynthSceneKind::Room;
-  so.frames = 16, so.testFrames = 2, so.width = 64, so.height = 48, so.spp = 8, so.testSpp = 8, so.atlasResolution = 256;
+  so.frames = 16, so.testFrames = 2, so.width = 64, so.height = 48, so.spp = 8, so.testSpp = 8,
+  so.atlasResolution = 256;
   const fs::path dir = preparedCapture("edit_relight", so, 256);
   FitConfig fc;
   fc.batchTexels = 2048, fc.maxDepth = 4, fc.emissionIterations = 80, fc.materialIterations = 20, fc.albedoPasses = 6;
@@ -208,12 +218,13 @@ TEST(SceneEdit, RelightingTheReconstructionMatchesTheEditedTruth) {
   const double reached = psnr(renderAll(fit, cams), renderAll(truth, cams));
   const double relit = psnr(renderAll(edited(fit, dir, kRelightEdit), cams), truthEditedViews);
   const double unedited = psnr(renderAll(fit, cams), truthEditedViews);
-  fmt::print("relight: fit vs truth {:.2f} dB; relit vs edited truth {:.2f} dB; unedited fit vs edited truth {:.2f} dB\n",
-             reached, relit, unedited);
+  fmt::print(
+      "relight: fit vs truth {:.2f} dB; relit vs edited truth {:.2f} dB; unedited fit vs edited truth {:.2f} dB\n",
+      reached, relit, unedited);
   // Stated bound: the relit reconstruction agrees with the edited truth to within 2 dB of what
-  // the fit reached on the unedited scene, and far better than the unedited reconstruction (measured: 28.2, 28.8 and 11.7 dB;
-  // seeds 1-4: relit 27.3-28.8 dB; before the unseen painting was excluded from the emitters, one
-  // seed in three made it a light and relit at 22-23 dB).
+  // the fit reached on the unedited scene, and far better than the unedited reconstruction (measured: 28.2, 28.8
+  // and 11.7 dB; seeds 1-4: relit 27.3-28.8 dB; before the unseen painting was excluded from the emitters, one seed in
+  // three made it a light and relit at 22-23 dB).
   EXPECT_GT(relit, reached - 2.0) << "fit vs truth " << reached << " dB, relit " << relit << " dB";
   EXPECT_GT(relit, unedited + 8.0) << "unedited fit vs edited truth " << unedited << " dB, relit " << relit << " dB";
 }

@@ -26,7 +26,8 @@ void expectClose(double analytic, double fd, double scale, const std::string& wh
 }
 
 // Central difference, h = 1e-6 in double.
-template <class F> Eigen::Array3d centralDifference(const F& value, double x) {
+template <class F>
+Eigen::Array3d centralDifference(const F& value, double x) {
   const double h = 1e-6;
   return (value(x + h) - value(x - h)) / (2 * h);
 }
@@ -45,14 +46,16 @@ TEST(BsdfDerivatives, MatchDoubleFiniteDifferences) {
           const BsdfEvalDouble e = evalBsdfDouble(albedo, r, s, model, wo, wi);
           const double scale = e.f.abs().maxCoeff() + 1.0;
           const auto atSpecular = [&](double x) { return evalBsdfDouble(albedo, r, x, model, wo, wi).f; };
-          const Eigen::Array3d dR = centralDifference([&](double x) { return evalBsdfDouble(albedo, x, s, model, wo, wi).f; }, r);
+          const Eigen::Array3d dR =
+              centralDifference([&](double x) { return evalBsdfDouble(albedo, x, s, model, wo, wi).f; }, r);
           Eigen::Array3d dS;
           if (model == BsdfModel::PrincipledV1 && s == 0) {
             // s = 0 is the domain's edge and the exact Fresnel's eta = 1 + 2 sqrt(0.08 s) + ... has no
             // value below it: f = diffuse + F(s) lobe, so df/ds(0) = 0.08 (dF/dF0)(0) lobe, the lobe
             // taken from f(1) - f(0) = F(1) lobe with F(1) from Snell's law.
             const double c = wi.dot((wi + wo).normalized());
-            const double lobe = (atSpecular(1.0) - atSpecular(0.0))[0] / reference::snellFresnel(c, reference::cyclesIor(1.0));
+            const double lobe =
+                (atSpecular(1.0) - atSpecular(0.0))[0] / reference::snellFresnel(c, reference::cyclesIor(1.0));
             dS = Eigen::Array3d::Constant(0.08 * reference::fresnelSlopeAtZero(c) * lobe);
           } else {
             dS = centralDifference(atSpecular, s);  // glTF's f is linear in s, also below 0
@@ -65,7 +68,8 @@ TEST(BsdfDerivatives, MatchDoubleFiniteDifferences) {
               },
               albedo[1]);
           const std::string what = std::string(bsdfModelName(model)) + " r " + std::to_string(r) + " s " +
-                                   std::to_string(s) + " muI " + std::to_string(wi.z()) + " muO " + std::to_string(wo.z());
+                                   std::to_string(s) + " muI " + std::to_string(wi.z()) + " muO " +
+                                   std::to_string(wo.z());
           for (int c = 0; c < 3; ++c) {
             expectClose(e.dRoughness[c], dR[c], scale / r, "roughness " + what);
             expectClose(e.dSpecular[c], dS[c], scale, "specular " + what);
@@ -80,13 +84,16 @@ TEST(BsdfDerivatives, MatchDoubleFiniteDifferences) {
 TEST(BsdfDerivatives, SpecularDerivativeAtZeroIsPositive) {
   // At s = 0 the specular lobe is 0 in both models but its derivative is not: the fit can move
   // away from s = 0. glTF's diffuse weight 1 - F makes its df/ds smaller than the lobe alone.
-  const Eigen::Vector3d wo = Eigen::Vector3d(0.5, 0.1, 0.7).normalized(), wi = Eigen::Vector3d(-0.4, 0.2, 0.8).normalized();
+  const Eigen::Vector3d wo = Eigen::Vector3d(0.5, 0.1, 0.7).normalized(),
+                        wi = Eigen::Vector3d(-0.4, 0.2, 0.8).normalized();
   for (BsdfModel model : kModels) {
     const BsdfEvalDouble at0 = evalBsdfDouble(Eigen::Array3d::Constant(0.5), 0.3, 0.0, model, wo, wi);
     const BsdfEvalDouble black = evalBsdfDouble(Eigen::Array3d::Zero(), 0.3, 0.0, model, wo, wi);
     EXPECT_GT(black.dSpecular[0], 0.0) << bsdfModelName(model);
-    if (model == BsdfModel::Gltf) EXPECT_LT(at0.dSpecular[0], black.dSpecular[0]);
-    else EXPECT_EQ(at0.dSpecular[0], black.dSpecular[0]);
+    if (model == BsdfModel::Gltf)
+      EXPECT_LT(at0.dSpecular[0], black.dSpecular[0]);
+    else
+      EXPECT_EQ(at0.dSpecular[0], black.dSpecular[0]);
   }
 }
 
@@ -95,7 +102,8 @@ TEST(BsdfDerivatives, FloatPathMatchesDoubleReference) {
   for (BsdfModel model : kModels)
     for (int i = 0; i < 2000; ++i) {
       const Eigen::Vector3d wo = randomDir(rng, false), wi = randomDir(rng, false);
-      const BsdfParams p{Color(0.3f, 0.6f, 0.8f), kRoughnessMin + (1 - kRoughnessMin) * rng.next1D(), rng.next1D(), model};
+      const BsdfParams p{Color(0.3f, 0.6f, 0.8f), kRoughnessMin + (1 - kRoughnessMin) * rng.next1D(), rng.next1D(),
+                         model};
       const BsdfEval f = evalBsdf(p, wo.cast<float>(), wi.cast<float>(), kBsdfValue | kBsdfDerivatives);
       const BsdfEvalDouble d = evalBsdfDouble(p.albedo.cast<double>(), p.roughness, p.specular, p.model, wo, wi);
       const double scale = d.f.abs().maxCoeff() + d.dRoughness.abs().maxCoeff() + 1e-3;

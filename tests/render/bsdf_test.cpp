@@ -76,8 +76,10 @@ Chi2Result chi2Test(const BsdfParams& p, const Vec3& wo, int samples, uint64_t s
     chi2 += (observed[i] - expected[i]) * (observed[i] - expected[i]) / expected[i];
     ++dof;
   }
-  if (pooledE >= 5) chi2 += (pooledO - pooledE) * (pooledO - pooledE) / pooledE, ++dof;
-  else EXPECT_LT(pooledO, 20 + 4 * pooledE) << "samples where the pdf says almost none";
+  if (pooledE >= 5)
+    chi2 += (pooledO - pooledE) * (pooledO - pooledE) / pooledE, ++dof;
+  else
+    EXPECT_LT(pooledO, 20 + 4 * pooledE) << "samples where the pdf says almost none";
   return {chi2PValue(chi2, dof), dof};
 }
 
@@ -85,7 +87,7 @@ struct Config {
   float albedo, roughness, specular, thetaDeg;
 };
 const Config kConfigs[] = {{0.5f, 0.5f, 0.5f, 30}, {0.8f, 0.15f, 1.0f, 10}, {0.2f, 0.3f, 1.0f, 70},
-                           {0.5f, 1.0f, 0.5f, 85}, {0.0f, 0.2f, 1.0f, 45}, {0.9f, 0.7f, 0.0f, 60}};
+                           {0.5f, 1.0f, 0.5f, 85}, {0.0f, 0.2f, 1.0f, 45},  {0.9f, 0.7f, 0.0f, 60}};
 
 }  // namespace
 
@@ -95,7 +97,8 @@ TEST(Bsdf, SamplingMatchesPdfChiSquare) {
   for (BsdfModel m : kModels)
     for (int i = 0; i < tests; ++i) {
       const Config& c = kConfigs[i];
-      const auto r = chi2Test(params(c.albedo, c.roughness, c.specular, m), dirFromAngle(c.thetaDeg, 20), 400000, 100 + i);
+      const auto r =
+          chi2Test(params(c.albedo, c.roughness, c.specular, m), dirFromAngle(c.thetaDeg, 20), 400000, 100 + i);
       EXPECT_GT(r.pValue, alpha) << bsdfModelName(m) << " config " << i << " dof " << r.dof;
       EXPECT_GT(r.dof, 30);
     }
@@ -150,8 +153,7 @@ TEST(Bsdf, PdfMassMatchesSamplingSuccess) {
   Pcg32 rng(4);
   double integral = 0;
   const int n = 400000;
-  for (int i = 0; i < n; ++i)
-    integral += cosineHemispherePdf(squareToUniformSphere(rng.next2D()).z()) * 4 * kPi;
+  for (int i = 0; i < n; ++i) integral += cosineHemispherePdf(squareToUniformSphere(rng.next2D()).z()) * 4 * kPi;
   EXPECT_NEAR(integral / n, 1.0, 0.01);
 }
 
@@ -199,13 +201,14 @@ namespace {
 
 // f of `model` (albedo 0.6) against `expected(r, s, wi, wo, h)` over roughness, specular and
 // directions up to grazing.
-template <class Expected> void expectClosedForm(BsdfModel model, const Expected& expected) {
+template <class Expected>
+void expectClosedForm(BsdfModel model, const Expected& expected) {
   for (float r : {0.1f, 0.5f, 1.0f})
     for (float s : {0.0f, 0.3f, 1.0f})
       for (auto [ti, to] : {std::pair{10.0f, 20.0f}, {60.0f, 30.0f}, {80.0f, 85.0f}, {45.0f, 88.0f}}) {
         const Vec3 wi = dirFromAngle(ti, 0), wo = dirFromAngle(to, 160);
-        const double e = expected(double(r), double(s), wi.cast<double>(), wo.cast<double>(),
-                                  (wi + wo).normalized().cast<double>());
+        const double e =
+            expected(double(r), double(s), wi.cast<double>(), wo.cast<double>(), (wi + wo).normalized().cast<double>());
         const float f = evalBsdf(params(0.6f, r, s, model), wo, wi).f[0];
         EXPECT_NEAR(f, e, 2e-5 * e) << bsdfModelName(model) << " r " << r << " s " << s << " theta " << ti << "," << to;
       }
@@ -244,7 +247,8 @@ TEST(Bsdf, PrincipledFresnelIsTheExactDielectricOne) {
     EXPECT_GT(specularFresnel(BsdfModel::PrincipledV1, 2e-3f, s).value, 0.9f);
     EXPECT_NEAR(specularFresnel(BsdfModel::Gltf, 0.0f, s).value, s, 1e-6f);
     for (float c : {0.05f, 0.2f, 0.5f, 0.9f})
-      EXPECT_NEAR(specularFresnel(BsdfModel::PrincipledV1, c, s).value, snellFresnel(c, cyclesIor(s)), 1e-6) << s << " " << c;
+      EXPECT_NEAR(specularFresnel(BsdfModel::PrincipledV1, c, s).value, snellFresnel(c, cyclesIor(s)), 1e-6)
+          << s << " " << c;
   }
   for (float c : {0.01f, 0.5f, 1.0f}) {
     EXPECT_EQ(specularFresnel(BsdfModel::PrincipledV1, c, 0.0f).value, 0.0f);
@@ -260,7 +264,8 @@ TEST(Bsdf, NoNanAtExtremes) {
       for (float s : {0.0f, 1.0f})
         for (float ti : {0.0f, 89.99f, 90.0f})
           for (float to : {0.0f, 89.99f}) {
-            const BsdfEval e = evalBsdf(params(0.5f, r, s, m), dirFromAngle(to), dirFromAngle(ti, 180), kBsdfValue | kBsdfDerivatives);
+            const BsdfEval e =
+                evalBsdf(params(0.5f, r, s, m), dirFromAngle(to), dirFromAngle(ti, 180), kBsdfValue | kBsdfDerivatives);
             EXPECT_TRUE(isFinite(e.f) && isFinite(e.dRoughness) && isFinite(e.dSpecular));
           }
 }
@@ -273,16 +278,15 @@ TEST(Bsdf, VertexSetUpEvaluatesAsTheOneShotFunctions) {
   int compared = 0;
   for (BsdfModel m : kModels)
     for (int i = 0; i < 2000; ++i) {
-      const BsdfParams p{rng.next3D().array(), std::max(kRoughnessMin, rng.next1D()),
-                         rng.next1D(), m};
+      const BsdfParams p{rng.next3D().array(), std::max(kRoughnessMin, rng.next1D()), rng.next1D(), m};
       const Vec2 anglesO = rng.next2D(), anglesI = rng.next2D();
       const Vec3 wo = dirFromAngle(90 * anglesO.x(), 360 * anglesO.y());
       const Vec3 wi = dirFromAngle(100 * anglesI.x(), 360 * anglesI.y());  // a tenth below the surface
       const VertexBsdf vertex(p, wo);
       for (unsigned q : {unsigned{kBsdfValue}, unsigned{kBsdfPdf}, kBsdfValue | kBsdfPdf | kBsdfDerivatives}) {
         const BsdfEval a = vertex.eval(wi, q), b = evalBsdf(p, wo, wi, q);
-        EXPECT_TRUE((a.f == b.f).all() && a.pdf == b.pdf && a.dAlbedo == b.dAlbedo && (a.dRoughness == b.dRoughness).all() &&
-                    (a.dSpecular == b.dSpecular).all());
+        EXPECT_TRUE((a.f == b.f).all() && a.pdf == b.pdf && a.dAlbedo == b.dAlbedo &&
+                    (a.dRoughness == b.dRoughness).all() && (a.dSpecular == b.dSpecular).all());
         compared += a.pdf > 0 || (a.f > 0).any();
       }
       const float uLobe = rng.next1D();

@@ -12,8 +12,8 @@ using namespace relume;
 
 namespace {
 
-Color meanRadiance(const Scene& scene, const Appearance& a, const Vec3& origin, const Vec3& dir, int paths, int maxDepth,
-                   double* stdError = nullptr) {
+Color meanRadiance(const Scene& scene, const Appearance& a, const Vec3& origin, const Vec3& dir, int paths,
+                   int maxDepth, double* stdError = nullptr) {
   LightSampler lights(scene, a);
   PathSettings s;
   s.maxDepth = maxDepth;
@@ -44,7 +44,8 @@ TEST(Render, WhiteFurnace) {
     a.emission[0] = Color::Constant(1.0f);
     for (int depth : {8, 64}) {
       double se = 0;
-      const Color L = meanRadiance(scene, a, Vec3(0.1f, 0.2f, -0.1f), Vec3(0.3f, 0.5f, 0.8f).normalized(), 20000, depth, &se);
+      const Color L =
+          meanRadiance(scene, a, Vec3(0.1f, 0.2f, -0.1f), Vec3(0.3f, 0.5f, 0.8f).normalized(), 20000, depth, &se);
       const double expected = (1 - std::pow(albedo, depth + 1)) / (1 - albedo);
       EXPECT_NEAR(L[0], expected, 4 * se + 1e-4) << "albedo " << albedo << " depth " << depth;
       if (depth == 64) {
@@ -83,8 +84,9 @@ void expectDirectLightingMatches(const Vec3& receiver, float dx, float dz) {
   const float h = 0.1f, d = 1.0f, rho = 0.5f, le = 10.0f;
   const Vec3 c = receiver + Vec3(dx, d, dz);
   MeshData m;
-  m.positions = {receiver + Vec3(-6, 0, -6), receiver + Vec3(6, 0, -6), receiver + Vec3(6, 0, 6), receiver + Vec3(-6, 0, 6),
-                 c + Vec3(-h, 0, -h),        c + Vec3(h, 0, -h),        c + Vec3(h, 0, h),        c + Vec3(-h, 0, h)};
+  m.positions = {receiver + Vec3(-6, 0, -6), receiver + Vec3(6, 0, -6), receiver + Vec3(6, 0, 6),
+                 receiver + Vec3(-6, 0, 6),  c + Vec3(-h, 0, -h),       c + Vec3(h, 0, -h),
+                 c + Vec3(h, 0, h),          c + Vec3(-h, 0, h)};
   m.triangles = {{0, 2, 1}, {0, 3, 2}, {4, 5, 6}, {4, 6, 7}};  // receiver normal +y, emitter normal -y
   m.faceObject = {0, 0, 1, 1};
   Scene scene(buildMesh(m, "two planes"));
@@ -106,9 +108,7 @@ void expectDirectLightingMatches(const Vec3& receiver, float dx, float dz) {
 
 }  // namespace
 
-TEST(Render, SmallEmitterAnalyticIrradiance) {
-  expectDirectLightingMatches(Vec3::Zero(), 0, 0);
-}
+TEST(Render, SmallEmitterAnalyticIrradiance) { expectDirectLightingMatches(Vec3::Zero(), 0, 0); }
 
 TEST(Render, SlantedEmitterIsNotItsOwnOccluder) {
   // The emitter seen 68 degrees from the receiver's normal, 4 m from the origin: shadow rays that
@@ -137,7 +137,8 @@ TEST(Render, PixelsAverageOverTheCamerasFilter) {
   RenderOptions ro;
   ro.spp = 20000;
   ro.path.maxDepth = 0;
-  for (const PixelFilter& f : {PixelFilter(), PixelFilter(PixelFilterType::BlackmanHarris, 1.5f), PixelFilter(PixelFilterType::Gaussian, 1.5f)}) {
+  for (const PixelFilter& f : {PixelFilter(), PixelFilter(PixelFilterType::BlackmanHarris, 1.5f),
+                               PixelFilter(PixelFilterType::Gaussian, 1.5f)}) {
     cam.filter = f;
     const Image img = renderImage(scene, a, lights, cam, ro).color;
     for (int x = 3; x <= 6; ++x) {
@@ -183,13 +184,19 @@ struct EventLog : NullPathObserver {
   std::vector<float> log;
   int vertices = 0;
   void put(std::initializer_list<float> v) { log.insert(log.end(), v); }
-  void traced(const Vec3& o, const Vec3& d, float tmax, bool shadow) { put({1, o.x(), o.y(), o.z(), d.x(), d.y(), d.z(), tmax, float(shadow)}); }
+  void traced(const Vec3& o, const Vec3& d, float tmax, bool shadow) {
+    put({1, o.x(), o.y(), o.z(), d.x(), d.y(), d.z(), tmax, float(shadow)});
+  }
   void vertex(int depth, const SurfaceHit& hit, const ShadingFrame&, const Vec3& wo, const Color& beta) {
     ++vertices;
-    put({2, float(depth), hit.p.x(), hit.p.y(), hit.p.z(), hit.uv.x(), hit.uv.y(), float(hit.object), wo.z(), beta[0], beta[1], beta[2]});
+    put({2, float(depth), hit.p.x(), hit.p.y(), hit.p.z(), hit.uv.x(), hit.uv.y(), float(hit.object), wo.z(), beta[0],
+         beta[1], beta[2]});
   }
-  void emission(int depth, const SurfaceHit&, float mis, const Color& le) { put({3, float(depth), mis, le[0], le[1], le[2]}); }
-  void nee(int depth, const Vec3& wi, const Color& f, float cosI, float scale, const Color& le, const SurfaceHit& light) {
+  void emission(int depth, const SurfaceHit&, float mis, const Color& le) {
+    put({3, float(depth), mis, le[0], le[1], le[2]});
+  }
+  void nee(int depth, const Vec3& wi, const Color& f, float cosI, float scale, const Color& le,
+           const SurfaceHit& light) {
     put({4, float(depth), wi.z(), f[0], f[1], f[2], cosI, scale, le[0], float(light.object)});
   }
   void scatter(int depth, const Vec3& wi, const Color& f, float cosI, float pdf, float survival) {
@@ -217,16 +224,19 @@ TEST(Render, AWavefrontTracesEachPathExactlyAsItIsTracedAlone) {
       ASSERT_TRUE(cs.dir);
       // Every third ray starts far outside the room, pointing away from it: it hits nothing.
       const bool away = (x + y) % 3 == 0;
-      alone.emplace_back(away ? Vec3(cam.position - 100.0f * *cs.dir) : cam.position, away ? Vec3(-*cs.dir) : *cs.dir, cs.rng);
+      alone.emplace_back(away ? Vec3(cam.position - 100.0f * *cs.dir) : cam.position, away ? Vec3(-*cs.dir) : *cs.dir,
+                         cs.rng);
     }
   std::vector<EventLog> aloneLogs(alone.size());
   std::vector<SurfaceHit> aloneFirst(alone.size());
   for (size_t i = 0; i < alone.size(); ++i) {
     Pcg32 rng = alone[i].rng;
-    alone[i].L = tracePath(scene, lights, scope, settings, alone[i].origin, alone[i].dir, rng, aloneLogs[i], &aloneFirst[i]);
+    alone[i].L =
+        tracePath(scene, lights, scope, settings, alone[i].origin, alone[i].dir, rng, aloneLogs[i], &aloneFirst[i]);
   }
   int missed = 0, ended = 0, deep = 0;
-  for (const EventLog& e : aloneLogs) missed += e.vertices == 0, ended += e.vertices > 0 && e.vertices < 4, deep += e.vertices >= 6;
+  for (const EventLog& e : aloneLogs)
+    missed += e.vertices == 0, ended += e.vertices > 0 && e.vertices < 4, deep += e.vertices >= 6;
   EXPECT_GT(missed, 50);  // neighbours that end at once, early (roulette), and late
   EXPECT_GT(ended, 10);
   EXPECT_GT(deep, 10);
@@ -236,8 +246,10 @@ TEST(Render, AWavefrontTracesEachPathExactlyAsItIsTracedAlone) {
       std::vector<PathSlot> wave;
       std::vector<EventLog> logs(n);
       std::vector<SurfaceHit> first(n);
-      for (size_t i = 0; i < n; ++i) wave.emplace_back(alone[b + i].origin, alone[b + i].dir, alone[b + i].rng, &first[i]);
-      tracePaths(scene, lights, scope, settings, std::span<PathSlot>(wave), [&](size_t i) -> EventLog& { return logs[i]; });
+      for (size_t i = 0; i < n; ++i)
+        wave.emplace_back(alone[b + i].origin, alone[b + i].dir, alone[b + i].rng, &first[i]);
+      tracePaths(scene, lights, scope, settings, std::span<PathSlot>(wave),
+                 [&](size_t i) -> EventLog& { return logs[i]; });
       for (size_t i = 0; i < n; ++i) {
         SCOPED_TRACE(::testing::Message() << "width " << width << " path " << b + i);
         EXPECT_EQ(0, std::memcmp(wave[i].L.data(), alone[b + i].L.data(), sizeof(Color)));
@@ -264,8 +276,10 @@ TEST(Render, LightSamplerRejectsNonFiniteEmissionAndAcceptsNone) {
     LightSampler lights(scene, a);
     ADD_FAILURE() << "no error";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find(fmt::format("object {} ('{}') emits a non-finite power", emitter, a.names[emitter])),
-              std::string::npos) << e.what();
+    EXPECT_NE(
+        std::string(e.what()).find(fmt::format("object {} ('{}') emits a non-finite power", emitter, a.names[emitter])),
+        std::string::npos)
+        << e.what();
   }
   for (Color& e : a.emission) e = Color::Zero();
   a.emissionTextureOf.assign(a.objectCount(), -1);
@@ -288,7 +302,8 @@ MeshData lightFan() {
   d.positions.insert(d.positions.end(), {{0, 0, 2}, {1, 0, 2}, {0, 1, 2}, {5, 5, 0}, {6, 5, 0}, {5, 6, 0}});
   d.triangles.emplace_back(n, n + 2, n + 1), d.faceObject.push_back(1);
   d.triangles.emplace_back(n + 3, n + 4, n + 5), d.faceObject.push_back(2);
-  for (size_t v = 0; v < d.positions.size(); ++v) d.normals.push_back(Vec3(0.1f * static_cast<float>(v % 5), 0.2f, 1.0f).normalized());
+  for (size_t v = 0; v < d.positions.size(); ++v)
+    d.normals.push_back(Vec3(0.1f * static_cast<float>(v % 5), 0.2f, 1.0f).normalized());
   return d;
 }
 }  // namespace
@@ -316,7 +331,8 @@ TEST(Render, LightPointsFollowPowerThenAreaAndLieOnTheMesh) {
   for (int i = 0; i < kSamples; ++i) {
     const float uObject = rng.next1D(), uTriangle = rng.next1D();
     const Vec2 uPoint = rng.next2D();
-    const LightSample s = lights.sampleAt(lights.pickTriangle(lights.pickEmitter(uObject, uTriangle), uTriangle), uPoint);
+    const LightSample s =
+        lights.sampleAt(lights.pickTriangle(lights.pickEmitter(uObject, uTriangle), uTriangle), uPoint);
     const uint32_t f = s.hit.prim;
     ++count[f];
     const Vec2 b = squareToTriangle(uPoint);
@@ -334,7 +350,8 @@ TEST(Render, LightPointsFollowPowerThenAreaAndLieOnTheMesh) {
     const int o = mesh.faceObject[f];
     const double p = objectPower[o] / power * mesh.faceArea[f] / objectArea[o];
     const double expected = kSamples * p;
-    EXPECT_LE(std::abs(count[f] - expected), 5.0 * std::sqrt(expected * (1 - p)) + 1e-9) << "triangle " << f << " of object " << o;
+    EXPECT_LE(std::abs(count[f] - expected), 5.0 * std::sqrt(expected * (1 - p)) + 1e-9)
+        << "triangle " << f << " of object " << o;
   }
 }
 
@@ -353,7 +370,7 @@ TEST(Render, LightSamplerFromThePreviousOneSamplesAsAFreshOne) {
     size_t built;  // tables the step builds
   };
   const std::vector<Step> steps = {
-      {{Color::Constant(3.0f), Color::Zero(), Color(0.5f, 1.0f, 2.0f)}, 1},  // 0 brighter, 1 dark, 2 lit: 2 is new
+      {{Color::Constant(3.0f), Color::Zero(), Color(0.5f, 1.0f, 2.0f)}, 1},    // 0 brighter, 1 dark, 2 lit: 2 is new
       {{Color::Zero(), Color(1.0f, 1.0f, 1.0f), Color(0.5f, 1.0f, 2.0f)}, 0},  // 0 dark, 1 back: kept while dark
       {{Color::Constant(0.2f), Color(1.0f, 1.0f, 1.0f), Color::Zero()}, 0},
   };
@@ -367,7 +384,9 @@ TEST(Render, LightSamplerFromThePreviousOneSamplesAsAFreshOne) {
     for (int i = 0; i < 20000; ++i) {
       const float uObject = rng.next1D(), uTriangle = rng.next1D();
       const Vec2 uPoint = rng.next2D();
-      auto point = [&](const LightSampler& l) { return l.sampleAt(l.pickTriangle(l.pickEmitter(uObject, uTriangle), uTriangle), uPoint); };
+      auto point = [&](const LightSampler& l) {
+        return l.sampleAt(l.pickTriangle(l.pickEmitter(uObject, uTriangle), uTriangle), uPoint);
+      };
       const LightSample r = point(reused), f = point(fresh);
       ASSERT_EQ(r.hit.prim, f.hit.prim);
       ASSERT_EQ(r.hit.p, f.hit.p);

@@ -33,9 +33,9 @@ struct Rays {
 TEST(HighlightEvidence, SeesAGlossyObjectAndNotARoughOne) {
   std::mt19937 rng(3);
   Rays r;
-  r.add(0, 30, 0.5, rng);     // glossy: 50% brighter with a light reflected, 30 texels
+  r.add(0, 30, 0.5, rng);      // glossy: 50% brighter with a light reflected, 30 texels
   r.add(1, 2000, 0.005, rng);  // rough wall: 0.5%, many texels
-  r.add(2, 5, 3.0, rng);      // a bright highlight on too few texels
+  r.add(2, 5, 3.0, rng);       // a bright highlight on too few texels
   HighlightEvidence e(4);
   e.addBatch(r.slot, r.object, r.luminance, r.sawLight);
   EXPECT_EQ(e.texels(0), 30u);

@@ -18,12 +18,14 @@ namespace {
 // which pixel it came from (exact in the frame cache's half floats).
 fs::path makeCapture() {
   // One folder per test: CTest runs the tests of this file in parallel processes.
-  const fs::path dir = fs::temp_directory_path() /
-                       ("relume_sampler_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+  const fs::path dir =
+      fs::temp_directory_path() /
+      ("relume_sampler_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
   fs::remove_all(dir);
   fs::create_directories(dir / "images");
   MeshData m;
-  m.positions = {{-1, 0, -1}, {1, 0, -1}, {1, 0, 1}, {-1, 0, 1}, {-0.3f, 1, -0.3f}, {0.3f, 1, -0.3f}, {0.3f, 1, 0.3f}, {-0.3f, 1, 0.3f}};
+  m.positions = {{-1, 0, -1},       {1, 0, -1},       {1, 0, 1},       {-1, 0, 1},
+                 {-0.3f, 1, -0.3f}, {0.3f, 1, -0.3f}, {0.3f, 1, 0.3f}, {-0.3f, 1, 0.3f}};
   m.triangles = {{0, 2, 1}, {0, 3, 2}, {4, 5, 6}, {4, 6, 7}};
   m.faceObject = {0, 0, 1, 1};
   writePly(dir / "mesh.ply", m);
@@ -126,7 +128,8 @@ TEST(TextureSampler, PixelFootprintRaysCrossThePixelWhoseValueTheyCarry) {
       offset[pass] = *px - Vec2(r.reference[0], r.reference[1]);
       EXPECT_NEAR(offset[pass].x(), 0.5f, 0.501f);  // inside pixel (x, y), to rounding
       EXPECT_NEAR(offset[pass].y(), 0.5f, 0.501f);
-      sum[pass][0] += offset[pass].x(), sum[pass][1] += offset[pass].y(), sq[pass] += std::pow(offset[pass].x() - 0.5, 2);
+      sum[pass][0] += offset[pass].x(), sum[pass][1] += offset[pass].y(),
+          sq[pass] += std::pow(offset[pass].x() - 0.5, 2);
     }
     cross += (offset[0].x() - 0.5) * (offset[1].x() - 0.5);
   }
@@ -138,7 +141,8 @@ TEST(TextureSampler, PixelFootprintRaysCrossThePixelWhoseValueTheyCarry) {
   }
   EXPECT_NEAR(cross / n * 12.0, 0.0, 0.1);  // uncorrelated: same point would give 1
   // A point footprint has one direction for both passes.
-  for (const BatchRay& r : sampler.sample(3, 0, {256, 3, RayFootprint::Point}).rays) EXPECT_EQ(r.adjointDirection(), r.dir);
+  for (const BatchRay& r : sampler.sample(3, 0, {256, 3, RayFootprint::Point}).rays)
+    EXPECT_EQ(r.adjointDirection(), r.dir);
 }
 
 // With the capture's pixel filter (Cycles' Blackman-Harris 1.5 here), a pixel-footprint ray is
@@ -155,7 +159,8 @@ TEST(TextureSampler, PixelFootprintRaysFollowTheCapturesPixelFilter) {
   }
   const TextureSpaceSampler texture(f.scene, f.map, f.texels, f.vis, f.frames());
   const ImageSpaceSampler image(f.frames());
-  for (const Batch& b : {texture.sample(3, 0, {2048, 3, RayFootprint::Pixel}), image.sample(3, 0, 12000, f.scene, RayFootprint::Pixel)}) {
+  for (const Batch& b : {texture.sample(3, 0, {2048, 3, RayFootprint::Pixel}),
+                         image.sample(3, 0, 12000, f.scene, RayFootprint::Pixel)}) {
     ASSERT_GT(b.rays.size(), 2000u);
     double sum = 0, sq = 0, n = 0, outside = 0;
     for (const BatchRay& r : b.rays) {

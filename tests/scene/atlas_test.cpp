@@ -95,10 +95,11 @@ TEST(Mesh, CoincidentAndZeroAreaFacesAreDroppedAndCounted) {
 // Regression: a PLY listing one face twice, and an OBJ polygon repeating a vertex (it fans into the
 // same triangle twice), used to re-chart an overlapping chart forever.
 TEST(Atlas, TerminatesOnTwiceListedFacesAndRepeatedPolygonVertices) {
-  const auto ply = writeText("relume_twice.ply",
-                             "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
-                             "element face 3\nproperty list uchar int vertex_indices\nend_header\n"
-                             "0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 0 1 2\n3 1 3 2\n");
+  const auto ply =
+      writeText("relume_twice.ply",
+                "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                "element face 3\nproperty list uchar int vertex_indices\nend_header\n"
+                "0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 0 1 2\n3 1 3 2\n");
   const auto obj = writeText("relume_repeat.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 2\nf 1 3 4\n");
   for (const auto& path : {ply, obj}) {
     const TriangleMesh mesh = loadMesh(path);
@@ -179,8 +180,8 @@ TEST(Atlas, FurnishedLikeMeshPacksAtLeast60Percent) {
   std::printf("room + 2000 boxes: %s\n", r.summary().c_str());
 }
 
-// What sank the living room to 0.18 (docs/notes/2026-11-24-artist-interiors.md): rings whose box the packer cannot fill, and thousands
-// of sub-texel parts each paying a gutter ring.
+// What sank the living room to 0.18 (docs/notes/2026-11-24-artist-interiors.md): rings whose box the packer cannot
+// fill, and thousands of sub-texel parts each paying a gutter ring.
 TEST(Atlas, FramesAreCutAndTinyPartsShareBlocks) {
   const TriangleMesh mesh = makeFramedRoom();
   AtlasReport r;

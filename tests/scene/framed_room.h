@@ -24,7 +24,8 @@ inline TriangleMesh makeFramedRoom() {
     const Vec3 c(0.5f + 4 * at.x(), 0.5f + 1.5f * at.y(), 0.1f + 3 * at.z());
     const float w = 0.2f, h = 0.15f, bar = 0.02f;
     const Vec3 outer[4] = {c + Vec3(-w, -h, 0), c + Vec3(w, -h, 0), c + Vec3(w, h, 0), c + Vec3(-w, h, 0)};
-    const Vec3 inner[4] = {c + Vec3(bar - w, bar - h, 0), c + Vec3(w - bar, bar - h, 0), c + Vec3(w - bar, h - bar, 0), c + Vec3(bar - w, h - bar, 0)};
+    const Vec3 inner[4] = {c + Vec3(bar - w, bar - h, 0), c + Vec3(w - bar, bar - h, 0), c + Vec3(w - bar, h - bar, 0),
+                           c + Vec3(bar - w, h - bar, 0)};
     const int base = static_cast<int>(d.positions.size());
     for (int k = 0; k < 4; ++k) d.positions.push_back(outer[k]);
     for (int k = 0; k < 4; ++k) d.positions.push_back(inner[k]);

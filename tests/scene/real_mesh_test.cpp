@@ -86,7 +86,7 @@ TEST(RealMesh, PrepareAndRenderFinishWithoutInvalidRaysOrNaN) {
   PrepareOptions o;
   o.resolutions = {1024};
   o.maxSpeed = 1e3f, o.maxAngularSpeed = 360;  // a ring of views, not a walk
-  o.maxUnderexposed = 1;                        // the cut floats in black space
+  o.maxUnderexposed = 1;                       // the cut floats in black space
   prepareCapture(dir, dir / "work", o);
   const Json report = readJson(dir / "work" / "prepare.json");
   const Json& phases = report["phases"];

@@ -127,7 +127,8 @@ TEST(Scene, NonFiniteAndInvertedRaysAreSkippedAndCounted) {
 #else
 TEST(Scene, NonFiniteRayAssertsInDebugBuilds) {
   const Scene scene(opposedNormals());
-  EXPECT_DEATH(scene.occluded(Vec3(std::numeric_limits<float>::quiet_NaN(), 0, 1), Vec3(0, 0, -1), 1.0f), "non-finite or inverted ray");
+  EXPECT_DEATH(scene.occluded(Vec3(std::numeric_limits<float>::quiet_NaN(), 0, 1), Vec3(0, 0, -1), 1.0f),
+               "non-finite or inverted ray");
 }
 #endif
 

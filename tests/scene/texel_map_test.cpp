@@ -23,7 +23,6 @@ TriangleMesh roomAtlas() {
   return buildAtlas(mesh, {});
 }
 
-
 TEST(TexelMap, CoveredTexelPointsMapBackIntoTheirTexel) {
   const TriangleMesh mesh = roomAtlas();
   const TexelMap map(mesh, 1024);
@@ -54,7 +53,8 @@ std::vector<int> chartOfFace(const TriangleMesh& mesh) {
   for (size_t v = 0; v < id.size(); ++v) {
     const Vec3& p = mesh.positions[v];
     const Vec2& uv = mesh.uvs[v];
-    id[v] = weld.emplace(std::array<float, 5>{p.x(), p.y(), p.z(), uv.x(), uv.y()}, static_cast<int>(weld.size())).first->second;
+    id[v] = weld.emplace(std::array<float, 5>{p.x(), p.y(), p.z(), uv.x(), uv.y()}, static_cast<int>(weld.size()))
+                .first->second;
   }
   std::vector<int> parent(weld.size());
   std::iota(parent.begin(), parent.end(), 0);
@@ -82,7 +82,9 @@ void expectFootprintsInsideTheirChart(const TriangleMesh& mesh, int samples) {
     for (int k = 0; k < 3; ++k) boxOfChart[chart[f]].extend(mesh.uvs[t[k]] * 1024.0f);
   }
   const AtlasOptions o;
-  auto tiny = [&](int c) { return texelsOfChart[c] < o.sharedBlockTexels || boxOfChart[c].sizes().minCoeff() < o.sharedBlockWidth; };
+  auto tiny = [&](int c) {
+    return texelsOfChart[c] < o.sharedBlockTexels || boxOfChart[c].sizes().minCoeff() < o.sharedBlockWidth;
+  };
   auto shareable = [&](uint32_t f, uint32_t g) {
     return chart[f] == chart[g] || (mesh.faceObject[f] == mesh.faceObject[g] && tiny(chart[f]) && tiny(chart[g]));
   };
@@ -108,14 +110,18 @@ void expectFootprintsInsideTheirChart(const TriangleMesh& mesh, int samples) {
 }
 }  // namespace
 
-TEST(TexelMap, PointsOnTheSurfaceLandOnValidTexelsOfTheirOwnChart) { expectFootprintsInsideTheirChart(roomAtlas(), 20000); }
+TEST(TexelMap, PointsOnTheSurfaceLandOnValidTexelsOfTheirOwnChart) {
+  expectFootprintsInsideTheirChart(roomAtlas(), 20000);
+}
 
 TEST(TexelMap, GutterHoldsOnARealMeshAtEveryStage) {
   const TriangleMesh mesh = loadMesh(std::filesystem::path(RELUME_TEST_DATA) / "furnished_cut.ply");
   expectFootprintsInsideTheirChart(buildAtlas(mesh, {}), 20000);
 }
 
-TEST(TexelMap, GutterHoldsAroundSharedBlocksAndCutFrames) { expectFootprintsInsideTheirChart(buildAtlas(makeFramedRoom(), {}), 20000); }
+TEST(TexelMap, GutterHoldsAroundSharedBlocksAndCutFrames) {
+  expectFootprintsInsideTheirChart(buildAtlas(makeFramedRoom(), {}), 20000);
+}
 
 // 4 bytes a texel at 4096^2 (its build time: `relume profile --what visibility`).
 TEST(TexelMap, SizeAt4096) {

@@ -36,7 +36,8 @@ TEST(Demo, FitsWithItsReducedSchedule) {
   FitConfig rest = c;  // everything else at the fit's defaults
   rest.batchTexels = FitConfig().batchTexels, rest.emissionIterations = FitConfig().emissionIterations;
   rest.materialIterations = FitConfig().materialIterations, rest.albedoPasses = FitConfig().albedoPasses;
-  rest.samplesPerRay = FitConfig().samplesPerRay, rest.emissionTextureIterations = FitConfig().emissionTextureIterations;
+  rest.samplesPerRay = FitConfig().samplesPerRay,
+  rest.emissionTextureIterations = FitConfig().emissionTextureIterations;
   EXPECT_EQ(rest.toJson(), FitConfig().toJson());
   const DemoOptions o;
   EXPECT_EQ(o.fit.toJson(), c.toJson());

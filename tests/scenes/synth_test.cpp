@@ -15,9 +15,11 @@ TEST(Synth, RoomCameraPathSeesWallsFloorAndLights) {
   for (const Camera& c : synthCameraPath(SynthSceneKind::Room, 24, 64, 48, 0.0))
     for (int y = 0; y < c.height; y += 2)
       for (int x = 0; x < c.width; x += 2)
-        if (const auto hit = scene.intersect(c.position, *c.rayDirection(Vec2(x + 0.5f, y + 0.5f)))) seen.insert(hit->object);
+        if (const auto hit = scene.intersect(c.position, *c.rayDirection(Vec2(x + 0.5f, y + 0.5f))))
+          seen.insert(hit->object);
   const Appearance& a = room.scene.appearance;
-  for (const char* name : {"floor", "ceiling", "walls", "wallpaper_wall", "ceiling_light_a", "ceiling_light_b", "rug"}) {
+  for (const char* name :
+       {"floor", "ceiling", "walls", "wallpaper_wall", "ceiling_light_a", "ceiling_light_b", "rug"}) {
     const int id = static_cast<int>(std::find(a.names.begin(), a.names.end(), name) - a.names.begin());
     ASSERT_LT(id, a.objectCount()) << name;
     EXPECT_TRUE(seen.count(id)) << name << " never seen";
@@ -61,7 +63,8 @@ TEST(Synth, CaptureRoundTripsThroughTheReaders) {
   o.pixelFilter = PixelFilter::parseSpec("blackman-harris");
   writeSynthCapture(o);
   for (const char* json : {"transforms.json", "transforms_test.json"})
-    EXPECT_EQ(readTransforms(dir / json).frames[0].camera.filter, PixelFilter(PixelFilterType::BlackmanHarris, 1.5f)) << json;
+    EXPECT_EQ(readTransforms(dir / json).frames[0].camera.filter, PixelFilter(PixelFilterType::BlackmanHarris, 1.5f))
+        << json;
 }
 
 TEST(Synth, HeldOutViewsOfTheirOwnSizeLeaveTheTrainingFramesAsTheyWere) {

@@ -25,7 +25,8 @@ inline std::filesystem::path preparedCapture(const std::string& name, SynthCaptu
 // (enough texels are observed >= 5 times).
 inline std::filesystem::path smallPreparedRoom(const std::string& name) {
   SynthCaptureOptions so;
-  so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 2, so.testSpp = 2, so.atlasResolution = 128;
+  so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 2, so.testSpp = 2,
+  so.atlasResolution = 128;
   return preparedCapture(name, so, 128);
 }
 

@@ -408,11 +408,12 @@ CommandTable registerCommands(CLI::App& app) {
     const Json s = runDemo(*demo);
     fmt::print(
         "\nrelume demo: fit {:.0f} s ({} iterations), albedo MAE {:.4f} (PSNR {:.1f} dB), roughness MAE {:.3f}, "
-        "specular MAE {:.3f}, emitters {}/{} found, emission error {:.1f}%, test views PSNR {:.1f} dB\n",
+        "specular MAE {:.3f}, emitters {}/{} found, emission error {:.1f}%; held-out views: {:.1f} dB against the "
+        "references, whose noise alone scores {:.1f} dB; {:.1f} dB against the truth with the same random numbers\n",
         s["fit_seconds"].get<double>(), s["fit_iterations"].get<int>(), s["albedo_mae"].get<double>(),
         s["albedo_psnr"].get<double>(), s["roughness_mae"].get<double>(), s["specular_mae"].get<double>(),
         s["emitters_found"].get<int>(), s["emitters_true"].get<int>(), 100 * s["emission_rel_error"].get<double>(),
-        s["test_psnr"].get<double>());
+        s["test_psnr"].get<double>(), s["test_noise_floor_psnr"].get<double>(), s["test_truth_psnr"].get<double>());
     spdlog::info("report: {}   summary: {}   result: {}", (demo->out / "report.md").string(),
                  (demo->out / "summary.json").string(), (demo->out / "work" / "result").string());
     return 0;

@@ -148,6 +148,7 @@ static Capture parseTransforms(const std::filesystem::path& path) {
     if (!f.contains("file_path") || !f["file_path"].is_string()) fail("{}: missing 'file_path'", where);
     fr.image = dir / f["file_path"].get<std::string>();
     fr.exposure = static_cast<float>(in.exposure.value_or(1.0));
+    fr.exposureRecorded = in.exposure.has_value();
     if (!(fr.exposure > 0)) fail("{}: exposure must be positive", where);
     if (in.clipLow) fr.clipLow = static_cast<float>(*in.clipLow);
     if (in.clipHigh) fr.clipHigh = static_cast<float>(*in.clipHigh);

@@ -14,6 +14,7 @@ struct Frame {
   Camera camera;
   std::filesystem::path image;  // absolute
   float exposure = 1.0f;        // pixels are divided by it to get scene radiance
+  bool exposureRecorded = false;  // the capture gave `exposure` (else 1 is assumed, not known)
   // Clip thresholds in the linear (exposure-corrected) domain: values at or beyond them are
   // saturated (high) or buried in noise (low) and only constrain the loss one-sidedly.
   float clipLow = 0.0f;

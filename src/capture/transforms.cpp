@@ -181,7 +181,7 @@ void writeTransforms(const std::filesystem::path& path, const std::vector<Frame>
     f["p1"] = c.distortion.p1;
     f["p2"] = c.distortion.p2;
     f["k3"] = c.distortion.k3;
-    if (fr.exposure != 1.0f) f["exposure"] = fr.exposure;
+    if (fr.exposureRecorded || fr.exposure != 1.0f) f["exposure"] = fr.exposure;
     const Mat3 gl = c.rotationToOpenGL();
     Json m = Json::array();
     for (int r = 0; r < 3; ++r) m.push_back({gl(r, 0), gl(r, 1), gl(r, 2), c.position[r]});

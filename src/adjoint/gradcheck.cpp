@@ -47,7 +47,7 @@ float stepFor(const ParamRef& p, float eps, float emissionScale) {
 
 // Loss residual of each estimate, in double (the per-ray Jacobian weight applies to the loss).
 Eigen::Array3d residualOf(const BatchRay& ray, const Eigen::Array3d& est) {
-  return lossResidual(est.cast<float>(), ray.reference, ray.clip).cast<double>();
+  return lossResidual(est.cast<float>(), ray).cast<double>();
 }
 
 // The scalar each pairing's per-sample estimator differentiates (see gradcheck.h), in double.
@@ -86,8 +86,7 @@ double productLoss(const std::vector<BatchRay>& rays, const std::vector<Eigen::A
 std::vector<Color> deltas(const std::vector<BatchRay>& rays, const std::vector<Eigen::Array3d>& est) {
   std::vector<Color> d(rays.size());
   const float invN = 1.0f / rays.size();
-  for (size_t j = 0; j < rays.size(); ++j)
-    d[j] = rayLossDelta(est[j].cast<float>(), rays[j].reference, rays[j].clip, rays[j].weight * invN);
+  for (size_t j = 0; j < rays.size(); ++j) d[j] = rayLossDelta(est[j].cast<float>(), rays[j], rays[j].weight * invN);
   return d;
 }
 

@@ -303,7 +303,7 @@ void adjointPass(const Scene& scene, const Appearance& appearance, const LightSa
             const Color& L = wave.radiance(i);
             if (!isFinite(L)) continue;
             const AdjointRecorder& rec = wave.path(i);
-            const Color slope = lossResidualSlope(L, rays[j].reference, rays[j].clip);
+            const Color slope = lossResidualSlope(L, rays[j]);
             const Color x = slope * sweep(rec.records, rec.count, delta[j] * slope, settings, out);
             const Color partner = primalSensitivity ? (*primalSensitivity)[j] : x;
             out.albedoCurvature(rec, rayCurvatureWeight(x, partner, rays[j].weight * invN));
@@ -315,20 +315,17 @@ void adjointPass(const Scene& scene, const Appearance& appearance, const LightSa
 
 GradientResult computeGradients(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
                                 const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration,
-                                Gradients& grads) {
+                                Gradients& grads, std::vector<Color>* estimates) {
   GradientResult result;
+  if (estimates) estimates->assign(rays.size(), Color::Zero());
   CHECK(grads.albedo.size() == appearance.albedo.rgb.size());  // the buffers belong to this appearance
   CHECK(grads.albedoCurvature.empty() || grads.albedoCurvature.size() == grads.albedo.size());
   CHECK(settings.path.maxDepth >= 0);
   if (rays.empty()) return result;
   const float invN = 1.0f / static_cast<float>(rays.size());
-  auto lossOf = [&](size_t j, const Color& est) {
-    return rays[j].weight * rayLoss(est, rays[j].reference, rays[j].clip);
-  };
-  auto deltaOf = [&](size_t j, const Color& est) {
-    return rayLossDelta(est, rays[j].reference, rays[j].clip, rays[j].weight * invN);
-  };
-  auto slopeOf = [&](size_t j, const Color& est) { return lossResidualSlope(est, rays[j].reference, rays[j].clip); };
+  auto lossOf = [&](size_t j, const Color& est) { return rays[j].weight * rayLoss(est, rays[j]); };
+  auto deltaOf = [&](size_t j, const Color& est) { return rayLossDelta(est, rays[j], rays[j].weight * invN); };
+  auto slopeOf = [&](size_t j, const Color& est) { return lossResidualSlope(est, rays[j]); };
 
   if (settings.pairing == Pairing::Decorrelated) {
     Timer t;
@@ -350,6 +347,7 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
     Timer ta;
     adjointPass(scene, appearance, lights, rays, delta, settings, iteration, grads, curvature ? &sensitivity : nullptr);
     result.times.adjoint = ta.seconds();
+    if (estimates) *estimates = estimate;
     return result;
   }
 
@@ -377,6 +375,7 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
             const Color a = waveA.radiance(j - b);
             if (!crossfit) {
               if (!isFinite(a)) continue;  // as in the decorrelated pass: no gradient from a broken path
+              if (estimates) (*estimates)[j] = a;
               loss[j] = lossOf(j, a);
               const Color x =
                   slopeOf(j, a) * sweep(recA.records, recA.count, deltaOf(j, a) * slopeOf(j, a), settings, out);
@@ -386,6 +385,7 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
             const AdjointRecorder& recB = waveB.path(j - b);
             const Color b2 = waveB.radiance(j - b);
             const Color sa = safeRadiance(a), sb = safeRadiance(b2);
+            if (estimates) (*estimates)[j] = 0.5f * (sa + sb);
             loss[j] = 0.5 * (lossOf(j, sa) + lossOf(j, sb));
             // Each sample's delta drives the other's path: the derivative of r(a) r(b), a product of
             // independent estimates. A non-finite sample drives nothing and receives nothing.

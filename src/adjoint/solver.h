@@ -91,10 +91,11 @@ void adjointPass(const Scene& scene, const Appearance& appearance, const LightSa
                  uint64_t iteration, Gradients& grads, const std::vector<Color>* primalSensitivity = nullptr);
 
 // One iteration's gradient of the batch loss under settings.pairing. `grads` is accumulated into
-// (clear it first) and combined on return.
+// (clear it first) and combined on return. `estimates`, when given, receives each ray's radiance
+// estimate before its gain (the mean of its two samples under crossfit; 0 where non-finite).
 GradientResult computeGradients(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
                                 const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration,
-                                Gradients& grads);
+                                Gradients& grads, std::vector<Color>* estimates = nullptr);
 
 // Bytes of one cached vertex record (reported by the profiler).
 size_t adjointRecordBytes();

@@ -11,6 +11,7 @@
 #include <fstream>
 
 #include "core/error.h"
+#include "capture/frame_image.h"
 #include "core/prefetch.h"
 #include "io/atomic_file.h"
 #include "io/input_file.h"
@@ -19,7 +20,7 @@ namespace relume {
 namespace {
 
 constexpr char kMagic[8] = {'R', 'L', 'M', 'F', 'R', 'A', 'M', 'E'};
-constexpr uint32_t kVersion = 2;
+constexpr uint32_t kVersion = 3;
 
 struct Header {
   char magic[8];
@@ -35,27 +36,31 @@ struct DiskEntry {
 }  // namespace
 
 namespace {
-// k x k box filter; a block containing a masked pixel is masked.
-Image boxDownscale(const Image& img, int k) {
+// k x k box filter; a block containing a masked pixel is masked, and so is one whose mean falls
+// under `clipHigh` in a channel where one of its pixels is saturated.
+Image boxDownscale(const Image& img, int k, float clipHigh) {
   Image out(img.width / k, img.height / k);
   for (int y = 0; y < out.height; ++y)
     for (int x = 0; x < out.width; ++x) {
-      Color sum = Color::Zero();
+      Color sum = Color::Zero(), brightest = Color::Zero();
       bool masked = false;
       for (int dy = 0; dy < k; ++dy)
         for (int dx = 0; dx < k; ++dx) {
           const Color c = img.at(x * k + dx, y * k + dy);
           masked = masked || c.minCoeff() < 0;
           sum += c;
+          brightest = brightest.max(c);
         }
-      out.set(x, y, masked ? Color::Constant(kMaskedPixel) : Color(sum / static_cast<float>(k * k)));
+      const Color mean = sum / static_cast<float>(k * k);
+      masked = masked || ((brightest >= clipHigh) && (mean < clipHigh)).any();
+      out.set(x, y, masked ? Color::Constant(kMaskedPixel) : mean);
     }
   return out;
 }
 }  // namespace
 
 std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const std::vector<Frame>& frames,
-                                        int downscale, const std::function<void()>& progress) {
+                                        int downscale, bool encodingClips, const std::function<void()>& progress) {
   if (downscale < 1 || downscale > 64) fail("{}: downscale must be 1..64, not {}", path.string(), downscale);
   std::vector<DiskEntry> entries(frames.size());
   writeAtomically(path, [&](const std::filesystem::path& tmp) {
@@ -70,23 +75,26 @@ std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const
     uint64_t offset = sizeof(Header) + entries.size() * sizeof(DiskEntry);
     std::vector<Imath::half> halfs;
     for (size_t i = 0; i < frames.size(); ++i) {
-      ImageReadStats rs;
-      const Image full = loadFrameImage(frames[i], &rs);
+      const FrameImage frame = loadFrame(frames[i], encodingClips);
+      const Image& full = frame.image;
       DiskEntry& e = entries[i];
       e.offset = offset;
       e.stats.downscale = static_cast<uint32_t>(downscale);
+      e.stats.clipLow = frame.clipLow;
+      e.stats.clipHigh = frame.clipHigh;
+      e.stats.bits = static_cast<uint32_t>(frame.read.bits);
       size_t over = 0, under = 0;
       for (size_t p = 0; p < full.rgb.size() / 3; ++p) {
         const float* c = &full.rgb[3 * p];
         if (c[0] < 0) continue;  // masked
-        over += std::max({c[0], c[1], c[2]}) >= frames[i].clipHigh;
-        under += std::max({c[0], c[1], c[2]}) <= frames[i].clipLow;
+        over += std::max({c[0], c[1], c[2]}) >= frame.clipHigh;
+        under += std::max({c[0], c[1], c[2]}) <= frame.clipLow;
       }
       const double n = std::max<double>(1, full.rgb.size() / 3);
       e.stats.overexposed = static_cast<float>(over / n);
       e.stats.underexposed = static_cast<float>(under / n);
-      e.stats.masked = static_cast<float>(rs.nonFinitePixels / n);
-      const Image stored = downscale > 1 ? boxDownscale(full, downscale) : Image();
+      e.stats.masked = static_cast<float>(frame.read.nonFinitePixels / n);
+      const Image stored = downscale > 1 ? boxDownscale(full, downscale, frame.clipHigh) : Image();
       const Image& px = downscale > 1 ? stored : full;
       e.stats.width = static_cast<uint32_t>(px.width);
       e.stats.height = static_cast<uint32_t>(px.height);
@@ -144,6 +152,9 @@ FrameStore::FrameStore(const std::filesystem::path& path) {
     for (const float fraction : {s.overexposed, s.underexposed, s.masked})
       if (!(fraction >= 0 && fraction <= 1))
         bad(fmt::format("frame {}: exposure statistic {} is not in [0, 1]", i, fraction));
+    if (!(s.clipLow >= 0 && s.clipHigh > s.clipLow) || (s.bits != 0 && s.bits != 8 && s.bits != 16))
+      bad(fmt::format("frame {}: clip thresholds [{}, {}] or encoding {} bits out of range", i, s.clipLow, s.clipHigh,
+                      s.bits));
     // Written as a difference so a huge offset cannot wrap around.
     const uint64_t bytes = static_cast<uint64_t>(s.width) * s.height * 3 * sizeof(Imath::half);
     if (e.offset > size_ || bytes > size_ - e.offset) bad(fmt::format("frame {} lies outside the file", i));
@@ -195,12 +206,15 @@ std::optional<Color> FrameStore::bilinear(size_t frame, const Vec2& px) const {
     return std::nullopt;
   const float dx = x - x0, dy = y - y0;
   Color sum = Color::Zero();
+  Eigen::Array3i saturated = Eigen::Array3i::Zero();
   const float w[4] = {(1 - dx) * (1 - dy), dx * (1 - dy), (1 - dx) * dy, dx * dy};
   for (int k = 0; k < 4; ++k) {
     const Color c = pixel(frame, x0 + (k & 1), y0 + (k >> 1));
     if (c.minCoeff() < 0) return std::nullopt;
+    saturated += (c >= e.stats.clipHigh).cast<int>();
     sum += w[k] * c;
   }
+  if (((saturated > 0) && (saturated < 4)).any()) return std::nullopt;
   return sum;
 }
 

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <optional>
 #include <vector>
 
@@ -16,17 +17,23 @@ namespace relume {
 struct FrameStats {
   uint32_t width = 0, height = 0;  // as stored (after downscaling)
   uint32_t downscale = 1;
-  float overexposed = 0;   // fraction of pixels with a channel at or above the frame's clip_high
-  float underexposed = 0;  // fraction of pixels with every channel at or below clip_low
+  float overexposed = 0;   // fraction of pixels with a channel at or above clipHigh
+  float underexposed = 0;  // fraction of pixels with every channel at or below clipLow
   float masked = 0;        // fraction of NaN/Inf pixels
+  // The frame's clip thresholds (FrameImage) in the stored values, and its file's encoding.
+  float clipLow = 0;
+  float clipHigh = std::numeric_limits<float>::infinity();
+  uint32_t bits = 0;  // 8 or 16: integer-encoded; 0: float
 };
 
-// Converts every frame (images read through loadFrameImage: exposure applied, NaN masked),
-// optionally box-filtered by an integer `downscale` (a block with a masked pixel is masked).
-// Exposure statistics are taken at full resolution. `progress` is called once per frame.
-// Atomic: the file appears complete or not at all.
+// Converts every frame (images read through loadFrame: response and exposure applied, NaN
+// masked), optionally box-filtered by an integer `downscale` (a block with a masked pixel is
+// masked, and so is one whose mean is a mix of saturated and exact values: it bounds nothing).
+// Exposure statistics are taken at full resolution. `encodingClips`: as loadFrame's. `progress` is
+// called once per frame. Atomic: the file appears complete or not at all.
 std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const std::vector<Frame>& frames,
-                                        int downscale = 1, const std::function<void()>& progress = {});
+                                        int downscale = 1, bool encodingClips = true,
+                                        const std::function<void()>& progress = {});
 
 class FrameStore {
  public:
@@ -40,7 +47,9 @@ class FrameStore {
   const FrameStats& stats(size_t frame) const { return index_[frame].stats; }
   Color pixel(size_t frame, int x, int y) const;  // negative = masked
   // Bilinear at continuous pixel coordinates of the ORIGINAL image (pixel centres at +0.5; the
-  // downscale is applied here); nullopt if outside the image or any of the four pixels is masked.
+  // downscale is applied here); nullopt if outside the image, if any of the four pixels is masked,
+  // or if a channel mixes saturated and unsaturated pixels (the blend would be neither a value
+  // nor a bound).
   std::optional<Color> bilinear(size_t frame, const Vec2& pixel) const;
   // The stored pixel containing `pixel` (ORIGINAL image coordinates) and its extent there: the
   // square of `size` x `size` original pixels from `corner` (size = the downscale). nullopt if

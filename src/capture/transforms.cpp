@@ -1,7 +1,5 @@
 #include "capture/transforms.h"
 
-#include <spdlog/spdlog.h>
-
 #include <cmath>
 
 #include "core/error.h"
@@ -84,6 +82,9 @@ static Capture parseTransforms(const std::filesystem::path& path) {
   if (!root.contains("frames") || !root["frames"].is_array()) fail("{}: missing 'frames' array", file);
   Intrinsics global;
   readIntrinsics(root, global, file);
+  const Response response = root.contains("response")
+                                ? Response::fromJson(root["response"], path.parent_path(), file + ": 'response'")
+                                : Response();
   Capture cap;
   cap.file = path;
   const auto dir = path.parent_path();
@@ -152,6 +153,7 @@ static Capture parseTransforms(const std::filesystem::path& path) {
     if (!(fr.exposure > 0)) fail("{}: exposure must be positive", where);
     if (in.clipLow) fr.clipLow = static_cast<float>(*in.clipLow);
     if (in.clipHigh) fr.clipHigh = static_cast<float>(*in.clipHigh);
+    fr.response = response;
     cap.frames.push_back(fr);
   }
   if (cap.frames.empty()) fail("{}: no frames", file);
@@ -191,20 +193,6 @@ void writeTransforms(const std::filesystem::path& path, const std::vector<Frame>
   }
   root["frames"] = arr;
   writeJson(path, root);
-}
-
-Image loadFrameImage(const Frame& frame, ImageReadStats* stats) {
-  ImageReadStats local;
-  Image img = readImage(frame.image, &local);
-  if (img.width != frame.camera.width || img.height != frame.camera.height)
-    fail("{}: image is {}x{} but transforms.json says {}x{}", frame.image.string(), img.width, img.height,
-         frame.camera.width, frame.camera.height);
-  if (local.nonFinitePixels) spdlog::warn("{}: {} NaN/Inf pixels masked", frame.image.string(), local.nonFinitePixels);
-  const float inv = 1.0f / frame.exposure;
-  for (float& v : img.rgb) v *= inv;
-  for (size_t i : local.nonFiniteIndex) img.rgb[3 * i] = img.rgb[3 * i + 1] = img.rgb[3 * i + 2] = kMaskedPixel;
-  if (stats) *stats = local;
-  return img;
 }
 
 Capture readTransforms(const std::filesystem::path& path) {

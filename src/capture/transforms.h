@@ -5,20 +5,21 @@
 #include <string>
 #include <vector>
 
+#include "capture/response.h"
 #include "core/camera.h"
-#include "io/image.h"
 
 namespace relume {
 
 struct Frame {
   Camera camera;
-  std::filesystem::path image;  // absolute
-  float exposure = 1.0f;        // pixels are divided by it to get scene radiance
+  std::filesystem::path image;    // absolute
+  float exposure = 1.0f;          // pixels are divided by it to get scene radiance
   bool exposureRecorded = false;  // the capture gave `exposure` (else 1 is assumed, not known)
   // Clip thresholds in the linear (exposure-corrected) domain: values at or beyond them are
   // saturated (high) or buried in noise (low) and only constrain the loss one-sidedly.
   float clipLow = 0.0f;
   float clipHigh = std::numeric_limits<float>::infinity();
+  Response response;  // of integer-encoded images (the capture's `response`)
 };
 
 struct Capture {
@@ -32,7 +33,5 @@ Capture readTransforms(const std::filesystem::path& path);
 void writeTransforms(const std::filesystem::path& path, const std::vector<Frame>& frames);
 // Radiance is never negative, so a negative value marks a pixel that must not be used (NaN/Inf on disk).
 inline constexpr float kMaskedPixel = -1.0f;
-// Reads a frame's image, checks its size against the camera, applies the exposure.
-Image loadFrameImage(const Frame& frame, ImageReadStats* stats = nullptr);
 
 }  // namespace relume

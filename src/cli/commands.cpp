@@ -86,7 +86,12 @@ void registerPrepare(CLI::App& app, CommandTable& table) {
       ->check(inRange(1, kMaxSide));
   c->add_option("--downscale", o->downscale, "box-filter frames by this integer factor in the cache")
       ->capture_default_str()
-      ->check(inRange(1, 256));
+      ->check(inRange(1, 64));
+  c->add_option("--response", o->response,
+                "camera response of 8/16-bit frames: srgb, linear, gamma:G or table:FILE (default: the capture's "
+                "`response`, else srgb)");
+  c->add_flag("!--no-encoding-clips", o->encodingClips,
+              "ablation: treat 8/16-bit frames' largest and smallest codes as exact values, not bounds");
   c->add_flag("--force", o->force, "redo every phase");
   table[c] = [=] {
     o->resolutions.clear();

@@ -15,7 +15,8 @@ namespace relume {
 float srgbToLinear(float v) { return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f); }
 float linearToSrgb(float v) { return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f; }
 
-Image readImage(const std::filesystem::path& path, ImageReadStats* stats) {
+namespace {
+Image readImageAs(const std::filesystem::path& path, ImageReadStats* stats, bool decode) {
   const std::string file = path.string();
   requireRegularFile(path, "an image file");
   auto in = OIIO::ImageInput::open(file);
@@ -35,7 +36,12 @@ Image readImage(const std::filesystem::path& path, ImageReadStats* stats) {
   const bool isInteger =
       spec.format.basetype == OIIO::TypeDesc::UINT8 || spec.format.basetype == OIIO::TypeDesc::UINT16;
   const std::string colorSpace = spec.get_string_attribute("oiio:ColorSpace");
-  const bool decodeSrgb = isInteger && colorSpace != "Linear" && colorSpace != "linear";
+  const bool fileSaysLinear = isInteger && (colorSpace == "Linear" || colorSpace == "linear");
+  const bool decodeSrgb = decode && isInteger && !fileSaysLinear;
+  if (stats) {
+    stats->bits = !isInteger ? 0 : spec.format.basetype == OIIO::TypeDesc::UINT8 ? 8 : 16;
+    stats->fileSaysLinear = fileSaysLinear;
+  }
   Image img(spec.width, spec.height);
   size_t bad = 0;
   for (size_t i = 0; i < static_cast<size_t>(spec.width) * spec.height; ++i) {
@@ -52,6 +58,12 @@ Image readImage(const std::filesystem::path& path, ImageReadStats* stats) {
   }
   if (stats) stats->nonFinitePixels = bad;
   return img;
+}
+}  // namespace
+
+Image readImage(const std::filesystem::path& path, ImageReadStats* stats) { return readImageAs(path, stats, true); }
+Image readImageCodes(const std::filesystem::path& path, ImageReadStats* stats) {
+  return readImageAs(path, stats, false);
 }
 
 namespace {

@@ -26,6 +26,8 @@ struct Image {
 struct ImageReadStats {
   size_t nonFinitePixels = 0;          // NaN/Inf pixels, set to 0 and counted
   std::vector<size_t> nonFiniteIndex;  // their pixel indices, so callers can mask them
+  int bits = 0;                        // 8 or 16 for an integer encoding, 0 for float
+  bool fileSaysLinear = false;         // an integer file tagged as holding linear values
 };
 
 // Larger images are rejected before anything is allocated (8192 x 8192 is the largest square).
@@ -33,6 +35,9 @@ inline constexpr int64_t kMaxImagePixels = int64_t{1} << 26;
 // EXR/HDR are read as linear; 8/16-bit integer formats are sRGB-decoded. Greyscale is expanded,
 // alpha dropped. NaN/Inf pixels become 0 and are counted in `stats`.
 Image readImage(const std::filesystem::path& path, ImageReadStats* stats = nullptr);
+// As readImage, but an integer encoding's values are its codes normalised to [0, 1], undecoded
+// (the caller applies a camera response).
+Image readImageCodes(const std::filesystem::path& path, ImageReadStats* stats = nullptr);
 // Float EXR (never half: small gradients and bright emitters would not survive). Atomic.
 void writeExr(const std::filesystem::path& path, const Image& image);
 // Tone-mapped preview: exposure scale, clamp, sRGB encode, 8-bit PNG. Atomic.

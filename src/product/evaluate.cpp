@@ -4,6 +4,7 @@
 
 #include <optional>
 
+#include "capture/frame_image.h"
 #include "capture/transforms.h"
 #include "core/error.h"
 #include "core/system.h"

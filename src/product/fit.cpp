@@ -17,6 +17,7 @@
 #include "product/fit_result.h"
 #include "product/fit_schedule.h"
 #include "product/fit_workspace.h"
+#include "product/frame_gains.h"
 #include "product/group_optimiser.h"
 #include "product/light_decisions.h"
 
@@ -37,7 +38,9 @@ class Fit {
         roles_(appearance_.objectCount()),
         batches_(c_, w_),
         optimiser_(c_),
-        decisions_(c_, w_, appearance_, roles_, settings_.path) {
+        decisions_(c_, w_, appearance_, roles_, settings_.path),
+        gains_(resolveFrameGains(c_.frameGains, w_.frames, *w_.store, w_.kept), w_.frames.size(), w_.kept,
+               c_.gainReferenceFrame, c_.gainMemory) {
     settings_.mode = c_.gradients;
     settings_.emitters = c_.emitterGradients;
     settings_.pairing = c_.pairing;
@@ -76,7 +79,8 @@ class Fit {
   void serialiseState(CheckpointIo& io);
   void writeCheckpoint(size_t stage, int iteration, const TexelSpace& space);
   fs::path writeResult(const TexelSpace& space) const {
-    return writeFitResult(w_, appearance_, space, roles_, c_, {globalIteration_, lastLoss_, stats_, peakMemory_});
+    return writeFitResult(w_, appearance_, space, roles_, c_, gains_,
+                          {globalIteration_, lastLoss_, stats_, peakMemory_});
   }
 
   FitConfig c_;
@@ -91,6 +95,7 @@ class Fit {
   FitBatches batches_;
   GroupOptimiser optimiser_;
   LightDecisions decisions_;
+  FrameGains gains_;
   SamplerStats stats_;
   std::optional<LightSampler> lights_;  // by the current emission; each iteration's shares the last's tables
   size_t lightSamplerBytesPeak_ = 0;    // the most lights_->bytes() has been
@@ -133,6 +138,9 @@ FitSummary Fit::run(bool resumeRequested) {
   });
   spdlog::info("fit: {} stages, final albedo resolution {}^2 ({} texels sampleable at {}^2), radiance scale {:.3g}",
                stages.size(), finalRes_, init.sampleable.size(), init.resolution, radianceScale_);
+  if (gains_.estimated())
+    spdlog::info("fit: frame gains estimated ({}{})", enumName(gains_.mode()),
+                 c_.frameGains == FrameGainMode::Auto ? ": some 8/16-bit frames have no recorded exposure" : "");
 
   const fs::path checkpointPath = w_.dir / "checkpoint.bin";
   FitPosition at;
@@ -272,11 +280,13 @@ void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const
                                               : BatchFocus{};
   const std::vector<uint8_t> albedoHeld = decisions_.albedoHeld();
   const GradientMasks masks{space, w_.mesh, albedoHeld, roles_.highlight, roles_.emitter};
+  std::vector<Color> estimates;  // each ray's, for the frame gains
   for (int it = firstIteration; it < st.iterations; ++it) {
     const uint64_t iteration = static_cast<uint64_t>(globalIteration_);
     FitPhaseTimes now;
     Timer ts;
-    const Batch batch = batches_.sample(space, iteration, st.footprint, focus);
+    Batch batch = batches_.sample(space, iteration, st.footprint, focus);
+    gains_.apply(batch.rays, batch.frame);
     now.sample = ts.seconds();
     stats_.add(batch.stats);
     if (st.pruneAfter) decisions_.observe(batch);
@@ -285,9 +295,10 @@ void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const
     now.lights = tl.seconds();
     if (lights_->builtTables() > 0)
       spdlog::debug("fit: light sampler built the tables of {} objects", lights_->builtTables());
-    const GradientResult gr =
-        computeGradients(*w_.scene, appearance_, *lights_, batch.rays, settings, iteration, grads);
+    const GradientResult gr = computeGradients(*w_.scene, appearance_, *lights_, batch.rays, settings, iteration, grads,
+                                               gains_.estimated() ? &estimates : nullptr);
     w_.scene->throwIfEmbreeFailed();
+    gains_.update(batch.rays, batch.frame, estimates);
     now.primal = gr.times.primal, now.loss = gr.times.loss, now.adjoint = gr.times.adjoint;
     Timer to;
     bool averagesStart = false;
@@ -391,6 +402,7 @@ void Fit::serialiseState(CheckpointIo& io) {
   for (ParamGroup& g : groups) io.array(g.name() + ".values", g.values);
   optimiser_.serialise(io, groups, appearance_.albedo.rgb.size());
   roles_.serialise(io);
+  gains_.serialise(io);
 }
 
 void Fit::writeCheckpoint(size_t stage, int iteration, const TexelSpace& space) {

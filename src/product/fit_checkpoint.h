@@ -13,8 +13,8 @@
 
 namespace relume {
 
-// Version 3: light decisions and out-of-model objects.
-inline constexpr int kFitCheckpointVersion = 3;
+// Version 4: frame gains (version 3: light decisions and out-of-model objects).
+inline constexpr int kFitCheckpointVersion = 4;
 
 class CheckpointIo {
  public:

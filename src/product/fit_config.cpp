@@ -11,7 +11,7 @@ namespace relume {
 namespace {
 
 using ConfigField = std::variant<int*, float*, bool*, uint64_t*, std::vector<std::string>*, SamplerKind*, AlbedoStep*,
-                                 LightTest*, RayFootprint*, GradientMode*, EmitterGradients*, Pairing*>;
+                                 LightTest*, RayFootprint*, GradientMode*, EmitterGradients*, Pairing*, FrameGainMode*>;
 
 // The keys, in the order the reference lists them.
 template <typename Fn>
@@ -70,6 +70,9 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("emitter_parameterisation", ConfigField(&c.emitterParameterisation));
   fn("median_init", ConfigField(&c.medianInit));
   fn("init_white_point", ConfigField(&c.initWhitePoint));
+  fn("frame_gains", ConfigField(&c.frameGains));
+  fn("gain_reference_frame", ConfigField(&c.gainReferenceFrame));
+  fn("gain_memory", ConfigField(&c.gainMemory));
   fn("coarse_to_fine", ConfigField(&c.coarseToFine));
   fn("emission_textures", ConfigField(&c.emissionTextures));
   fn("emission_texture_resolution", ConfigField(&c.emissionTextureResolution));
@@ -130,6 +133,8 @@ void FitConfig::validate(const std::string& where) const {
   need(c.emitterRadianceFraction >= 0 && c.emitterRadianceFraction <= 1, "emitter_radiance_fraction must be in [0, 1]");
   need(c.highlightMinPairs >= 1, "highlight_min_pairs must be >= 1");
   need(std::isfinite(c.highlightMinContrast), "highlight_min_contrast must be finite");
+  need(c.gainReferenceFrame >= -1, "gain_reference_frame must be a frame index, or -1 (geometric mean 1)");
+  need(c.gainMemory >= 0 && c.gainMemory < 1, "gain_memory must be in [0, 1)");
   need(c.checkpointEvery >= 1 && c.metricsEvery >= 1, "checkpoint_every and metrics_every must be >= 1");
   need(c.stopAfterIterations >= 0, "stop_after_iterations must be >= 0 (0 = run to the end)");
 }

@@ -13,6 +13,7 @@
 #include "adjoint/solver.h"
 #include "core/enum_names.h"
 #include "io/json.h"
+#include "product/frame_gains.h"
 #include "sampling/samplers.h"
 
 namespace relume {
@@ -121,6 +122,10 @@ struct FitConfig {
   float highlightMinContrast = 0.1f;
   bool emitterParameterisation = true, medianInit = true, coarseToFine = true, emissionTextures = true;
   float initWhitePoint = 0.8f;  // the median init's 95th-percentile texel becomes this albedo; 0 = off
+  // Photometry (product/frame_gains.h): per-frame gains estimated with the reconstruction.
+  FrameGainMode frameGains = FrameGainMode::Auto;
+  int gainReferenceFrame = -1;  // the frame whose gain is 1; -1: the gains' geometric mean is 1
+  float gainMemory = 0.9f;      // per-iteration decay of a frame's evidence sums (~1/(1-m) iterations)
   uint64_t seed = 1;
   int checkpointEvery = 100, metricsEvery = 10;
   int stopAfterIterations = 0;  // stop (with a checkpoint) after this many iterations; 0 = run to the end

@@ -10,7 +10,8 @@ namespace relume {
 namespace fs = std::filesystem;
 
 fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const TexelSpace& space,
-                        const ObjectRoles& roles, const FitConfig& c, const FitProgress& progress) {
+                        const ObjectRoles& roles, const FitConfig& c, const FrameGains& gains,
+                        const FitProgress& progress) {
   const fs::path result = w.dir / "result", staging = w.dir / "result.partial";
   fs::remove_all(staging);
   fs::create_directories(staging);
@@ -48,6 +49,7 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
   writeJson(staging / "materials.json", summary);
   writeJson(staging / "lights.json",
             {{"light_test", enumName(c.lightTest)}, {"hint", c.lights}, {"decisions", roles.lightDecisions}});
+  writeJson(staging / "frames.json", gains.toJson(w.frames));
   fs::remove_all(result);
   fs::rename(staging, result);
   spdlog::info("fit: result in {}", result.string());
@@ -65,7 +67,8 @@ Json fitMemory(const Workspace& w, Appearance& appearance, const TexelSpace& spa
   const TriangleMesh& m = w.mesh;  // its arrays; Embree's BVH and the shading records not counted
   const double mesh = (m.positions.size() + m.normals.size()) * sizeof(Vec3) + m.uvs.size() * sizeof(Vec2) +
                       m.triangles.size() * (sizeof(Eigen::Vector3i) + sizeof(int32_t));
-  const double batchBytes = batch.rays.size() * (sizeof(BatchRay) + sizeof(uint32_t) + sizeof(int) + 3 * sizeof(Color));
+  const double batchBytes =
+      batch.rays.size() * (sizeof(BatchRay) + 2 * sizeof(uint32_t) + sizeof(int) + 4 * sizeof(Color));
   const double records = double(threadCount()) * adjointRecordBytesPerThread(settings.path.maxDepth);
   Json j = {{"parameters", parameters},
             {"gradients", gradients},

@@ -1,5 +1,5 @@
 // What a fit writes and reports besides its checkpoints: WORK/result/ (scene.json, albedo
-// textures, materials.json, lights.json), and the bytes it holds by part.
+// textures, materials.json, lights.json, frames.json), and the bytes it holds by part.
 #pragma once
 #include <filesystem>
 
@@ -8,6 +8,7 @@
 #include "params/gradients.h"
 #include "product/fit_config.h"
 #include "product/fit_workspace.h"
+#include "product/frame_gains.h"
 #include "product/group_optimiser.h"
 #include "product/light_decisions.h"
 
@@ -21,8 +22,10 @@ struct FitProgress {
 };
 
 // Writes WORK/result/ atomically (WORK/result.partial/, then renamed); returns its path.
+// frames.json holds the frame gains (FrameGains::toJson).
 std::filesystem::path writeFitResult(const Workspace& w, const Appearance& appearance, const TexelSpace& space,
-                                     const ObjectRoles& roles, const FitConfig& c, const FitProgress& progress);
+                                     const ObjectRoles& roles, const FitConfig& c, const FrameGains& gains,
+                                     const FitProgress& progress);
 
 // Bytes the fit holds, by part, once a stage's buffers are allocated; "total" leaves out the
 // frame cache, a mapping of frames.bin of which only the pages the sampler touches are resident.

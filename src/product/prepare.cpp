@@ -141,7 +141,7 @@ std::string dropReason(const Capture& cap, size_t i, const FrameStats& stats, co
 Json framesPhase(const Capture& cap, const fs::path& work, const PrepareOptions& o) {
   Progress progress("frame cache", cap.frames.size());
   const std::vector<FrameStats> stats =
-      writeFrameStore(work / "frames.bin", cap.frames, o.downscale, [&] { progress.advance(); });
+      writeFrameStore(work / "frames.bin", cap.frames, o.downscale, o.encodingClips, [&] { progress.advance(); });
   Json kept = Json::array(), dropped = Json::array();
   std::map<std::string, int> reasons;
   for (size_t i = 0; i < cap.frames.size(); ++i) {
@@ -155,9 +155,17 @@ Json framesPhase(const Capture& cap, const fs::path& work, const PrepareOptions&
     }
   }
   Json masked = Json::object();  // frames with NaN/Inf pixels (masked, never used)
-  for (size_t i = 0; i < stats.size(); ++i)
+  std::map<std::string, int> encodings;
+  Json saturated = Json::object();  // frames with saturated pixels: the fraction (they bound the loss one-sidedly)
+  for (size_t i = 0; i < stats.size(); ++i) {
     if (stats[i].masked > 0) masked[std::to_string(i)] = stats[i].masked;
+    if (stats[i].overexposed > 0) saturated[std::to_string(i)] = stats[i].overexposed;
+    ++encodings[stats[i].bits ? fmt::format("{}-bit, response {}", stats[i].bits, cap.frames[i].response.describe())
+                              : std::string("float (linear)")];
+  }
   return Json{{"frames", cap.frames.size()},
+              {"encodings", encodings},
+              {"saturated_pixel_fraction", saturated},
               {"kept", kept},
               {"dropped", dropped},
               {"dropped_by_reason", reasons},
@@ -343,6 +351,14 @@ Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, 
 
 }  // namespace
 
+void applyPreparedResponse(const Json& prepare, std::vector<Frame>& frames) {
+  if (!prepare.contains("response")) return;
+  const Json& r = prepare["response"];
+  const Response response =
+      Response::parse(r.at("spec").get<std::string>(), r.at("dir").get<std::string>(), "prepare --response");
+  for (Frame& f : frames) f.response = response;
+}
+
 PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, const PrepareOptions& o) {
   Timer total;
   fs::create_directories(work);
@@ -350,8 +366,11 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
     spdlog::info("prepare: removed {} temporaries of killed runs", stale);
   const fs::path transformsPath = capture / "transforms.json";
   const fs::path meshPath = findMesh(capture);
-  const Capture cap = readTransforms(transformsPath);
+  Capture cap = readTransforms(transformsPath);
   Json report = previousReport(work / "prepare.json", o.force);
+  report.erase("response");
+  if (!o.response.empty()) report["response"] = {{"spec", o.response}, {"dir", fs::current_path().string()}};
+  applyPreparedResponse(report, cap.frames);
   const Json reportBefore = report;
   Json phases = report.value("phases", Json::object());
   const int initRes = o.resolutions.front();
@@ -392,9 +411,12 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   // Frames: convert, then filter.
   std::vector<fs::path> imagePaths{transformsPath};
   for (const Frame& f : cap.frames) imagePaths.push_back(f.image);
+  // "frames3": the frame cache's format (with clip thresholds), so older caches are rebuilt.
+  std::string responses;
+  for (const Frame& f : cap.frames) responses += f.response.fingerprint() + ";";
   const std::string framesPrint =
-      fingerprintOf(imagePaths, fmt::format("frames {} {} {} {} {}", o.maxOverexposed, o.maxUnderexposed, o.maxSpeed,
-                                            o.maxAngularSpeed, o.downscale));
+      fingerprintOf(imagePaths, fmt::format("frames3 {} {} {} {} {} {} {}", o.maxOverexposed, o.maxUnderexposed,
+                                            o.maxSpeed, o.maxAngularSpeed, o.downscale, o.encodingClips, responses));
   runPhase("frames", framesPrint, {work / "frames.bin"}, [&] { return framesPhase(cap, work, o); });
   const std::vector<size_t> kept = phases["frames"]["kept"].get<std::vector<size_t>>();
   if (kept.empty()) fail("prepare: every frame was dropped (see {})", (work / "prepare.json").string());

@@ -31,6 +31,8 @@ struct PrepareOptions {
   int tileTexels = 32;                                // visibility tile size at the init resolution
   int samplesPerTile = 6;                             // surface points tested per tile and frame
   int downscale = 1;                                  // box-filter frames by this factor in the cache (disk: 6 B/pixel)
+  std::string response;       // of 8/16-bit frames (capture/response.h); empty: the capture's own, else sRGB
+  bool encodingClips = true;  // 8/16-bit extreme codes bound the loss one-sidedly (false: the ablation)
   InitStatistic init = InitStatistic::Median;
   bool force = false;  // redo every phase
   AtlasOptions atlas;
@@ -44,5 +46,9 @@ struct PrepareSummary {
 
 PrepareSummary prepareCapture(const std::filesystem::path& capture, const std::filesystem::path& work,
                               const PrepareOptions& options);
+
+// The capture's frames as prepare read them: with the --response it was given (prepare.json
+// keeps it), so that whatever re-reads the frames (the report) decodes them alike.
+void applyPreparedResponse(const Json& prepare, std::vector<Frame>& frames);
 
 }  // namespace relume

@@ -7,6 +7,7 @@
 #include <map>
 #include <optional>
 
+#include "capture/frame_image.h"
 #include "capture/transforms.h"
 #include "core/error.h"
 #include "core/system.h"
@@ -14,6 +15,7 @@
 #include "io/image.h"
 #include "io/json.h"
 #include "product/evaluate.h"
+#include "product/prepare.h"
 #include "render/lights.h"
 
 namespace relume {
@@ -110,9 +112,10 @@ std::string percentOf(double value, double scale) {
 // truth the fit and the truth are rendered with the same random numbers and the error is
 // |fit - truth| (the reconstruction's); without, |re-render - frame| beside the re-render's noise.
 std::string viewsSection(const fs::path& out, const SceneDescription& fit, const SceneDescription* truth,
-                         const Json& prepare, const ReportOptions& o) {
+                         const Json& prepare, const std::map<uint32_t, Color>& gains, const ReportOptions& o) {
   const fs::path capture = prepare.at("capture").get<std::string>();
-  const std::vector<Frame> frames = readTransforms(capture / "transforms.json").frames;
+  std::vector<Frame> frames = readTransforms(capture / "transforms.json").frames;
+  applyPreparedResponse(prepare, frames);
   const auto kept = prepare.at("phases").at("frames").at("kept").get<std::vector<uint32_t>>();
   if (kept.empty() || o.frames <= 0) return "<p>No frames.</p>";
   const Scene scene(fit.mesh);
@@ -134,6 +137,9 @@ std::string viewsSection(const fs::path& out, const SceneDescription& fit, const
     RenderOptions ro;
     ro.spp = o.spp, ro.seed = f;
     Shown v{f, loadFrameImage(frames[f]), {}, {}, 0.0};
+    if (const auto g = gains.find(f); g != gains.end())  // the frame as radiance: its estimated gain divided out
+      for (size_t i = 0; i < v.reference.rgb.size(); ++i)
+        if (v.reference.rgb[i] >= 0) v.reference.rgb[i] /= g->second[static_cast<int>(i % 3)];
     const SplitRender render = renderSplit(scene, fit.appearance, lights, frames[f].camera, ro);
     if (truth) {
       const SplitRender truthRender = renderSplit(*truthScene, truth->appearance, *truthLights, frames[f].camera, ro);
@@ -339,6 +345,43 @@ std::string lightsSection(const fs::path& file) {
   return s;
 }
 
+// The frames' encodings and saturation (prepare.json) and, where the fit estimated them, their
+// gains (result/frames.json).
+std::string framesSection(const Json& prepare, const Json& gains) {
+  const Json frames = prepare.at("phases").at("frames");
+  std::string s = "<p>Encodings: ";
+  for (const auto& [encoding, count] : frames.value("encodings", Json::object()).items())
+    s += fmt::format("{} frames {}; ", count.get<int>(), html(encoding));
+  const Json saturated = frames.value("saturated_pixel_fraction", Json::object());
+  double worst = 0;
+  for (const auto& [frame, fraction] : saturated.items()) worst = std::max(worst, fraction.get<double>());
+  s += fmt::format(
+      "{} frames have saturated pixels (at most {:.1f}% of a frame); those pixels only bound the loss from "
+      "below.</p>",
+      saturated.size(), 100 * worst);
+  if (gains.value("mode", std::string("none")) == "none")
+    return s + "<p>Frame gains not estimated (<code>frame_gains</code>: every exposure known).</p>";
+  s += fmt::format("<p>Frame gains estimated (<code>{}</code>), gauge: {}.</p>", html(gains["mode"].get<std::string>()),
+                   html(gains.value("gauge", std::string())));
+  s += "<table><tr><th>frame</th><th>image</th><th>gain R</th><th>gain G</th><th>gain B</th><th>evidence "
+       "(rays)</th></tr>";
+  for (const Json& f : gains.value("frames", Json::array()))
+    s += fmt::format("<tr><td>{}</td><td>{}</td><td>{:.4f}</td><td>{:.4f}</td><td>{:.4f}</td><td>{:.0f}</td></tr>",
+                     f.value("frame", 0), html(f.value("image", std::string())), f["gain"][0].get<double>(),
+                     f["gain"][1].get<double>(), f["gain"][2].get<double>(), f.value("rays", 0.0));
+  return s + "</table>";
+}
+
+// The frame gains of result/frames.json by frame (empty when not estimated).
+std::map<uint32_t, Color> frameGainsOf(const Json& gains) {
+  std::map<uint32_t, Color> out;
+  if (gains.value("mode", std::string("none")) == "none") return out;
+  for (const Json& f : gains.value("frames", Json::array()))
+    out[f.at("frame").get<uint32_t>()] =
+        Color(f["gain"][0].get<float>(), f["gain"][1].get<float>(), f["gain"][2].get<float>());
+  return out;
+}
+
 // Per stage: a loss curve and the phase times of its last record (cumulative within the stage).
 std::string stagesSection(const std::vector<Json>& metrics) {
   std::vector<std::string> order;
@@ -391,6 +434,8 @@ fs::path writeFitReport(const fs::path& work, const ReportOptions& o) {
   const Json prepare = readJson(work / "prepare.json");
   const Json materials = readJson(work / "result" / "materials.json");
   const SceneDescription fit = loadSceneFile(work / "result" / "scene.json");
+  const fs::path gainsFile = work / "result" / "frames.json";
+  const Json gains = fs::exists(gainsFile) ? readJson(gainsFile) : Json::object();
   const fs::path truthFile = fs::path(prepare.at("capture").get<std::string>()) / "gt" / "scene.json";
   std::optional<SceneDescription> truthScene;
   if (fs::exists(truthFile)) truthScene = loadSceneFile(truthFile);
@@ -424,7 +469,8 @@ img.tex{width:256px;height:256px} figure{display:inline-block;margin:4px} figcap
         scores.roughnessPsnr8, scores.emissionIou);
   page += "<h2>Views</h2>";
   try {
-    page += viewsSection(out, fit, truthScene ? &*truthScene : nullptr, prepare, o);  // any truth renders
+    page += viewsSection(out, fit, truthScene ? &*truthScene : nullptr, prepare, frameGainsOf(gains),
+                         o);  // any truth renders
   } catch (const Error& e) {  // the capture moved or lost images: the rest of the report still stands
     spdlog::warn("report: views not rendered: {}", e.what());
     page += "<p>Views not rendered: " + html(e.what()) + "</p>";
@@ -432,6 +478,7 @@ img.tex{width:256px;height:256px} figure{display:inline-block;margin:4px} figcap
   page += "<h2>Textures</h2>" + textures;
   page += "<h2>Materials</h2>" + materialsSection(materials, truth);
   page += "<h2>Light sources</h2>" + lightsSection(work / "result" / "lights.json");
+  page += "<h2>Frames</h2>" + framesSection(prepare, gains);
   page += "<h2>Loss and time per stage</h2>" + stagesSection(readJsonLines(work / "metrics.jsonl"));
   page += "<h2>Prepare and memory</h2>" + prepareSection(prepare, materials);
   page += "<h2>Config</h2><pre>" + html(materials.value("config", Json::object()).dump(2)) + "</pre></body></html>\n";

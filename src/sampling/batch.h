@@ -18,6 +18,9 @@ struct BatchRay {
   Color reference;
   ClipThresholds clip;
   float weight = 1.0f;  // optional per-ray Jacobian weight (ablation); 1 = omitted, as in the paper
+  // The frame's gain: its pixels are gain x radiance (an unrecorded exposure or white balance the
+  // fit estimates; 1 when the exposure is known). The clip thresholds apply to gain x radiance.
+  Color gain = Color::Ones();
   // The adjoint pass's direction; zero = `dir`. A ray compared with a whole pixel (a pixel
   // footprint) has one: an independent point of the same pixel. The gradient is then that of
   // (E[I_hat] - I)^2; with one point for both passes it would be that of E[(I_hat - I)^2], which

@@ -26,6 +26,7 @@ void Batch::append(const Batch& other) {
   rays.insert(rays.end(), other.rays.begin(), other.rays.end());
   for (uint32_t s : other.slot) slot.push_back(slotOffset + s);
   object.insert(object.end(), other.object.begin(), other.object.end());
+  frame.insert(frame.end(), other.frame.begin(), other.frame.end());
   texel.insert(texel.end(), other.texel.begin(), other.texel.end());
   stats.add(other.stats);
 }
@@ -47,11 +48,12 @@ Batch sampleInChunks(size_t slots, ChunkFn&& sampleChunk) {
   Batch b;
   size_t rays = 0, texels = 0;
   for (const Batch& c : chunks) rays += c.rays.size(), texels += c.texel.size();
-  b.rays.reserve(rays), b.slot.reserve(rays), b.object.reserve(rays), b.texel.reserve(texels);
+  b.rays.reserve(rays), b.slot.reserve(rays), b.object.reserve(rays), b.frame.reserve(rays), b.texel.reserve(texels);
   for (const Batch& c : chunks) {
     b.rays.insert(b.rays.end(), c.rays.begin(), c.rays.end());
     b.slot.insert(b.slot.end(), c.slot.begin(), c.slot.end());
     b.object.insert(b.object.end(), c.object.begin(), c.object.end());
+    b.frame.insert(b.frame.end(), c.frame.begin(), c.frame.end());
     b.texel.insert(b.texel.end(), c.texel.begin(), c.texel.end());
     b.stats.add(c.stats);
   }
@@ -65,14 +67,17 @@ struct SlotOutput {
   uint32_t slot;
   int object = 0;  // of the targeted surface point; set before the first ray
   SamplerStats& stats() { return batch.stats; }
-  BatchRay& add(const BatchRay& ray) {
+  BatchRay& add(const BatchRay& ray, uint32_t frame) {
     batch.slot.push_back(slot);
     batch.object.push_back(object);
+    batch.frame.push_back(frame);
     return batch.rays.emplace_back(ray);
   }
 };
 
-ClipThresholds clipOf(const Frame& f) { return {f.clipLow, f.clipHigh}; }
+ClipThresholds clipOf(const FrameStore& store, uint32_t frame) {
+  return {store.stats(frame).clipLow, store.stats(frame).clipHigh};
+}
 
 // A ray whose expectation is the stored pixel: that pixel averages size x size frame pixels, each
 // formed with the camera's filter, so a uniformly chosen one of them, then the filter around it.
@@ -89,7 +94,7 @@ std::optional<Vec3> randomDirectionIn(const Camera& cam, const FrameStore::Store
 // A pixel footprint's rays: `samples` rays compared with `pixel`, each through its own random
 // point of it and with another, independent one for the adjoint pass (BatchRay::adjointDir).
 // `first`, when given, is the first ray's primal direction, already drawn uniformly in the pixel.
-void appendPixelRays(SlotOutput& out, const Camera& cam, const FrameStore::StoredPixel& pixel,
+void appendPixelRays(SlotOutput& out, uint32_t frame, const Camera& cam, const FrameStore::StoredPixel& pixel,
                      const ClipThresholds& clip, int samples, Pcg32& rng, std::optional<Vec3> first = std::nullopt) {
   for (int sample = 0; sample < samples; ++sample) {
     const auto primalDir = sample == 0 && first ? first : randomDirectionIn(cam, pixel, rng);
@@ -98,7 +103,7 @@ void appendPixelRays(SlotOutput& out, const Camera& cam, const FrameStore::Store
       ++out.stats().notSeen;
       return;
     }
-    out.add(BatchRay{cam.position, *primalDir, pixel.value, clip}).adjointDir = *adjointDir;
+    out.add(BatchRay{cam.position, *primalDir, pixel.value, clip}, frame).adjointDir = *adjointDir;
   }
 }
 
@@ -129,8 +134,7 @@ Batch TextureSpaceSampler::sample(uint64_t seed, uint64_t iteration, const Textu
       const uint32_t f = candidates[i];
       if (!usable_[f]) continue;
       ++out.stats().candidates;
-      const Frame& frame = (*frames_.frames)[f];
-      const Camera& cam = frame.camera;
+      const Camera& cam = (*frames_.frames)[f].camera;
       const auto px = inView(cam, p, n);
       if (!px) {
         ++out.stats().notSeen;
@@ -158,7 +162,7 @@ Batch TextureSpaceSampler::sample(uint64_t seed, uint64_t iteration, const Textu
           continue;
         }
         for (int sample = 0; sample < s.samplesPerConnection; ++sample)
-          out.add(BatchRay{cam.position, dir, *reference, clipOf(frame)});
+          out.add(BatchRay{cam.position, dir, *reference, clipOf(*frames_.store, f)}, f);
         continue;
       }
       const auto stored = frames_.store->pixelAt(f, *px);
@@ -166,7 +170,7 @@ Batch TextureSpaceSampler::sample(uint64_t seed, uint64_t iteration, const Textu
         ++out.stats().masked;
         continue;
       }
-      appendPixelRays(out, cam, *stored, clipOf(frame), s.samplesPerConnection, rng);
+      appendPixelRays(out, f, cam, *stored, clipOf(*frames_.store, f), s.samplesPerConnection, rng);
     }
   };
   // A slot begins with a chain of dependent loads (texel list, texel map, triangle, its vertices,
@@ -233,7 +237,7 @@ Batch ImageSpaceSampler::sample(uint64_t seed, uint64_t iteration, int rays, con
         return;
       }
       for (int sample = 0; sample < samples; ++sample)
-        out.add(BatchRay{frame.camera.position, ray->second, *reference, clipOf(frame)});
+        out.add(BatchRay{frame.camera.position, ray->second, *reference, clipOf(*frames_.store, f)}, f);
       return;
     }
     // The pixel position is uniform in the image, so uniform within the pixel it falls in: with a
@@ -243,7 +247,7 @@ Batch ImageSpaceSampler::sample(uint64_t seed, uint64_t iteration, int rays, con
       ++out.stats().masked;
       return;
     }
-    appendPixelRays(out, frame.camera, *stored, clipOf(frame), samples, rng,
+    appendPixelRays(out, f, frame.camera, *stored, clipOf(*frames_.store, f), samples, rng,
                     frame.camera.filter.isUnitBox() ? std::optional<Vec3>(ray->second) : std::nullopt);
   };
   return sampleInChunks(frames_.usable.empty() ? 0 : rays, [&](size_t first, size_t count, Batch& out) {

@@ -19,8 +19,8 @@
 
 namespace relume {
 
-// The frames a sampler may use: cameras and clip thresholds, the cached pixels, and which frames
-// prepare kept.
+// The frames a sampler may use: cameras, the cached pixels (with their clip thresholds), and which
+// frames prepare kept.
 struct TrainingFrames {
   const std::vector<Frame>* frames = nullptr;
   const FrameStore* store = nullptr;
@@ -43,6 +43,7 @@ struct Batch {
   std::vector<BatchRay> rays;
   std::vector<uint32_t> slot;   // which drawn texel (or pixel) produced the ray
   std::vector<int> object;      // the object of the targeted surface point
+  std::vector<uint32_t> frame;  // the frame whose pixel is the ray's reference
   std::vector<uint32_t> texel;  // per slot: the texel drawn (texture-space sampler; empty for image space)
   SamplerStats stats;
   // Appends another texture-space batch: its slots follow this batch's (texel.size() of them).

@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "capture/frame_image.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
 #include "io/image.h"

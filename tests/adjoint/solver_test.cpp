@@ -6,27 +6,57 @@
 
 using namespace relume;
 
+namespace {
+BatchRay rayTo(const Color& reference, const ClipThresholds& clip = {}, const Color& gain = Color::Ones()) {
+  BatchRay r{Vec3::Zero(), Vec3::UnitZ(), reference, clip};
+  r.gain = gain;
+  return r;
+}
+}  // namespace
+
 TEST(Loss, OneSidedAtClipThresholds) {
   ClipThresholds clip{0.01f, 1.0f};
+  const BatchRay saturated = rayTo(Color::Constant(1.2f), clip), dark = rayTo(Color::Constant(0.0f), clip);
   // Saturated reference: an estimate above vmax is not penalised; below, the residual is measured
   // from vmax (not from the unknown true value), so the loss is continuous at vmax.
-  EXPECT_EQ(rayLoss(Color::Constant(1.5f), Color::Constant(1.2f), clip), 0.0f);
-  EXPECT_FLOAT_EQ(rayLoss(Color::Constant(0.5f), Color::Constant(1.2f), clip), 3 * 0.25f);
-  EXPECT_LT(rayLoss(Color::Constant(0.9999f), Color::Constant(1.2f), clip), 1e-6f);
-  EXPECT_LT(rayLossDelta(Color::Constant(0.5f), Color::Constant(1.2f), clip, 1.0f)[0], 0.0f);
-  EXPECT_EQ(lossResidualSlope(Color::Constant(1.5f), Color::Constant(1.2f), clip)[0], 0.0f);
-  EXPECT_EQ(lossResidualSlope(Color::Constant(0.5f), Color::Constant(1.2f), clip)[0], 1.0f);
+  EXPECT_EQ(rayLoss(Color::Constant(1.5f), saturated), 0.0f);
+  EXPECT_FLOAT_EQ(rayLoss(Color::Constant(0.5f), saturated), 3 * 0.25f);
+  EXPECT_LT(rayLoss(Color::Constant(0.9999f), saturated), 1e-6f);
+  EXPECT_LT(rayLossDelta(Color::Constant(0.5f), saturated, 1.0f)[0], 0.0f);
+  EXPECT_EQ(lossResidualSlope(Color::Constant(1.5f), saturated)[0], 0.0f);
+  EXPECT_EQ(lossResidualSlope(Color::Constant(0.5f), saturated)[0], 1.0f);
   // Dark reference below vmin: an estimate also below is not penalised, one above from vmin.
-  EXPECT_EQ(rayLoss(Color::Constant(0.005f), Color::Constant(0.0f), clip), 0.0f);
-  EXPECT_FLOAT_EQ(rayLoss(Color(0.31f, 0.01f, 0.01f), Color::Constant(0.0f), clip), 0.09f);
-  EXPECT_FLOAT_EQ(rayLoss(Color(0.3f, 0.3f, 0.3f), Color(0.1f, 0.3f, 0.5f), {}), 0.08f);
+  EXPECT_EQ(rayLoss(Color::Constant(0.005f), dark), 0.0f);
+  EXPECT_FLOAT_EQ(rayLoss(Color(0.31f, 0.01f, 0.01f), dark), 0.09f);
+  EXPECT_FLOAT_EQ(rayLoss(Color(0.3f, 0.3f, 0.3f), rayTo(Color(0.1f, 0.3f, 0.5f))), 0.08f);
   EXPECT_TRUE(
-      rayLossDelta(Color(0.3f, 0.3f, 0.3f), Color(0.1f, 0.3f, 0.5f), {}, 0.5f).isApprox(Color(0.2f, 0.0f, -0.2f)));
+      rayLossDelta(Color(0.3f, 0.3f, 0.3f), rayTo(Color(0.1f, 0.3f, 0.5f)), 0.5f).isApprox(Color(0.2f, 0.0f, -0.2f)));
   // Continuous where the estimate crosses a bound: a clipped reference is pulled to the bound.
   for (const auto& [reference, bound] : {std::pair{1.2f, 1.0f}, std::pair{0.0f, 0.01f}}) {
-    EXPECT_LT(rayLoss(Color::Constant(bound - 1e-4f), Color::Constant(reference), clip), 1e-7f);
-    EXPECT_LT(rayLoss(Color::Constant(bound + 1e-4f), Color::Constant(reference), clip), 1e-7f);
+    EXPECT_LT(rayLoss(Color::Constant(bound - 1e-4f), rayTo(Color::Constant(reference), clip)), 1e-7f);
+    EXPECT_LT(rayLoss(Color::Constant(bound + 1e-4f), rayTo(Color::Constant(reference), clip)), 1e-7f);
   }
+}
+
+// The frame's gain scales the prediction: r = g x estimate - reference, dr/d estimate = g, and the
+// clip thresholds bound g x estimate (the frame's values), not the estimate.
+TEST(Loss, TheFrameGainScalesThePrediction) {
+  const Color gain(2.0f, 1.0f, 0.5f);
+  const BatchRay ray = rayTo(Color(1.0f, 1.0f, 1.0f), {}, gain);
+  EXPECT_TRUE(lossResidual(Color::Constant(0.5f), ray).isApprox(Color(0.0f, -0.5f, -0.75f)));
+  EXPECT_TRUE(lossResidualSlope(Color::Constant(0.5f), ray).isApprox(gain));
+  // Saturated at 1 in the frame: an estimate of 0.6 predicts 1.2 in red (above: no loss) and 0.3 in blue.
+  const BatchRay clipped = rayTo(Color::Constant(1.0f), {0.0f, 1.0f}, gain);
+  const Color r = lossResidual(Color::Constant(0.6f), clipped);
+  EXPECT_EQ(r[0], 0.0f);
+  EXPECT_FLOAT_EQ(r[2], 0.3f - 1.0f);
+  EXPECT_EQ(lossResidualSlope(Color::Constant(0.6f), clipped)[0], 0.0f);
+  EXPECT_EQ(lossResidualSlope(Color::Constant(0.6f), clipped)[2], 0.5f);
+  // The delta is the derivative of the loss in the prediction; times the slope, in the estimate.
+  const float eps = 1e-3f;
+  const Color e = Color::Constant(0.7f);
+  const float numeric = (rayLoss(e + Color(eps, 0, 0), ray) - rayLoss(e - Color(eps, 0, 0), ray)) / (2 * eps);
+  EXPECT_NEAR((rayLossDelta(e, ray, 1.0f) * lossResidualSlope(e, ray))[0], numeric, 1e-3f);
 }
 
 namespace {

@@ -2,6 +2,7 @@
 
 #include <fstream>
 
+#include "capture/frame_image.h"
 #include "capture/transforms.h"
 #include "core/error.h"
 
@@ -157,9 +158,9 @@ TEST(Transforms, NanPixelsAreMaskedAndCounted) {
   f.camera.width = 4, f.camera.height = 2;
   f.image = dir / "nan.exr";
   f.exposure = 2.0f;
-  ImageReadStats stats;
-  const Image loaded = loadFrameImage(f, &stats);
-  EXPECT_EQ(stats.nonFinitePixels, 2u);
+  const FrameImage frame = loadFrame(f);
+  const Image& loaded = frame.image;
+  EXPECT_EQ(frame.read.nonFinitePixels, 2u);
   EXPECT_EQ(loaded.at(1, 1)[0], kMaskedPixel);
   EXPECT_EQ(loaded.at(2, 0)[1], kMaskedPixel);
   EXPECT_TRUE(loaded.at(0, 0).isApprox(Color(1, 2, 3)));  // divided by the exposure

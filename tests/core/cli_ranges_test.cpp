@@ -34,7 +34,7 @@ TEST(Cli, NumericOptionsAreRangeChecked) {
       {"prepare /tmp --out /tmp/relume_cli_x --tile 0", "--tile: 0 is not in [1, 4096]"},
       {"prepare /tmp --out /tmp/relume_cli_x --gutter-res 0", "--gutter-res: 0 is not in [1, 65536]"},
       {"prepare /tmp --out /tmp/relume_cli_x --max-overexposed nan", "--max-overexposed: nan is not in [0, 1]"},
-      {"prepare /tmp --out /tmp/relume_cli_x --downscale 0", "--downscale: 0 is not in [1, 256]"},
+      {"prepare /tmp --out /tmp/relume_cli_x --downscale 0", "--downscale: 0 is not in [1, 64]"},
       {"gradcheck --emission-scale 1e38", "--emission-scale: 1e38 is not in"},
       {"gradcheck --eps nan", "--eps: nan is not in"},
       {"gradcheck --batches 1", "--batches: 1 is not in [2, 1048576]"},

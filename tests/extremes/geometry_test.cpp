@@ -27,7 +27,7 @@ void expectPlainMeanLoss(const Scene& scene, const Appearance& a, const std::vec
   EXPECT_TRUE(allFinite(g));
   const std::vector<Color> est = estimates(scene, a, rays, 4);
   double mean = 0;
-  for (size_t j = 0; j < rays.size(); ++j) mean += rayLoss(est[j], rays[j].reference, rays[j].clip) / rays.size();
+  for (size_t j = 0; j < rays.size(); ++j) mean += rayLoss(est[j], rays[j]) / rays.size();
   EXPECT_NEAR(loss, mean, 1e-5 * mean);
   EXPECT_GT(mean, 0.0);
 }

@@ -3,6 +3,7 @@
 
 #include <set>
 
+#include "capture/frame_image.h"
 #include "scenes/synth.h"
 #include "render/film.h"
 

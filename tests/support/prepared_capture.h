@@ -2,6 +2,7 @@
 // DIR/work) at one texture resolution. CTest runs tests in parallel processes: each names its own.
 #pragma once
 #include <filesystem>
+#include <functional>
 #include <string>
 
 #include "product/prepare.h"
@@ -9,11 +10,14 @@
 
 namespace relume {
 
-inline std::filesystem::path preparedCapture(const std::string& name, SynthCaptureOptions capture, int resolution) {
+// `alter`, when given, changes the capture folder before it is prepared.
+inline std::filesystem::path preparedCapture(const std::string& name, SynthCaptureOptions capture, int resolution,
+                                             const std::function<void(const std::filesystem::path&)>& alter = {}) {
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("relume_" + name);
   std::filesystem::remove_all(dir);
   capture.out = dir / "capture";
   writeSynthCapture(capture);
+  if (alter) alter(capture.out);
   PrepareOptions po;
   po.resolutions = {resolution};
   po.atlas.gutterResolution = resolution;

@@ -451,6 +451,8 @@ Frame writeFlawedFrame(const ImperfectionSpec& flaws, const FrameImperfection& p
 }  // namespace
 
 int writeSynthCapture(const SynthCaptureOptions& o) {
+  if (o.imperfections)  // a spec that leaves no frame fails before anything is written
+    (void)planFrameImperfections(*o.imperfections, std::vector<Camera>(o.frames), o.seed);
   const SynthScene synth = makeSynthScene(o.kind, o.atlasResolution, o.scanTriangles);
   const SceneDescription& gt = synth.scene;
   std::filesystem::create_directories(o.out / "gt");
@@ -482,7 +484,8 @@ int writeSynthCapture(const SynthCaptureOptions& o) {
     for (size_t i = 0; i < cams.size(); ++i) {
       const std::filesystem::path exrPath = o.out / folder / fmt::format("frame_{:04d}.exr", i);
       if (flaws && plan[i].leftOut) {  // not rendered; an earlier capture's files go
-        for (const char* ext : {".exr", ".png"}) std::filesystem::remove(std::filesystem::path(exrPath).replace_extension(ext));
+        for (const char* ext : {".exr", ".png"})
+          std::filesystem::remove(std::filesystem::path(exrPath).replace_extension(ext));
         progress.advance();
         continue;
       }

@@ -34,16 +34,16 @@ enum class RandomStream : uint64_t {
 inline constexpr uint64_t streamTag(RandomStream s) { return static_cast<uint64_t>(s); }
 
 namespace detail {
-inline constexpr std::array kAllRandomStreams{RandomStream::FilmPixel,      RandomStream::PrimalPass,
-                                              RandomStream::AdjointPass,    RandomStream::TextureSampler,
-                                              RandomStream::ImageSampler,   RandomStream::HighlightProbe,
-                                              RandomStream::MaterialBatch,  RandomStream::HighlightBatch,
-                                              RandomStream::EmissionBatch,  RandomStream::LightDecision,
-                                              RandomStream::ReflectorBound, RandomStream::MirrorPath,
-                                              RandomStream::ExperimentRays, RandomStream::ExperimentPerturbation,
-                                              RandomStream::LeakRays,       RandomStream::SynthPose,
+inline constexpr std::array kAllRandomStreams{RandomStream::FilmPixel,         RandomStream::PrimalPass,
+                                              RandomStream::AdjointPass,       RandomStream::TextureSampler,
+                                              RandomStream::ImageSampler,      RandomStream::HighlightProbe,
+                                              RandomStream::MaterialBatch,     RandomStream::HighlightBatch,
+                                              RandomStream::EmissionBatch,     RandomStream::LightDecision,
+                                              RandomStream::ReflectorBound,    RandomStream::MirrorPath,
+                                              RandomStream::ExperimentRays,    RandomStream::ExperimentPerturbation,
+                                              RandomStream::LeakRays,          RandomStream::SynthPose,
                                               RandomStream::SynthWhiteBalance, RandomStream::SynthExposureDrift,
-                                              RandomStream::SynthSensorNoise, RandomStream::SynthMeshNoise,
+                                              RandomStream::SynthSensorNoise,  RandomStream::SynthMeshNoise,
                                               RandomStream::SynthMissingFrames};
 constexpr bool allTagsDistinct() {
   for (size_t i = 0; i < kAllRandomStreams.size(); ++i)

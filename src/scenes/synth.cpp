@@ -414,6 +414,8 @@ double writeCaptureMesh(const SynthCaptureOptions& o, const SceneDescription& gt
     }
     if (!flaws->segmentation) capMesh.faceObject.clear();
   }
+  if (!o.imperfections || !o.imperfections->meshNoise)
+    std::filesystem::remove(o.out / "gt" / "mesh_clean.ply");  // an earlier capture's
   writePly(o.out / "mesh.ply", capMesh);
   return largestOffset;
 }

@@ -56,10 +56,13 @@ std::optional<double> number(std::string_view token) {
   return v;
 }
 
-double numberIn(std::string_view key, std::string_view what, std::string_view token, double lo, double hi) {
+// `unit` (with its space) ends the bounds of the message: "must be in [0, 100] cm".
+double numberIn(std::string_view key, std::string_view what, std::string_view token, double lo, double hi,
+                std::string_view unit = "") {
   const auto v = number(token);
   if (!v) fail("imperfection '{}': {} '{}' is not a number", key, what, token);
-  if (!(*v >= lo && *v <= hi)) fail("imperfection '{}': {} is {}, must be in [{:g}, {:g}]", key, what, *v, lo, hi);
+  if (!(*v >= lo && *v <= hi))
+    fail("imperfection '{}': {} is {}, must be in [{:g}, {:g}]{}", key, what, *v, lo, hi, unit);
   return *v;
 }
 
@@ -72,7 +75,7 @@ Q quantity(std::string_view key, std::string_view what, std::string_view token,
     if (token.size() <= u.size() || token.substr(token.size() - u.size()) != u) continue;
     const std::string_view digits = token.substr(0, token.size() - u.size());
     if (!number(digits)) break;
-    const double v = numberIn(key, what, digits, 0.0, hiSi / factor);
+    const double v = numberIn(key, what, digits, 0.0, hiSi / factor, fmt::format(" {}", u));
     return Q{v, std::string(u)};
   }
   if (number(token)) fail("imperfection '{}': {} '{}' needs a unit ({})", key, what, token, allowed);
@@ -181,6 +184,11 @@ double Angle::radians() const { return unit == "deg" ? value * kPi / 180.0 : val
 ImperfectionSpec parseImperfections(std::string_view spec) {
   ImperfectionSpec s;
   if (trim(spec).empty()) return s;
+  // Errors quote the spec: a control character (a newline) would break them over lines.
+  const auto control = std::find_if(spec.begin(), spec.end(), [](char c) { return c >= 0 && c < 0x20 && c != '\t'; });
+  if (control != spec.end())
+    fail("imperfection spec has control character {:#04x} at byte {} (printable KEY=VALUE items separated by ';')",
+         static_cast<int>(*control), control - spec.begin());
   std::vector<std::string_view> seen;
   for (std::string_view item : split(spec, ';')) {
     if (item.empty()) fail("imperfection spec '{}' has an empty item (KEY=VALUE items separated by ';')", spec);

@@ -78,9 +78,9 @@ TEST(ImperfectSpec, EveryMalformedSpecIsAOneLineErrorNamingTheKey) {
       {"pose=1km,0.3deg", "translation '1km' must be a number with a unit (mm, cm or m)"},
       {"pose=1cm", "'pose': expected D,A"},
       {"pose=1cm,0.3deg,2", "'pose': expected D,A"},
-      {"pose=-1cm,0.3deg", "'pose': translation is -1, must be in [0, 100]"},
+      {"pose=-1cm,0.3deg", "'pose': translation is -1, must be in [0, 100] cm"},
       {"pose=2m,0.3deg", "translation is 2, must be in [0, 1]"},
-      {"pose=1cm,90deg", "rotation is 90, must be in [0, 45]"},
+      {"pose=1cm,90deg", "rotation is 90, must be in [0, 45] deg"},
       {"pose=nancm,1deg", "must be a number with a unit"},
       {"bracket=1,,2", "'bracket': empty number"},
       {"bracket=1,x", "'bracket': stop 'x' is not a number"},
@@ -96,11 +96,12 @@ TEST(ImperfectSpec, EveryMalformedSpecIsAOneLineErrorNamingTheKey) {
       {"ldr=12", "'ldr': bit depth '12' must be 8 or 16"},
       {"ldr=eight", "'ldr': bit depth 'eight' must be 8 or 16"},
       {"mesh=5", "'mesh': displacement '5' needs a unit"},
-      {"mesh=1m", "'mesh': displacement is 1, must be in [0, 0.5]"},
+      {"mesh=1m", "'mesh': displacement is 1, must be in [0, 0.5] m"},
       {"segmentation=some", "'segmentation': 'some' is not allowed (only 'none')"},
       {"missing=99", "'missing': percentage is 99, must be in [0, 95]"},
       {"missing=9%", "'missing': percentage '9%' is not a number"},
       {"=3", "imperfection '' is unknown"},
+      {"wb=0.1\nldr=8", "control character 0x0a at byte 6"},
   };
   for (const auto& [spec, message] : cases) {
     const std::string e = errorOf(spec);

@@ -4,6 +4,7 @@
 
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <map>
 #include <stdexcept>
 
@@ -16,6 +17,7 @@
 #include "sampling/visibility.h"
 #include "scene/appearance.h"
 #include "scene/mesh.h"
+#include "scenes/imperfections.h"
 
 namespace relume::fuzz {
 namespace fs = std::filesystem;
@@ -83,6 +85,16 @@ void touchCheckpoint(const fs::path& file) {
   (void)c.bytes("albedo");
 }
 
+// `synth --imperfect SPEC`: a spec that parses must survive its canonical form unchanged.
+void parseImperfectionSpec(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  const std::string spec((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const ImperfectionSpec parsed = parseImperfections(spec);
+  const std::string canonical = toString(parsed);
+  if (!(parseImperfections(canonical) == parsed) || toString(parseImperfections(canonical)) != canonical)
+    throw std::logic_error("imperfection spec '" + spec + "' does not round-trip through '" + canonical + "'");
+}
+
 const std::map<std::string, Reader>& readers() {
   static const std::map<std::string, Reader> table = {
       {"ply", {"input.ply", [](const fs::path& f) { (void)loadMesh(f); }}},
@@ -94,6 +106,7 @@ const std::map<std::string, Reader>& readers() {
       {"frames", {"frames.bin", touchFrameStore}},
       {"visibility", {"visibility.bin", touchVisibility}},
       {"checkpoint", {"checkpoint.bin", touchCheckpoint}},
+      {"imperfections", {"imperfections.txt", parseImperfectionSpec}},
   };
   return table;
 }

@@ -370,9 +370,16 @@ CommandTable registerCommands(CLI::App& app) {
                    "the frames' pixel filter, TYPE[:WIDTH]: box (width 1), gaussian or blackman-harris (Cycles' "
                    "definitions, width 1.5)")
       ->capture_default_str();
+  auto imperfect = std::make_shared<std::string>();
+  CLI::Option* imperfectOption = synth->add_option(
+      "--imperfect", *imperfect,
+      "a hand-held camera's flaws in the training frames, truth in gt/imperfections.json: KEY=VALUE;... with keys "
+      "pose=D,A bracket=E1,E2,.. wb=S exposure-drift=S noise=F,R ldr=8|16 mesh=D segmentation=none missing=P "
+      "(docs/user/commands.md#imperfect-captures)");
   table[synth] = [=] {
     synthArgs->kind = parseSynthScene(*synthScene);
     synthArgs->pixelFilter = PixelFilter::parseSpec(*synthFilter);
+    if (imperfectOption->count()) synthArgs->imperfections = parseImperfections(*imperfect);
     synthArgs->out = *outDir;
     const int n = writeSynthCapture(*synthArgs);
     spdlog::info("wrote {} frames of '{}' to {}", n, *synthScene, *outDir);

@@ -23,19 +23,28 @@ enum class RandomStream : uint64_t {
   ExperimentRays = 0x7261,          // lab/experiment.cpp: a gradient experiment's rays
   ExperimentPerturbation = 0x7065,  // lab/experiment.cpp: its current parameters' perturbation
   LeakRays = 0x6c65,                // lab/profile.cpp: the edge-leak study's rays
+  SynthPose = 0x737031,             // scenes/imperfections.cpp: a training frame's written pose
+  SynthWhiteBalance = 0x737032,     // scenes/imperfections.cpp: a frame's white-balance gains
+  SynthExposureDrift = 0x737033,    // scenes/imperfections.cpp: a frame's auto-exposure gain
+  SynthSensorNoise = 0x737034,      // scenes/imperfections.cpp: a frame's shot and read noise
+  SynthMeshNoise = 0x737035,        // scenes/imperfections.cpp: a mesh vertex's displacement
+  SynthMissingFrames = 0x737036,    // scenes/imperfections.cpp: which training frames are left out
 };
 
 inline constexpr uint64_t streamTag(RandomStream s) { return static_cast<uint64_t>(s); }
 
 namespace detail {
-inline constexpr std::array kAllRandomStreams{RandomStream::FilmPixel,      RandomStream::PrimalPass,
-                                              RandomStream::AdjointPass,    RandomStream::TextureSampler,
-                                              RandomStream::ImageSampler,   RandomStream::HighlightProbe,
-                                              RandomStream::MaterialBatch,  RandomStream::HighlightBatch,
-                                              RandomStream::EmissionBatch,  RandomStream::LightDecision,
-                                              RandomStream::ReflectorBound, RandomStream::MirrorPath,
-                                              RandomStream::ExperimentRays, RandomStream::ExperimentPerturbation,
-                                              RandomStream::LeakRays};
+inline constexpr std::array kAllRandomStreams{RandomStream::FilmPixel,         RandomStream::PrimalPass,
+                                              RandomStream::AdjointPass,       RandomStream::TextureSampler,
+                                              RandomStream::ImageSampler,      RandomStream::HighlightProbe,
+                                              RandomStream::MaterialBatch,     RandomStream::HighlightBatch,
+                                              RandomStream::EmissionBatch,     RandomStream::LightDecision,
+                                              RandomStream::ReflectorBound,    RandomStream::MirrorPath,
+                                              RandomStream::ExperimentRays,    RandomStream::ExperimentPerturbation,
+                                              RandomStream::LeakRays,          RandomStream::SynthPose,
+                                              RandomStream::SynthWhiteBalance, RandomStream::SynthExposureDrift,
+                                              RandomStream::SynthSensorNoise,  RandomStream::SynthMeshNoise,
+                                              RandomStream::SynthMissingFrames};
 constexpr bool allTagsDistinct() {
   for (size_t i = 0; i < kAllRandomStreams.size(); ++i)
     for (size_t j = i + 1; j < kAllRandomStreams.size(); ++j)

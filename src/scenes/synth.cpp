@@ -399,18 +399,69 @@ std::vector<Camera> synthCameraPath(SynthSceneKind kind, int frames, int width, 
   return cams;
 }
 
+namespace {
+
+// mesh.ply: the true mesh, or with imperfections a scanned-looking one (the clean capture's mesh
+// kept as gt/mesh_clean.ply) and, if asked, without the segmentation. Returns the largest vertex offset.
+double writeCaptureMesh(const SynthCaptureOptions& o, const SceneDescription& gt) {
+  MeshData capMesh = gt.mesh.toData();
+  if (!o.withUv) capMesh.uvs.clear();
+  double largestOffset = 0;
+  if (const auto& flaws = o.imperfections) {
+    if (flaws->meshNoise) {
+      writePly(o.out / "gt" / "mesh_clean.ply", capMesh);
+      largestOffset = displaceVertices(capMesh, *flaws->meshNoise, o.seed);
+    }
+    if (!flaws->segmentation) capMesh.faceObject.clear();
+  }
+  if (!o.imperfections || !o.imperfections->meshNoise)
+    std::filesystem::remove(o.out / "gt" / "mesh_clean.ply");  // an earlier capture's
+  writePly(o.out / "mesh.ply", capMesh);
+  return largestOffset;
+}
+
+// objects.json: the segmentation's names, as a capture would carry them (none with segmentation=none).
+void writeObjectNames(const SynthCaptureOptions& o, const Appearance& a) {
+  if (o.imperfections && !o.imperfections->segmentation) {
+    std::filesystem::remove(o.out / "objects.json");  // an earlier capture's in the same folder
+    return;
+  }
+  Json objects = Json::array();
+  for (int id = 0; id < a.objectCount(); ++id) objects.push_back({{"id", id}, {"name", a.names[id]}});
+  writeJson(o.out / "objects.json", Json{{"objects", objects}});
+}
+
+// A training frame as the flawed camera delivers it: sensor applied to the true radiance, written as
+// EXR or (ldr) PNG, under its written pose and recorded exposure.
+Frame writeFlawedFrame(const ImperfectionSpec& flaws, const FrameImperfection& plan, uint64_t seed,
+                       const std::filesystem::path& exrPath, Image radiance) {
+  applySensor(flaws, plan, seed, radiance);
+  Frame f;
+  f.camera = plan.writtenPose;
+  f.exposure = plan.exposure;
+  f.exposureRecorded = plan.exposureRecorded;
+  const std::filesystem::path pngPath = std::filesystem::path(exrPath).replace_extension(".png");
+  f.image = flaws.ldrBits ? pngPath : exrPath;
+  std::filesystem::remove(flaws.ldrBits ? exrPath : pngPath);  // an earlier capture's frame in the other format
+  if (flaws.ldrBits)
+    writeSrgbPng(f.image, radiance, *flaws.ldrBits);
+  else
+    writeExr(f.image, radiance);
+  return f;
+}
+
+}  // namespace
+
 int writeSynthCapture(const SynthCaptureOptions& o) {
+  if (o.imperfections)  // a spec that leaves no frame fails before anything is written
+    (void)planFrameImperfections(*o.imperfections, std::vector<Camera>(o.frames), o.seed);
   const SynthScene synth = makeSynthScene(o.kind, o.atlasResolution, o.scanTriangles);
   const SceneDescription& gt = synth.scene;
   std::filesystem::create_directories(o.out / "gt");
   saveSceneFile(o.out / "gt" / "scene.json", gt);
-  MeshData capMesh = gt.mesh.toData();
-  if (!o.withUv) capMesh.uvs.clear();
-  writePly(o.out / "mesh.ply", capMesh);
-  Json objects = Json::array();  // the segmentation's names, as a capture would carry them
-  for (int id = 0; id < gt.appearance.objectCount(); ++id)
-    objects.push_back({{"id", id}, {"name", gt.appearance.names[id]}});
-  writeJson(o.out / "objects.json", Json{{"objects", objects}});
+  const double largestVertexOffset = writeCaptureMesh(o, gt);
+  writeObjectNames(o, gt.appearance);
+  if (!o.imperfections) std::filesystem::remove(o.out / "gt" / "imperfections.json");  // an earlier capture's
 
   Scene scene(gt.mesh);
   LightSampler lights(scene, gt.appearance);
@@ -419,6 +470,7 @@ int writeSynthCapture(const SynthCaptureOptions& o) {
   int rendered = 0;
   const int testWidth = o.testWidth > 0 ? o.testWidth : o.width,
             testHeight = o.testHeight > 0 ? o.testHeight : o.height;
+  std::vector<FrameImperfection> plan;
   for (const auto& [folder, json, count, phase, spp, width, height] :
        {std::tuple{"images", "transforms.json", o.frames, 0.0, o.spp, o.width, o.height},
         std::tuple{"test", "transforms_test.json", o.testFrames, 0.5, o.testSpp, testWidth, testHeight}}) {
@@ -426,14 +478,29 @@ int writeSynthCapture(const SynthCaptureOptions& o) {
     std::vector<Frame> frames;
     auto cams = synthCameraPath(o.kind, count, width, height, phase);
     for (Camera& cam : cams) cam.filter = o.pixelFilter;
-    Progress progress(std::string(folder) == "images" ? "synth frames" : "synth held-out", cams.size());
+    // Only the training frames have flaws: the held-out ones are the judge.
+    const bool training = std::string(folder) == "images";
+    const ImperfectionSpec* flaws = training && o.imperfections ? &*o.imperfections : nullptr;
+    if (flaws) plan = planFrameImperfections(*flaws, cams, o.seed);
+    Progress progress(training ? "synth frames" : "synth held-out", cams.size());
     for (size_t i = 0; i < cams.size(); ++i) {
+      const std::filesystem::path exrPath = o.out / folder / fmt::format("frame_{:04d}.exr", i);
+      if (flaws && plan[i].leftOut) {  // not rendered; an earlier capture's files go
+        for (const char* ext : {".exr", ".png"})
+          std::filesystem::remove(std::filesystem::path(exrPath).replace_extension(ext));
+        progress.advance();
+        continue;
+      }
       ro.seed = hashTuple({o.seed, static_cast<uint64_t>(phase * 2), i});
       const RenderResult r = renderImage(scene, gt.appearance, lights, cams[i], ro);
       Frame f;
-      f.camera = cams[i];
-      f.image = o.out / folder / fmt::format("frame_{:04d}.exr", i);
-      writeExr(f.image, r.color);
+      if (flaws) {
+        f = writeFlawedFrame(*flaws, plan[i], o.seed, exrPath, r.color);
+      } else {
+        f.camera = cams[i];
+        f.image = exrPath;
+        writeExr(f.image, r.color);
+      }
       frames.push_back(f);
       ++rendered;
       spdlog::info("{} {}/{} rendered ({:.1f}s, {:.2f} Mrays/s)", folder, i + 1, cams.size(), r.stats.seconds,
@@ -442,6 +509,9 @@ int writeSynthCapture(const SynthCaptureOptions& o) {
     }
     writeTransforms(o.out / json, frames);
   }
+  if (o.imperfections)
+    writeJson(o.out / "gt" / "imperfections.json",
+              imperfectionsJson(*o.imperfections, o.seed, plan, largestVertexOffset));
   return rendered;
 }
 

@@ -6,6 +6,7 @@
 #include "capture/transforms.h"
 #include "render/path_tracer.h"
 #include "scene/appearance.h"
+#include "scenes/imperfections.h"
 
 namespace relume {
 
@@ -52,10 +53,14 @@ struct SynthCaptureOptions {
   int atlasResolution = 1024;
   size_t scanTriangles = 1000000;
   PixelFilter pixelFilter;  // the frames' pixel filter (box: relume's own; Cycles' default: Blackman-Harris 1.5)
+  // A hand-held camera's flaws in the training frames, their truth in gt/imperfections.json
+  // (scenes/imperfections.h). Absent: the clean capture, byte for byte as before.
+  std::optional<ImperfectionSpec> imperfections;
 };
 
-// Writes mesh.ply, transforms.json, transforms_test.json, images/, test/, gt/ (scene.json,
-// textures, uv-mapped mesh). Returns the number of rendered frames.
+// Writes mesh.ply, objects.json, transforms.json, transforms_test.json, images/, test/, gt/
+// (scene.json, textures, uv-mapped mesh; with imperfections also imperfections.json and, with mesh
+// noise, mesh_clean.ply). Returns the number of rendered frames.
 int writeSynthCapture(const SynthCaptureOptions& options);
 
 }  // namespace relume

@@ -19,6 +19,7 @@ TEST(Demo, TrainsOnSynthsDefaultFramesAndOnlyTheHeldOutViewsDiffer) {
   EXPECT_EQ(d.withUv, s.withUv);
   EXPECT_EQ(d.atlasResolution, s.atlasResolution);
   EXPECT_TRUE(d.pixelFilter.isUnitBox());
+  EXPECT_FALSE(d.imperfections);  // a clean capture
   // Held-out views: fewer pixels, fewer samples, the same walk.
   EXPECT_EQ(d.testFrames, s.testFrames);
   EXPECT_EQ(d.testWidth * s.height, d.testHeight * s.width);  // same aspect, so the same field of view

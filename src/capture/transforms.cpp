@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "core/error.h"
+#include "io/file_system.h"
 #include "io/json.h"
 
 namespace relume {
@@ -15,6 +16,9 @@ constexpr double kMaxFocal = 1e7;               // pixels
 constexpr double kMaxPrincipalOffset = 10.0;    // |c - size/2| <= this many image sizes
 constexpr double kMaxPosition = 1e6;            // metres, per coordinate
 constexpr double kOrthonormalTolerance = 1e-3;  // on every entry of R^T R - I, and on det R - 1
+// Radiance is pixel / exposure: at exposure 1e-8 a pixel of 1 is radiance 1e8, the largest a scene
+// may emit (kMaxEmission, scene/appearance.h); the bound is symmetric.
+constexpr double kMinExposure = 1e-8, kMaxExposure = 1e8;
 
 struct Intrinsics {
   std::optional<double> fx, fy, cx, cy, w, h, k1, k2, p1, p2, k3, exposure, clipLow, clipHigh;
@@ -149,7 +153,8 @@ static Capture parseTransforms(const std::filesystem::path& path) {
     fr.image = dir / f["file_path"].get<std::string>();
     fr.exposure = static_cast<float>(in.exposure.value_or(1.0));
     fr.exposureRecorded = in.exposure.has_value();
-    if (!(fr.exposure > 0)) fail("{}: exposure must be positive", where);
+    if (!(fr.exposure >= kMinExposure && fr.exposure <= kMaxExposure))
+      fail("{}: 'exposure' is {}, must be in [{:g}, {:g}]", where, fr.exposure, kMinExposure, kMaxExposure);
     if (in.clipLow) fr.clipLow = static_cast<float>(*in.clipLow);
     if (in.clipHigh) fr.clipHigh = static_cast<float>(*in.clipHigh);
     cap.frames.push_back(fr);
@@ -169,7 +174,7 @@ void writeTransforms(const std::filesystem::path& path, const std::vector<Frame>
     const Camera& c = fr.camera;
     Json f;
     if (!(c.filter == common)) f["pixel_filter"] = filterJson(c.filter);
-    f["file_path"] = std::filesystem::relative(fr.image, path.parent_path()).generic_string();
+    f["file_path"] = relativePath(fr.image, path.parent_path()).generic_string();
     f["fl_x"] = c.fx;
     f["fl_y"] = c.fy;
     f["cx"] = c.cx;
@@ -195,13 +200,17 @@ void writeTransforms(const std::filesystem::path& path, const std::vector<Frame>
 
 Image loadFrameImage(const Frame& frame, ImageReadStats* stats) {
   ImageReadStats local;
-  Image img = readImage(frame.image, &local);
+  Image img = readImage(frame.image, &local);  // NaN/Inf pixels read as 0, and listed
   if (img.width != frame.camera.width || img.height != frame.camera.height)
     fail("{}: image is {}x{} but transforms.json says {}x{}", frame.image.string(), img.width, img.height,
          frame.camera.width, frame.camera.height);
-  if (local.nonFinitePixels) spdlog::warn("{}: {} NaN/Inf pixels masked", frame.image.string(), local.nonFinitePixels);
   const float inv = 1.0f / frame.exposure;
   for (float& v : img.rgb) v *= inv;
+  // A huge finite pixel may overflow once divided by a small exposure: masked like NaN/Inf on disk.
+  for (size_t i = 0; i < img.rgb.size() / 3; ++i)
+    if (!std::isfinite(img.rgb[3 * i]) || !std::isfinite(img.rgb[3 * i + 1]) || !std::isfinite(img.rgb[3 * i + 2]))
+      local.nonFiniteIndex.push_back(i), ++local.nonFinitePixels;
+  if (local.nonFinitePixels) spdlog::warn("{}: {} NaN/Inf pixels masked", frame.image.string(), local.nonFinitePixels);
   for (size_t i : local.nonFiniteIndex) img.rgb[3 * i] = img.rgb[3 * i + 1] = img.rgb[3 * i + 2] = kMaskedPixel;
   if (stats) *stats = local;
   return img;

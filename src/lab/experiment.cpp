@@ -54,6 +54,7 @@ GradientExperiment makeGradientExperiment(SceneDescription truth, const std::vec
   GradientExperiment e{std::move(truth), Appearance(), {}};
   Appearance& a = e.truth.appearance;
   for (Color& c : a.emission) c *= o.emissionScale;
+  requireEmissionBound(a, fmt::format("emission scale {:g}", o.emissionScale));
   if (o.emissionTextures && a.emissionTextures.empty())
     allocateEmissionTextures(a, e.truth.mesh, o.atlasResolution, [](float u, float v) { return 0.6f + 0.8f * u * v; });
   const Scene scene(e.truth.mesh);

@@ -7,6 +7,7 @@
 #include "core/error.h"
 #include "core/rng.h"
 #include "core/system.h"
+#include "io/file_system.h"
 #include "io/image.h"
 #include "render/film.h"
 
@@ -402,7 +403,7 @@ std::vector<Camera> synthCameraPath(SynthSceneKind kind, int frames, int width, 
 int writeSynthCapture(const SynthCaptureOptions& o) {
   const SynthScene synth = makeSynthScene(o.kind, o.atlasResolution, o.scanTriangles);
   const SceneDescription& gt = synth.scene;
-  std::filesystem::create_directories(o.out / "gt");
+  createDirectories(o.out / "gt");
   saveSceneFile(o.out / "gt" / "scene.json", gt);
   MeshData capMesh = gt.mesh.toData();
   if (!o.withUv) capMesh.uvs.clear();

@@ -36,7 +36,7 @@ Appearance perturbAppearance(const Appearance& a, uint64_t seed) {
   Appearance p = a;
   Pcg32 rng(seed);
   for (ParamGroup& g : paramGroups(p)) {
-    if (!std::isfinite(g.hi)) {  // unbounded (emission): a relative change
+    if (g.kind == ParamKind::Emission || g.kind == ParamKind::EmissionTexture) {  // radiance: a relative change
       for (float& v : g.values) v *= 0.8f;
     } else if (g.textured()) {  // towards the middle of the domain, keeping the texture's pattern
       for (float& v : g.values) v = g.lo + 0.7f * (v - g.lo) + 0.1f * (g.hi - g.lo);

@@ -36,7 +36,7 @@ TEST(EditNumbers, MeshScaleBeyondTheWorldIsRefused) {
   tri.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
   tri.triangles = {{0, 1, 2}};
   writePly(dir / "tri.ply", tri);  // creates dir
-  writeJson(dir / "edit.json", Json{{"add", {{{"mesh", "tri.ply"}, {"scale", 1e30}}}}});
+  writeJson(dir / "edit.json", Json{{"add", {{{"mesh", "tri.ply"}, {"scale", 1e10}}}}});
   SceneDescription desc = makeSynthScene(SynthSceneKind::Cornell, 64).scene;
   try {
     applySceneEdit(desc, dir / "edit.json");

@@ -34,13 +34,17 @@ FrameImage loadFrame(const Frame& frame, bool encodingClips) {
   if (img.width != frame.camera.width || img.height != frame.camera.height)
     fail("{}: image is {}x{} but the capture says {}x{}", frame.image.string(), img.width, img.height,
          frame.camera.width, frame.camera.height);
-  if (f.read.nonFinitePixels)
-    spdlog::warn("{}: {} NaN/Inf pixels masked", frame.image.string(), f.read.nonFinitePixels);
   if (f.read.bits == 0 && !frame.response.isDefault())
     spdlog::warn("{}: a float image is linear; the capture's response ({}) is not applied", frame.image.string(),
                  frame.response.describe());
   const float inv = 1.0f / frame.exposure;
   for (float& v : img.rgb) v = (f.read.bits ? frame.response.toLinear(v, f.read.fileSaysLinear) : v) * inv;
+  // A huge finite pixel may overflow once divided by a small exposure: masked like NaN/Inf on disk.
+  for (size_t i = 0; i < img.rgb.size() / 3; ++i)
+    if (!isFinite(img.at(static_cast<int>(i % img.width), static_cast<int>(i / img.width))))
+      f.read.nonFiniteIndex.push_back(i), ++f.read.nonFinitePixels;
+  if (f.read.nonFinitePixels)
+    spdlog::warn("{}: {} NaN/Inf pixels masked", frame.image.string(), f.read.nonFinitePixels);
   for (size_t i : f.read.nonFiniteIndex) img.rgb[3 * i] = img.rgb[3 * i + 1] = img.rgb[3 * i + 2] = kMaskedPixel;
   setClipThresholds(f, frame, encodingClips);
   return f;

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "core/error.h"
+#include "io/file_system.h"
 #include "io/json.h"
 
 namespace relume {
@@ -13,6 +14,9 @@ constexpr double kMaxFocal = 1e7;               // pixels
 constexpr double kMaxPrincipalOffset = 10.0;    // |c - size/2| <= this many image sizes
 constexpr double kMaxPosition = 1e6;            // metres, per coordinate
 constexpr double kOrthonormalTolerance = 1e-3;  // on every entry of R^T R - I, and on det R - 1
+// Radiance is pixel / exposure: at exposure 1e-8 a pixel of 1 is radiance 1e8, the largest a scene
+// may emit (kMaxEmission, scene/appearance.h); the bound is symmetric.
+constexpr double kMinExposure = 1e-8, kMaxExposure = 1e8;
 
 struct Intrinsics {
   std::optional<double> fx, fy, cx, cy, w, h, k1, k2, p1, p2, k3, exposure, clipLow, clipHigh;
@@ -150,7 +154,8 @@ static Capture parseTransforms(const std::filesystem::path& path) {
     fr.image = dir / f["file_path"].get<std::string>();
     fr.exposure = static_cast<float>(in.exposure.value_or(1.0));
     fr.exposureRecorded = in.exposure.has_value();
-    if (!(fr.exposure > 0)) fail("{}: exposure must be positive", where);
+    if (!(fr.exposure >= kMinExposure && fr.exposure <= kMaxExposure))
+      fail("{}: 'exposure' is {}, must be in [{:g}, {:g}]", where, fr.exposure, kMinExposure, kMaxExposure);
     if (in.clipLow) fr.clipLow = static_cast<float>(*in.clipLow);
     if (in.clipHigh) fr.clipHigh = static_cast<float>(*in.clipHigh);
     fr.response = response;
@@ -171,7 +176,7 @@ void writeTransforms(const std::filesystem::path& path, const std::vector<Frame>
     const Camera& c = fr.camera;
     Json f;
     if (!(c.filter == common)) f["pixel_filter"] = filterJson(c.filter);
-    f["file_path"] = std::filesystem::relative(fr.image, path.parent_path()).generic_string();
+    f["file_path"] = relativePath(fr.image, path.parent_path()).generic_string();
     f["fl_x"] = c.fx;
     f["fl_y"] = c.fy;
     f["cx"] = c.cx;

@@ -9,6 +9,7 @@
 #include "core/error.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
+#include "io/file_system.h"
 #include "lab/bench.h"
 #include "lab/gradcheck_command.h"
 #include "lab/profile_command.h"
@@ -38,6 +39,23 @@ CLI::Validator inRange(double lo, double hi) {
 }
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
+// CLI::ExistingFile and CLI::ExistingDirectory, except that a path which cannot be examined (a
+// symlink loop, a folder without permission) says why instead of "does not exist".
+CLI::Validator existingPath(bool folder) {
+  return CLI::Validator(
+      [folder](std::string& text) -> std::string {
+        try {
+          if (!pathExists(text)) return fmt::format("{}: not found", text);
+          if (isDirectory(text) != folder) return fmt::format("{}: {}", text, folder ? "not a folder" : "is a folder");
+        } catch (const Error& e) {
+          return e.what();
+        }
+        return "";
+      },
+      folder ? "FOLDER" : "FILE");
+}
+const CLI::Validator kExistingFile = existingPath(false), kExistingFolder = existingPath(true);
+
 // An option naming a value of enum E (core/enum_names.h): parsed here, once; any other text is
 // an error naming the option and the choices.
 template <typename E>
@@ -63,7 +81,7 @@ void registerPrepare(CLI::App& app, CommandTable& table) {
       app.add_subcommand("prepare", "build the texture-space data of a capture: atlas, frame cache, visibility, init");
   c->add_option("capture", *capture, "capture folder (mesh.ply|obj, transforms.json, images)")
       ->required()
-      ->check(CLI::ExistingDirectory);
+      ->check(kExistingFolder);
   c->add_option("--out", *work, "work folder")->required();
   c->add_option("--res", *res, "texture resolutions, coarse to fine (the first is the init resolution)")
       ->capture_default_str();
@@ -126,23 +144,22 @@ void registerProfile(CLI::App& app, CommandTable& table) {
                 "comma list of render, adjoint, pairing, scatter, leaks, visibility (+ texel maps), fit")
       ->capture_default_str();
   c->add_option("--work", a->work, "fit: a prepared work folder (default: the demo's room, prepared in --scratch)")
-      ->check(CLI::ExistingDirectory);
+      ->check(kExistingFolder);
   c->add_option("--scratch", a->scratch, "fit: where the room is prepared when no --work is given (reused)")
       ->capture_default_str();
   c->add_option("--config", a->config, "fit: config JSON (default: the demo's, 20 warm-up emission iterations)")
-      ->check(CLI::ExistingFile);
+      ->check(kExistingFile);
   c->add_option("--stage", a->stage, "fit: profile the first stage whose name starts with this")->capture_default_str();
   c->add_option("--iterations", a->iterations, "fit: iterations timed")
       ->capture_default_str()
       ->check(inRange(1, 100000));
   c->add_option("--json", a->json, "fit: also write the profile as JSON here");
   c->add_option("--synth", a->synth, "room, cornell or furnace")->capture_default_str();
-  auto* scene =
-      c->add_option("--scene", a->scene, "render: this scene.json instead of --synth")->check(CLI::ExistingFile);
+  auto* scene = c->add_option("--scene", a->scene, "render: this scene.json instead of --synth")->check(kExistingFile);
   c->add_option(
        "--cameras", a->cameras,
        "render: with --scene, a transforms.json; its first camera is rendered (its size, not --width/--height)")
-      ->check(CLI::ExistingFile)
+      ->check(kExistingFile)
       ->needs(scene);
   scene->needs("--cameras");
   c->add_option("--rays-out", a->raysOut,
@@ -174,17 +191,16 @@ void registerBench(CLI::App& app, CommandTable& table) {
   CLI::App* c =
       app.add_subcommand("bench", "speed vs accuracy: fits with one setting changed at a time, error vs time");
   c->add_option("--work", o->work, "a prepared work folder (default: the demo's room, prepared in --scratch)")
-      ->check(CLI::ExistingDirectory);
+      ->check(kExistingFolder);
   c->add_option("--scratch", o->scratch, "where the room is prepared when no --work is given (reused)")
       ->capture_default_str();
   c->add_option("--out", o->out, "where bench.md, bench.csv, curves.csv and the charts go")->capture_default_str();
   c->add_option("--sweeps", *sweeps, "comma list of " + names + " (default: all)");
   c->add_option("--config", *config, "base fit config JSON (default: the demo's, shortened; docs/user/commands.md)")
-      ->check(CLI::ExistingFile);
-  c->add_option("--truth", o->truth, "ground-truth scene.json (default: CAPTURE/gt/scene.json)")
-      ->check(CLI::ExistingFile);
+      ->check(kExistingFile);
+  c->add_option("--truth", o->truth, "ground-truth scene.json (default: CAPTURE/gt/scene.json)")->check(kExistingFile);
   c->add_option("--test-cameras", o->testCameras, "held-out frames (default: CAPTURE/transforms_test.json)")
-      ->check(CLI::ExistingFile);
+      ->check(kExistingFile);
   c->add_option("--eval-every", o->evaluateEvery, "iterations between error-vs-time points")
       ->capture_default_str()
       ->check(inRange(1, 1 << 20));
@@ -209,8 +225,8 @@ void registerFit(CLI::App& app, CommandTable& table) {
   auto maxRes = std::make_shared<int>(0);
   CLI::App* c =
       app.add_subcommand("fit", "reconstruct albedo, roughness, specular and emission from a prepared work folder");
-  c->add_option("work", *work, "work folder written by `relume prepare`")->required()->check(CLI::ExistingDirectory);
-  c->add_option("--config", *config, "fit config JSON (keys: docs/user/fit-config.md)")->check(CLI::ExistingFile);
+  c->add_option("work", *work, "work folder written by `relume prepare`")->required()->check(kExistingFolder);
+  c->add_option("--config", *config, "fit config JSON (keys: docs/user/fit-config.md)")->check(kExistingFile);
   c->add_option("--res", *maxRes, "cap on the final albedo resolution (default: what the frames resolve)")
       ->check(CLI::NonNegativeNumber);
   c->add_flag("--resume", *resume, "continue from WORK/checkpoint.bin");
@@ -236,14 +252,12 @@ void registerEval(CLI::App& app, CommandTable& table) {
   auto spp = std::make_shared<int>(64);
   CLI::App* c =
       app.add_subcommand("eval", "re-render a scene at held-out frames and compare (and with a ground truth)");
-  c->add_option("--scene", (*paths)[0], "scene.json to evaluate")->required()->check(CLI::ExistingFile);
-  c->add_option("--cameras", (*paths)[1], "transforms.json of the reference frames")
-      ->required()
-      ->check(CLI::ExistingFile);
+  c->add_option("--scene", (*paths)[0], "scene.json to evaluate")->required()->check(kExistingFile);
+  c->add_option("--cameras", (*paths)[1], "transforms.json of the reference frames")->required()->check(kExistingFile);
   c->add_option("--out", (*paths)[2], "output folder (renders, eval.json)")->required();
-  c->add_option("--truth", (*paths)[3], "ground-truth scene.json (same triangles)")->check(CLI::ExistingFile);
+  c->add_option("--truth", (*paths)[3], "ground-truth scene.json (same triangles)")->check(kExistingFile);
   c->add_option("--coverage", (*paths)[4], "coverage.exr of the work folder (albedo scored where observed >= 5 times)")
-      ->check(CLI::ExistingFile);
+      ->check(kExistingFile);
   c->add_option("--spp", *spp)->capture_default_str()->check(CLI::Range(1, 1 << 16));
   table[c] = [=] {
     const auto& [scenePath, cameras, out, truthPath, coveragePath] = *paths;
@@ -279,7 +293,7 @@ void registerReport(CLI::App& app, CommandTable& table) {
   auto o = std::make_shared<ReportOptions>();
   CLI::App* c =
       app.add_subcommand("report", "(re)write WORK/report/index.html from a finished fit (fit writes it too)");
-  c->add_option("work", *work, "work folder with result/")->required()->check(CLI::ExistingDirectory);
+  c->add_option("work", *work, "work folder with result/")->required()->check(kExistingFolder);
   c->add_option("--frames", o->frames, "views shown")->capture_default_str()->check(inRange(0, 1000));
   c->add_option("--spp", o->spp, "samples per pixel of their re-renders")
       ->capture_default_str()
@@ -320,7 +334,7 @@ void registerGradcheck(CLI::App& app, CommandTable& table) {
       ->check(inRange(1, 1 << 14));
   c->add_option("--emission-scale", a->emissionScale, "multiply emitters (e.g. 1e4 to stress)")
       ->capture_default_str()
-      ->check(inRange(1e-6, 1e12));
+      ->check(inRange(1e-6, kMaxEmission));  // the scaled emissions are checked against the bound too
   c->add_option("--clip-high", a->clipHigh, "reference saturation threshold (one-sided loss)")
       ->check(inRange(1e-30, kInf));
   c->add_flag("--russian-roulette", a->roulette);
@@ -390,8 +404,8 @@ CommandTable registerCommands(CLI::App& app) {
   renderArgs->render.spp = 64;
   auto renderPaths = std::make_shared<std::array<std::string, 3>>();
   CLI::App* render = app.add_subcommand("render", "render a scene.json from the cameras of a transforms.json");
-  render->add_option("--scene", (*renderPaths)[0], "scene.json")->required()->check(CLI::ExistingFile);
-  render->add_option("--cameras", (*renderPaths)[1], "transforms.json")->required()->check(CLI::ExistingFile);
+  render->add_option("--scene", (*renderPaths)[0], "scene.json")->required()->check(kExistingFile);
+  render->add_option("--cameras", (*renderPaths)[1], "transforms.json")->required()->check(kExistingFile);
   render->add_option("--out", (*renderPaths)[2], "output folder")->required();
   render->add_option("--spp", renderArgs->render.spp)->capture_default_str()->check(inRange(1, kMaxSpp));
   render->add_option("--max-depth", renderArgs->render.path.maxDepth, kMaxDepthHelp)
@@ -404,7 +418,7 @@ CommandTable registerCommands(CLI::App& app) {
       ->add_option(
           "--edit", renderArgs->edit,
           "EDIT.json: switch off/rescale emitters, change materials, add lights and meshes (docs/user/edit-file.md)")
-      ->check(CLI::ExistingFile);
+      ->check(kExistingFile);
   table[render] = [=] {
     renderViews((*renderPaths)[0], (*renderPaths)[1], (*renderPaths)[2], *renderArgs);
     return 0;

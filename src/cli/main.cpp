@@ -4,10 +4,20 @@
 #include <spdlog/spdlog.h>
 
 #include <csignal>
+#include <filesystem>
+#include <new>
+#include <system_error>
 
 #include "cli/commands.h"
 #include "core/error.h"
 #include "core/system.h"
+
+namespace {
+// Exit codes: 1 for what the user or the machine caused (bad input, a full disk, a closed pipe, too
+// little memory); 70 (EX_SOFTWARE, sysexits.h) for an exception relume's code never meant to throw.
+// A failed CHECK aborts (core/check.h); command-line parse errors keep CLI11's codes.
+constexpr int kInputError = 1, kInternalError = 70;
+}  // namespace
 
 int main(int argc, char** argv) {
   // Output piped into a reader that stops early (`relume eval ... | head -2`) must not kill a
@@ -39,9 +49,21 @@ int main(int argc, char** argv) {
     return rc;
   } catch (const relume::Error& e) {
     spdlog::error("{}", e.what());
-    return 1;
+    return kInputError;
+  } catch (const std::filesystem::filesystem_error& e) {
+    // Every filesystem call on a user's path reports its own relume::Error (io/file_system.h): one
+    // that gets here is a call that was missed.
+    spdlog::error("internal error: {}", e.what());
+    return kInternalError;
+  } catch (const std::system_error& e) {
+    // The environment, not relume: a print into a closed pipe (SIGPIPE is ignored, above).
+    spdlog::error("{}", e.what());
+    return kInputError;
+  } catch (const std::bad_alloc&) {
+    spdlog::error("out of memory (peak RSS {:.0f} MiB)", relume::peakRssMiB());
+    return kInputError;
   } catch (const std::exception& e) {
     spdlog::error("internal error: {}", e.what());
-    return 1;
+    return kInternalError;
   }
 }

@@ -8,18 +8,19 @@
 #include <fstream>
 
 #include "core/error.h"
+#include "io/file_system.h"
 
 namespace relume {
 
 void writeAtomically(const std::filesystem::path& path,
                      const std::function<void(const std::filesystem::path&)>& write) {
-  if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path());
+  if (path.has_parent_path()) createDirectories(path.parent_path());
   // Keep the extension last: image writers choose the format from it.
   const std::filesystem::path tmp =
       path.parent_path() / fmt::format(".{}.tmp{}{}", path.stem().string(), getpid(), path.extension().string());
   try {
     write(tmp);
-    std::filesystem::rename(tmp, path);
+    renamePath(tmp, path);
   } catch (...) {
     std::error_code ec;
     std::filesystem::remove(tmp, ec);
@@ -45,7 +46,9 @@ pid_t temporaryWriter(const std::string& name) {
 size_t removeStaleTemporaries(const std::filesystem::path& dir) {
   size_t removed = 0;
   std::error_code ec;
-  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
+  // increment(ec): the range-for's operator++ would throw on a folder that fails mid-listing.
+  for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::filesystem::directory_entry& entry = *it;
     const pid_t pid = temporaryWriter(entry.path().filename().string());
     if (!pid || !entry.is_regular_file(ec)) continue;
     const bool writerAlive = pid == getpid() || kill(pid, 0) == 0 || errno == EPERM;

@@ -15,6 +15,13 @@ namespace relume {
 float srgbToLinear(float v) { return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f); }
 float linearToSrgb(float v) { return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f; }
 
+size_t countNonFinitePixels(const Image& image) {
+  size_t n = 0;
+  for (size_t i = 0; i + 2 < image.rgb.size(); i += 3)
+    n += !(std::isfinite(image.rgb[i]) && std::isfinite(image.rgb[i + 1]) && std::isfinite(image.rgb[i + 2]));
+  return n;
+}
+
 namespace {
 Image readImageAs(const std::filesystem::path& path, ImageReadStats* stats, bool decode) {
   const std::string file = path.string();

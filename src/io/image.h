@@ -23,6 +23,9 @@ struct Image {
   }
 };
 
+// Pixels with a NaN or infinite channel.
+size_t countNonFinitePixels(const Image& image);
+
 struct ImageReadStats {
   size_t nonFinitePixels = 0;          // NaN/Inf pixels, set to 0 and counted
   std::vector<size_t> nonFiniteIndex;  // their pixel indices, so callers can mask them

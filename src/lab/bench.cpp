@@ -7,10 +7,12 @@
 
 #include "core/error.h"
 #include "io/atomic_file.h"
+#include "io/file_system.h"
 #include "io/image.h"
 #include "core/system.h"
 #include "scenes/demo.h"
 #include "product/evaluate.h"
+#include "product/prepare.h"
 #include "product/report.h"
 
 namespace relume {
@@ -169,17 +171,17 @@ std::vector<BenchRun> runBench(const BenchOptions& o) {
   Evaluation ev;
   ev.work = o.work.empty() ? prepareDemoCapture(o.scratch).work : o.work;
   ev.testSpp = o.testSpp;
-  const fs::path capture = readJson(ev.work / "prepare.json").at("capture").get<std::string>();
+  const fs::path capture = capturePreparedIn(ev.work);
   const fs::path truth = !o.truth.empty() ? o.truth : capture / "gt" / "scene.json";
-  if (fs::exists(truth)) {
+  if (pathExists(truth)) {
     ev.truth = loadSceneFile(truth);
     ev.coverage = readImage(ev.work / "coverage.exr");
   } else {
     spdlog::warn("bench: no ground truth ({}): albedo errors are not measured", truth.string());
   }
   ev.testCameras = !o.testCameras.empty() ? o.testCameras : capture / "transforms_test.json";
-  if (!fs::exists(ev.testCameras)) ev.testCameras.clear();
-  fs::create_directories(o.out);
+  if (!pathExists(ev.testCameras)) ev.testCameras.clear();
+  createDirectories(o.out);
 
   std::vector<BenchRun> runs;
   auto run = [&](const std::string& sweep, const std::string& value, const FitConfig& c) {

@@ -36,7 +36,7 @@ Appearance perturbAppearance(const Appearance& a, uint64_t seed) {
   Appearance p = a;
   Pcg32 rng(seed);
   for (ParamGroup& g : paramGroups(p)) {
-    if (!std::isfinite(g.hi)) {  // unbounded (emission): a relative change
+    if (g.kind == ParamKind::Emission || g.kind == ParamKind::EmissionTexture) {  // radiance: a relative change
       for (float& v : g.values) v *= 0.8f;
     } else if (g.textured()) {  // towards the middle of the domain, keeping the texture's pattern
       for (float& v : g.values) v = g.lo + 0.7f * (v - g.lo) + 0.1f * (g.hi - g.lo);
@@ -54,6 +54,7 @@ GradientExperiment makeGradientExperiment(SceneDescription truth, const std::vec
   GradientExperiment e{std::move(truth), Appearance(), {}};
   Appearance& a = e.truth.appearance;
   for (Color& c : a.emission) c *= o.emissionScale;
+  requireEmissionBound(a, fmt::format("emission scale {:g}", o.emissionScale));
   if (o.emissionTextures && a.emissionTextures.empty())
     allocateEmissionTextures(a, e.truth.mesh, o.atlasResolution, [](float u, float v) { return 0.6f + 0.8f * u * v; });
   const Scene scene(e.truth.mesh);

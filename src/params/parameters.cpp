@@ -60,10 +60,10 @@ std::vector<ParamGroup> paramGroups(Appearance& a, Gradients* g, const ParamDoma
       {ParamKind::Albedo, -1, 3, 0.0f, 1.0f, floats(a.albedo.rgb), g ? floats(g->albedo) : std::span<float>()});
   groups.push_back({ParamKind::Roughness, -1, 1, domain.roughnessMin, 1.0f, floats(a.roughness), slice(0, n)});
   groups.push_back({ParamKind::Specular, -1, 1, 0.0f, 1.0f, floats(a.specular), slice(n, n)});
-  groups.push_back({ParamKind::Emission, -1, 3, 0.0f, INFINITY, floats(a.emission), slice(2 * n, 3 * n)});
+  groups.push_back({ParamKind::Emission, -1, 3, 0.0f, kMaxEmission, floats(a.emission), slice(2 * n, 3 * n)});
   for (int o = 0; o < a.objectCount(); ++o)
     if (const int t = a.emissionTextureOf[o]; t >= 0)
-      groups.push_back({ParamKind::EmissionTexture, o, 3, 0.0f, INFINITY, floats(a.emissionTextures[t].rgb),
+      groups.push_back({ParamKind::EmissionTexture, o, 3, 0.0f, kMaxEmission, floats(a.emissionTextures[t].rgb),
                         g ? floats(g->emissionTexture[t]) : std::span<float>()});
   return groups;
 }

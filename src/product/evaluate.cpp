@@ -9,6 +9,7 @@
 #include "core/error.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
+#include "io/file_system.h"
 #include "io/image.h"
 #include "scene/texel_map.h"
 
@@ -141,7 +142,7 @@ Json TruthComparison::toJson() const {
 TruthOptions truthOptionsFor(const std::filesystem::path& sceneFile) {
   TruthOptions o;
   const std::filesystem::path materials = sceneFile.parent_path() / "materials.json";
-  if (!std::filesystem::exists(materials)) return o;
+  if (!pathExists(materials)) return o;
   const Json m = readJson(materials);
   withJsonErrors(materials, [&] {
     for (const Json& obj : m.at("objects")) o.highlightObserved.push_back(obj.at("highlight_observed").get<bool>());
@@ -253,7 +254,7 @@ void runEvaluation(const EvalOptions& o) {
   RenderOptions ro;
   ro.spp = o.spp;
   if (!o.truth.empty() && o.coverage.empty()) fail("eval: --truth needs --coverage (prepare's coverage.exr)");
-  std::filesystem::create_directories(o.out);
+  createDirectories(o.out);
   const ViewComparison v = compareViews(scene, o.cameras, ro, o.out);
   Json report = {{"views", v.toJson()}};
   std::optional<TruthComparison> t;

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include "core/error.h"
+#include "io/file_system.h"
 #include "io/json.h"
 
 namespace relume {
@@ -10,13 +11,13 @@ namespace relume {
 namespace fs = std::filesystem;
 
 fs::path sceneFileOf(const fs::path& workOrScene) {
-  if (fs::is_directory(workOrScene)) {
+  if (isDirectory(workOrScene)) {
     const fs::path scene = workOrScene / "result" / "scene.json";
-    if (!fs::exists(scene))
+    if (!pathExists(scene))
       fail("{}: no result/scene.json (run `relume fit` first, or pass a scene.json)", workOrScene.string());
     return scene;
   }
-  if (!fs::exists(workOrScene)) fail("{}: no such work folder or scene.json", workOrScene.string());
+  if (!pathExists(workOrScene)) fail("{}: no such work folder or scene.json", workOrScene.string());
   return workOrScene;
 }
 

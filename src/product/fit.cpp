@@ -9,6 +9,7 @@
 #include "core/error.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
+#include "io/file_system.h"
 #include "io/image.h"
 #include "optim/checkpoint.h"
 #include "optim/upsample.h"
@@ -144,7 +145,7 @@ FitSummary Fit::run(bool resumeRequested) {
 
   const fs::path checkpointPath = w_.dir / "checkpoint.bin";
   FitPosition at;
-  std::unique_ptr<TexelSpace> space = resumeRequested && fs::exists(checkpointPath)
+  std::unique_ptr<TexelSpace> space = resumeRequested && pathExists(checkpointPath)
                                           ? resume(Checkpoint::read(checkpointPath), stages.size(), at)
                                           : start(stages.front());
   FitSummary summary;
@@ -190,7 +191,7 @@ FitSummary Fit::run(bool resumeRequested) {
 
 // A new fit: albedo from the init, emission from 0, the candidates for light sources.
 std::unique_ptr<TexelSpace> Fit::start(const Stage& first) {
-  if (hooks_.writeFiles) fs::remove(w_.dir / "metrics.jsonl");
+  if (hooks_.writeFiles) removeFile(w_.dir / "metrics.jsonl");
   auto space = std::make_unique<TexelSpace>(w_, first.resolution);
   appearance_.albedo = Texture(space->resolution, space->resolution, Color::Constant(0.5f));
   if (!c_.emitterParameterisation) {

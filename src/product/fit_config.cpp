@@ -1,7 +1,9 @@
 #include "product/fit_config.h"
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
+#include <cstdint>
 #include <set>
 #include <variant>
 
@@ -80,6 +82,12 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("stop_after_iterations", ConfigField(&c.stopAfterIterations));
   fn("checkpoint_every", ConfigField(&c.checkpointEvery));
   fn("metrics_every", ConfigField(&c.metricsEvery));
+}
+
+float finiteFloat(const Json& v, const std::string& where, const char* key) {
+  const float f = static_cast<float>(v.get<double>());
+  if (!std::isfinite(f)) fail("{}: '{}' is {}, not finite in float", where, key, v.dump());
+  return f;
 }
 
 }  // namespace
@@ -165,7 +173,17 @@ FitConfig FitConfig::fromJson(const Json& j, const std::string& where, FitConfig
                  : std::is_same_v<T, float> ? v.is_number()
                                             : v.is_number_integer();
           if (!ok) fail("{}: '{}' has the wrong type ({})", where, key, v.type_name());
-          *p = v.get<T>();
+          // Numbers are checked in the type they are used in: get<int>() would wrap 4294967297 onto
+          // 1, a negative seed would wrap, and 1e39 is infinite as a float.
+          if constexpr (std::is_same_v<T, int>)
+            *p = static_cast<int>(jsonInteger(v, INT_MIN, INT_MAX, where, key));
+          else if constexpr (std::is_same_v<T, uint64_t>)
+            *p = v.is_number_unsigned() ? v.get<uint64_t>()
+                                        : static_cast<uint64_t>(jsonInteger(v, 0, INT64_MAX, where, key));
+          else if constexpr (std::is_same_v<T, float>)
+            *p = finiteFloat(v, where, key);
+          else
+            *p = v.get<T>();
         },
         field);
   });

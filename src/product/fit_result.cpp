@@ -4,6 +4,7 @@
 
 #include "core/system.h"
 #include "io/atomic_file.h"
+#include "io/file_system.h"
 #include "io/image.h"
 
 namespace relume {
@@ -13,8 +14,8 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
                         const ObjectRoles& roles, const FitConfig& c, const FrameGains& gains,
                         const FitProgress& progress) {
   const fs::path result = w.dir / "result", staging = w.dir / "result.partial";
-  fs::remove_all(staging);
-  fs::create_directories(staging);
+  removeAll(staging);
+  createDirectories(staging);
   SceneDescription desc{w.dir / "atlas_mesh.ply", w.mesh, appearance};
   saveSceneFile(staging / "scene.json", desc);
   Image albedo(space.resolution, space.resolution);
@@ -50,8 +51,8 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
   writeJson(staging / "lights.json",
             {{"light_test", enumName(c.lightTest)}, {"hint", c.lights}, {"decisions", roles.lightDecisions}});
   writeJson(staging / "frames.json", gains.toJson(w.frames));
-  fs::remove_all(result);
-  fs::rename(staging, result);
+  removeAll(result);
+  renamePath(staging, result);
   spdlog::info("fit: result in {}", result.string());
   return result;
 }

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/error.h"
+#include "io/file_system.h"
 #include "io/image.h"
 #include "scene/atlas.h"
 
@@ -12,11 +13,11 @@ namespace fs = std::filesystem;
 
 Workspace::Workspace(const fs::path& work) : dir(work) {
   const fs::path pj = work / "prepare.json";
-  if (!fs::exists(pj))
+  if (!pathExists(pj))
     fail("{}: no prepare.json; run `relume prepare CAPTURE --out {}` first", work.string(), work.string());
   prepare = readJson(pj);
   for (const char* f : {"atlas_mesh.ply", "frames.bin", "visibility.bin", "albedo_init.exr", "coverage.exr"})
-    if (!fs::exists(work / f)) fail("{}: missing {}; rerun `relume prepare`", work.string(), f);
+    if (!pathExists(work / f)) fail("{}: missing {}; rerun `relume prepare`", work.string(), f);
   withJsonErrors(pj, [&] {
     const fs::path capture = prepare.at("capture").get<std::string>();
     frames = readTransforms(capture / "transforms.json").frames;

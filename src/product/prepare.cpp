@@ -8,12 +8,14 @@
 #include <fstream>
 #include <map>
 
+#include "capture/duplicate_frames.h"
 #include "capture/frame_store.h"
 #include "capture/objects.h"
 #include "core/error.h"
 #include "core/rng.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
+#include "io/file_system.h"
 #include "io/image.h"
 #include "io/json.h"
 #include "scene/scene.h"
@@ -40,7 +42,7 @@ std::string fingerprintOf(const std::vector<fs::path>& files, const std::string&
 // The previous run's report, whose fingerprints say which phases are current. --force ignores it;
 // an unreadable one (hand-edited, truncated) only means every phase is redone.
 Json previousReport(const fs::path& file, bool force) {
-  if (force || !fs::exists(file)) return Json::object();
+  if (force || !pathExists(file)) return Json::object();
   try {
     Json report = readJson(file);
     if (report.is_object() && report.value("phases", Json::object()).is_object()) return report;
@@ -53,7 +55,7 @@ Json previousReport(const fs::path& file, bool force) {
 
 fs::path findMesh(const fs::path& capture) {
   for (const char* name : {"mesh.ply", "mesh.obj"})
-    if (fs::exists(capture / name)) return capture / name;
+    if (pathExists(capture / name)) return capture / name;
   fail("{}: no mesh.ply or mesh.obj in the capture folder", capture.string());
 }
 
@@ -85,7 +87,7 @@ Json atlasPhase(const fs::path& capture, const fs::path& meshPath, const fs::pat
   // Names from objects.json, else from the mesh file (OBJ groups).
   Json names = Json::object();
   for (size_t id = 0; id < mesh.objectNames.size(); ++id) names[std::to_string(id)] = mesh.objectNames[id];
-  if (fs::exists(capture / "objects.json"))
+  if (pathExists(capture / "objects.json"))
     for (const auto& [id, name] : readObjectNames(capture / "objects.json")) names[std::to_string(id)] = name;
   return Json{{"triangles", atlas.triangles.size()},
               {"objects", atlas.objectCount},
@@ -137,15 +139,19 @@ std::string dropReason(const Capture& cap, size_t i, const FrameStats& stats, co
 }
 
 // Frames: every frame converted into the cache (half floats, one memory-mapped file), then
-// filtered.
-Json framesPhase(const Capture& cap, const fs::path& work, const PrepareOptions& o) {
+// filtered. A duplicate (capture/duplicate_frames.h) is dropped for that reason alone, so it is
+// counted once.
+Json framesPhase(const Capture& cap, const std::vector<DuplicateFrame>& duplicates, const fs::path& work,
+                 const PrepareOptions& o) {
   Progress progress("frame cache", cap.frames.size());
   const std::vector<FrameStats> stats =
       writeFrameStore(work / "frames.bin", cap.frames, o.downscale, o.encodingClips, [&] { progress.advance(); });
   Json kept = Json::array(), dropped = Json::array();
   std::map<std::string, int> reasons;
+  std::vector<std::string> duplicateOf(cap.frames.size());
+  for (const DuplicateFrame& d : duplicates) duplicateOf[d.frame] = d.reason;
   for (size_t i = 0; i < cap.frames.size(); ++i) {
-    const std::string reason = dropReason(cap, i, stats[i], o);
+    const std::string reason = duplicateOf[i].empty() ? dropReason(cap, i, stats[i], o) : duplicateOf[i];
     if (reason.empty()) {
       kept.push_back(i);
     } else {
@@ -170,7 +176,7 @@ Json framesPhase(const Capture& cap, const fs::path& work, const PrepareOptions&
               {"dropped", dropped},
               {"dropped_by_reason", reasons},
               {"masked_pixel_fraction", masked},
-              {"bytes", fs::file_size(work / "frames.bin")}};
+              {"bytes", fileSize(work / "frames.bin")}};
 }
 
 // Visibility: which kept frames see which tile of the init-resolution atlas.
@@ -359,9 +365,18 @@ void applyPreparedResponse(const Json& prepare, std::vector<Frame>& frames) {
   for (Frame& f : frames) f.response = response;
 }
 
+fs::path capturePreparedIn(const fs::path& work) {
+  const fs::path file = work / "prepare.json";
+  const Json report = readJson(file);
+  if (!report.is_object() || !report.contains("capture") || !report["capture"].is_string())
+    fail("{}: no 'capture' folder named; rerun `relume prepare`", file.string());
+  return report["capture"].get<std::string>();
+}
+
 PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, const PrepareOptions& o) {
   Timer total;
-  fs::create_directories(work);
+  requireDirectory(capture, "a capture folder");
+  createDirectories(work);
   if (const size_t stale = removeStaleTemporaries(work))
     spdlog::info("prepare: removed {} temporaries of killed runs", stale);
   const fs::path transformsPath = capture / "transforms.json";
@@ -372,6 +387,7 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   if (!o.response.empty()) report["response"] = {{"spec", o.response}, {"dir", fs::current_path().string()}};
   applyPreparedResponse(report, cap.frames);
   const Json reportBefore = report;
+  const std::vector<DuplicateFrame> duplicates = findDuplicateFrames(cap);  // a conflict fails before any work
   Json phases = report.value("phases", Json::object());
   const int initRes = o.resolutions.front();
   if (initRes % o.tileTexels != 0)
@@ -384,7 +400,7 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   auto runPhase = [&](const char* name, const std::string& fingerprint, const std::vector<fs::path>& outputs,
                       const std::function<Json()>& body) {
     bool current = !o.force && phases.contains(name) && phases[name].value("fingerprint", "") == fingerprint;
-    for (const fs::path& out : outputs) current = current && fs::exists(out);
+    for (const fs::path& out : outputs) current = current && pathExists(out);
     if (current) {
       spdlog::info("prepare: {} is up to date", name);
       return;
@@ -408,7 +424,8 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   const TriangleMesh mesh = loadMesh(work / "atlas_mesh.ply");
   const Scene scene(mesh);
 
-  // Frames: convert, then filter.
+  // Frames: convert, then filter. "frames2": the filter that drops duplicates, so work folders
+  // filtered before it are filtered again.
   std::vector<fs::path> imagePaths{transformsPath};
   for (const Frame& f : cap.frames) imagePaths.push_back(f.image);
   // "frames3": the frame cache's format (with clip thresholds), so older caches are rebuilt.
@@ -417,8 +434,9 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   const std::string framesPrint =
       fingerprintOf(imagePaths, fmt::format("frames3 {} {} {} {} {} {} {}", o.maxOverexposed, o.maxUnderexposed,
                                             o.maxSpeed, o.maxAngularSpeed, o.downscale, o.encodingClips, responses));
-  runPhase("frames", framesPrint, {work / "frames.bin"}, [&] { return framesPhase(cap, work, o); });
-  const std::vector<size_t> kept = phases["frames"]["kept"].get<std::vector<size_t>>();
+  runPhase("frames", framesPrint, {work / "frames.bin"}, [&] { return framesPhase(cap, duplicates, work, o); });
+  const std::vector<size_t> kept = jsonIntegers<size_t>(phases["frames"]["kept"], 0, cap.frames.size() - 1,
+                                                        (work / "prepare.json").string(), "kept");
   if (kept.empty()) fail("prepare: every frame was dropped (see {})", (work / "prepare.json").string());
 
   // Visibility index over tiles of the init resolution.
@@ -439,7 +457,7 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   s.triangles = mesh.triangles.size();
   s.fractionUnobserved = phases["init"].value("fraction_unobserved", 0.0);
   s.seconds = total.seconds();
-  report["capture"] = fs::absolute(capture).string();
+  report["capture"] = absolutePath(capture).string();
   report["resolutions"] = o.resolutions;
   report["texel_map_bytes_per_texel"] = sizeof(uint32_t);
   // Timings describe the last run that did something: an up-to-date folder (even a read-only one)

@@ -44,6 +44,9 @@ struct PrepareSummary {
   double seconds = 0;
 };
 
+// The capture folder a work folder was prepared from (prepare.json's "capture").
+std::filesystem::path capturePreparedIn(const std::filesystem::path& work);
+
 PrepareSummary prepareCapture(const std::filesystem::path& capture, const std::filesystem::path& work,
                               const PrepareOptions& options);
 

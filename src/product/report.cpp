@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
+#include "io/file_system.h"
 #include "io/image.h"
 #include "io/json.h"
 #include "product/evaluate.h"
@@ -238,11 +239,11 @@ std::string texturesSection(const fs::path& work, const fs::path& out, const Sce
                             const SceneDescription* truth, TruthComparison* scores) {
   // prepare's pictures: a work folder copied without them still gets its report.
   auto prepared = [&](const std::string& file, const std::string& caption) -> std::string {
-    if (!fs::exists(work / file)) {
+    if (!pathExists(work / file)) {
       spdlog::warn("report: {} is missing (prepare writes it): figure skipped", (work / file).string());
       return "";
     }
-    fs::copy_file(work / file, out / file, fs::copy_options::overwrite_existing);
+    copyFileOver(work / file, out / file);
     return figure(file, caption);
   };
   std::string s = prepared("albedo_init.png", "albedo init (median)");
@@ -306,7 +307,7 @@ std::string materialsSection(const Json& materials, const SceneDescription* trut
 
 // Each light-source decision (result/lights.json): per object, the verdict and its evidence.
 std::string lightsSection(const fs::path& file) {
-  if (!fs::exists(file)) return "<p>No light-source decisions recorded.</p>";
+  if (!pathExists(file)) return "<p>No light-source decisions recorded.</p>";
   const Json lights = readJson(file);
   if (!lights.value("hint", Json::array()).empty())
     return "<p>The light sources were given (<code>lights</code>): " + html(lights["hint"].dump()) +
@@ -428,17 +429,19 @@ std::string prepareSection(const Json& prepare, const Json& materials) {
 
 }  // namespace
 
-fs::path writeFitReport(const fs::path& work, const ReportOptions& o) {
+namespace {
+fs::path writeReport(const fs::path& work, const ReportOptions& o) {
   const fs::path out = work / "report";
-  fs::create_directories(out);
+  createDirectories(out);
   const Json prepare = readJson(work / "prepare.json");
   const Json materials = readJson(work / "result" / "materials.json");
   const SceneDescription fit = loadSceneFile(work / "result" / "scene.json");
+  const fs::path capture = capturePreparedIn(work);
+  const fs::path truthFile = capture / "gt" / "scene.json";
   const fs::path gainsFile = work / "result" / "frames.json";
-  const Json gains = fs::exists(gainsFile) ? readJson(gainsFile) : Json::object();
-  const fs::path truthFile = fs::path(prepare.at("capture").get<std::string>()) / "gt" / "scene.json";
+  const Json gains = pathExists(gainsFile) ? readJson(gainsFile) : Json::object();
   std::optional<SceneDescription> truthScene;
-  if (fs::exists(truthFile)) truthScene = loadSceneFile(truthFile);
+  if (pathExists(truthFile)) truthScene = loadSceneFile(truthFile);
   const SceneDescription* truth = truthScene ? &*truthScene : nullptr;  // scored: null when on other triangles
   TruthComparison scores;
   std::string textures;
@@ -457,8 +460,8 @@ img.tex{width:256px;height:256px} figure{display:inline-block;margin:4px} figcap
   page += fmt::format(
       "<h1>relume fit report</h1><p>Work folder <code>{}</code>; capture <code>{}</code>. {} iterations, final "
       "loss {:.3e}, albedo {}&sup2;.</p>",
-      html(fs::absolute(work).string()), html(prepare.at("capture").get<std::string>()),
-      materials.value("iterations", 0), materials.value("final_loss", 0.0), materials.value("albedo_resolution", 0));
+      html(absolutePath(work).string()), html(capture.string()), materials.value("iterations", 0),
+      materials.value("final_loss", 0.0), materials.value("albedo_resolution", 0));
   if (truth)
     page += fmt::format(
         "<p>Against the capture's ground truth: albedo MAE {:.4f} (PSNR {:.2f} dB) over {} texels observed "
@@ -485,6 +488,14 @@ img.tex{width:256px;height:256px} figure{display:inline-block;margin:4px} figcap
   writeTextAtomically(out / "index.html", page);
   spdlog::info("fit: report {}", (out / "index.html").string());
   return out / "index.html";
+}
+
+}  // namespace
+
+// The work folder's JSON files (prepare.json, result/*.json) are relume's own, but may have been
+// edited or truncated: a field of the wrong type is an error naming the folder.
+fs::path writeFitReport(const fs::path& work, const ReportOptions& o) {
+  return withJsonErrors(work, [&] { return writeReport(work, o); });
 }
 
 }  // namespace relume

@@ -70,6 +70,7 @@ void editObject(const Json& o, Appearance& a, const std::string& where) {
     a.emission[id] *= k;
     if (a.emissionTextureOf[id] >= 0)
       for (float& v : a.emissionTextures[a.emissionTextureOf[id]].rgb) v *= k;
+    requireEmissionBound(a, fmt::format("{}: 'emission_scale' {:g}", where, k));
   }
 }
 
@@ -91,6 +92,12 @@ MeshData meshFile(const Json& e, const fs::path& editDir, const std::string& whe
   if (!(scale > 0)) fail("{}: 'scale' must be > 0", where);
   const Vec3 t = e.contains("translate") ? vec3(e, "translate", where) : Vec3::Zero();
   for (Vec3& p : m.positions) p = scale * p + t;
+  // Within the cameras' bound (capture/transforms.cpp): farther, areas and ray distances overflow.
+  constexpr float kMaxCoordinate = 1e6f;
+  for (size_t v = 0; v < m.positions.size(); ++v)
+    if (!(m.positions[v].cwiseAbs().maxCoeff() <= kMaxCoordinate))
+      fail("{}: 'scale' and 'translate' put vertex {} at ({:g}, {:g}, {:g}), beyond +-{:g} m", where, v,
+           m.positions[v].x(), m.positions[v].y(), m.positions[v].z(), kMaxCoordinate);
   return m;
 }
 

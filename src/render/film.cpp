@@ -70,7 +70,7 @@ RenderResult renderImage(const Scene& scene, const Appearance& appearance, const
   result.color = Image(W, H);
   for (size_t i = 0; i < options.aovs.size(); ++i) result.aovs.emplace_back(W, H);
   const AppearanceScope scope = AppearanceScope::uniform(appearance);
-  tbb::combinable<uint64_t> rayCount([] { return uint64_t{0}; });
+  tbb::combinable<uint64_t> rayCount([] { return uint64_t{0}; }), nonFiniteCount([] { return uint64_t{0}; });
   Timer timer;
   Progress progress("render", static_cast<size_t>(H));
   tbb::parallel_for(tbb::blocked_range2d<int>(0, H, 16, 0, W, 16), [&](const tbb::blocked_range2d<int>& r) {
@@ -78,8 +78,10 @@ RenderResult renderImage(const Scene& scene, const Appearance& appearance, const
     const int tileW = r.cols().size(), spp = options.spp;
     const size_t pixels = static_cast<size_t>(r.rows().size()) * tileW;
     // The tile's paths, pixel by pixel and sample by sample, traced a wave at a time; each pixel
-    // sums its samples in order and keeps its first sample's hit.
-    std::vector<Color> sum(pixels, Color::Zero());
+    // sums its samples in order, in double (spp radiances near float's largest value would overflow
+    // a float sum), and keeps its first sample's hit.
+    std::vector<Eigen::Array3d> sum(pixels, Eigen::Array3d::Zero());
+    uint64_t nonFinite = 0;
     std::vector<SurfaceHit> first(pixels);
     for (SurfaceHit& h : first) h.t = -1.0f;
     std::vector<PathSlot> wave;
@@ -99,12 +101,15 @@ RenderResult renderImage(const Scene& scene, const Appearance& appearance, const
       tracePaths(scene, lights, scope, options.path, std::span<PathSlot>(wave),
                  [&](size_t) -> RayCounter& { return counter; });
       for (size_t k = b; k < e; ++k)
-        if (const Color& L = wave[k - b].L; isFinite(L)) sum[k / spp] += L;
+        if (const Color& L = wave[k - b].L; isFinite(L))
+          sum[k / spp] += L.cast<double>();
+        else
+          ++nonFinite;
     });
     for (int y = r.rows().begin(); y < r.rows().end(); ++y) {
       for (int x = r.cols().begin(); x < r.cols().end(); ++x) {
         const size_t pixel = static_cast<size_t>(y - r.rows().begin()) * tileW + (x - r.cols().begin());
-        result.color.set(x, y, sum[pixel] / static_cast<float>(spp));
+        result.color.set(x, y, Color((sum[pixel] / spp).cast<float>()));
         const SurfaceHit& hit = first[pixel];
         if (hit.t < 0.0f) continue;
         for (size_t a = 0; a < options.aovs.size(); ++a) {
@@ -129,11 +134,13 @@ RenderResult renderImage(const Scene& scene, const Appearance& appearance, const
     }
     if (r.cols().begin() == 0) progress.advance(r.rows().size());
     rayCount.local() += counter.rays;
+    nonFiniteCount.local() += nonFinite;
   });
   scene.throwIfEmbreeFailed();
   result.stats.seconds = timer.seconds();
   result.stats.paths = static_cast<uint64_t>(W) * H * options.spp;
   result.stats.rays = rayCount.combine(std::plus<>());
+  result.stats.nonFinitePaths = nonFiniteCount.combine(std::plus<>());
   return result;
 }
 

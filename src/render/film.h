@@ -34,6 +34,9 @@ struct RenderStats {
   double seconds = 0;
   uint64_t paths = 0;
   uint64_t rays = 0;  // closest-hit + shadow rays actually traced
+  // Paths whose radiance is not finite (overflowed on the way): left out of their pixel's mean and
+  // counted, never silently. Within the radiance bound (kMaxEmission) none do.
+  uint64_t nonFinitePaths = 0;
 };
 
 struct RenderResult {

@@ -1,5 +1,6 @@
 #include "scene/appearance.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -32,12 +33,24 @@ Color Appearance::meanEmission(int object) const {
   return sum / static_cast<float>(std::max<size_t>(1, t->texelCount()));
 }
 
+float Appearance::maxEmission(int object) const {
+  const Texture* t = emissionTexture(object);
+  if (!t) return emission[object].maxCoeff();
+  return t->rgb.empty() ? 0.0f : *std::max_element(t->rgb.begin(), t->rgb.end());
+}
+
+void requireEmissionBound(const Appearance& a, const std::string& where) {
+  for (int o = 0; o < a.objectCount(); ++o)
+    if (const float e = a.maxEmission(o); !(e <= kMaxEmission))
+      fail("{}: object {} ('{}') would emit {:g}, above the bound {:g} (docs/user/scene-file.md)", where, o, a.names[o],
+           e, kMaxEmission);
+}
+
 namespace {
 
 // Every number is checked in float, the precision it is used in (1e39 is finite as a double, not as a
 // float). `range` describes [lo, hi] in the error.
-constexpr double kFloatMax = std::numeric_limits<float>::max();
-constexpr const char* kEmissionRange = ">= 0 and finite in float";
+constexpr const char* kEmissionRange = "in [0, 1e8] (the radiance bound)";
 
 float floatIn(const Json& v, double lo, double hi, const char* range, const std::string& where,
               const std::string& field) {
@@ -93,7 +106,7 @@ void readConstantFields(const Json& o, int id, const std::string& where, Appeara
   if (o.contains("roughness"))
     a.roughness[id] = floatIn(o["roughness"], kRoughnessMin, 1.0, "in [0.035, 1]", where, "roughness");
   if (o.contains("specular")) a.specular[id] = floatIn(o["specular"], 0.0, 1.0, "in [0, 1]", where, "specular");
-  if (o.contains("emission")) a.emission[id] = readColor(o, "emission", 0.0, kFloatMax, kEmissionRange, where);
+  if (o.contains("emission")) a.emission[id] = readColor(o, "emission", 0.0, kMaxEmission, kEmissionRange, where);
 }
 
 int Appearance::addObject(const std::string& name) {
@@ -147,7 +160,7 @@ static SceneDescription parseSceneFile(const std::filesystem::path& path) {
         if (!o.contains("emission_window") || !o["emission_window"].is_array() || o["emission_window"].size() != 4)
           fail("{}: 'emission_window' must be [x0, y0, atlas_width, atlas_height]", where);
         const Json& w = o["emission_window"];
-        Texture t = readTexture(dir / o["emission_texture"].get<std::string>(), 0.0, kFloatMax, kEmissionRange);
+        Texture t = readTexture(dir / o["emission_texture"].get<std::string>(), 0.0, kMaxEmission, kEmissionRange);
         const int maxSide = std::numeric_limits<int>::max();
         t.x0 = intIn(w[0], 0, maxSide, where, "emission_window[0]"),
         t.y0 = intIn(w[1], 0, maxSide, where, "emission_window[1]");

@@ -20,6 +20,13 @@ const char* bsdfModelName(BsdfModel m);
 // alpha = r^2 is clamped at 1e-3 (r = 0.0316), where its gradient is 0: r_min sits just above.
 inline constexpr float kRoughnessMin = 0.035f;
 
+// The largest emitted radiance relume accepts anywhere (scene files, emission textures, edits and
+// their emission_scale, gradcheck's --emission-scale) and the fit's upper bound on emission. Float
+// sums of it cannot overflow: a path's squared radiance (1e8 times a throughput factor of up to
+// 5e6, squared) summed over 2^30 samples stays below FLT_MAX (3.4e38); see
+// docs/design/reliability.md, "Radiance bound".
+inline constexpr float kMaxEmission = 1e8f;
+
 struct Appearance {
   BsdfModel model = BsdfModel::PrincipledV1;
   std::vector<std::string> names;
@@ -57,6 +64,8 @@ struct Appearance {
   int addObject(const std::string& name);
   // Average emitted radiance of an object (texture mean if textured): drives light selection.
   Color meanEmission(int object) const;
+  // Largest emitted radiance of an object, any channel (any texel if textured).
+  float maxEmission(int object) const;
 };
 
 struct SceneDescription {
@@ -69,6 +78,10 @@ struct SceneDescription {
 // checked against its domain, written to object `id`; errors start with `where`. A constant
 // albedo replaces the albedo texture on that object.
 void readConstantFields(const Json& o, int id, const std::string& where, Appearance& a);
+
+// Throws unless every object emits at most kMaxEmission; `where` says what set the emission (a file
+// and field, an option).
+void requireEmissionBound(const Appearance& a, const std::string& where);
 
 // scene.json (schema: docs/user/scene-file.md). Throws relume::Error naming the file and field.
 SceneDescription loadSceneFile(const std::filesystem::path& path);

@@ -7,6 +7,7 @@
 #include "capture/frame_image.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
+#include "io/file_system.h"
 #include "io/image.h"
 #include "product/evaluate.h"
 #include "product/prepare.h"
@@ -77,7 +78,7 @@ HeldOut scoreHeldOut(const SceneDescription& fitted, const SceneDescription& tru
   const Capture cap = readTransforms(cameras);
   const Scene fitScene(fitted.mesh), truthScene(truth.mesh);
   const LightSampler fitLights(fitScene, fitted.appearance), truthLights(truthScene, truth.appearance);
-  for (const char* dir : {"reference_views", "test_views", "error_views"}) fs::create_directories(out / dir);
+  for (const char* dir : {"reference_views", "test_views", "error_views"}) createDirectories(out / dir);
   HeldOut h;
   Progress progress("held-out views", cap.frames.size());
   for (size_t i = 0; i < cap.frames.size(); ++i) {
@@ -181,7 +182,7 @@ DemoCapture prepareDemoCapture(const fs::path& out) {
   DemoCapture d{out / "capture", out / "work"};
   const SynthCaptureOptions so = DemoOptions::captureOptions(d.capture);
   Timer ts;
-  if (!fs::exists(so.out / "transforms_test.json")) writeSynthCapture(so);  // written last
+  if (!pathExists(so.out / "transforms_test.json")) writeSynthCapture(so);  // written last
   d.synthSeconds = ts.seconds();
   PrepareOptions po;
   po.resolutions = {512, 1024};  // the demo's 256x192 frames resolve about 512^2 of this atlas

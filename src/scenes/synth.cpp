@@ -7,6 +7,7 @@
 #include "core/error.h"
 #include "core/rng.h"
 #include "core/system.h"
+#include "io/file_system.h"
 #include "io/image.h"
 #include "render/film.h"
 
@@ -457,7 +458,7 @@ int writeSynthCapture(const SynthCaptureOptions& o) {
     (void)planFrameImperfections(*o.imperfections, std::vector<Camera>(o.frames), o.seed);
   const SynthScene synth = makeSynthScene(o.kind, o.atlasResolution, o.scanTriangles);
   const SceneDescription& gt = synth.scene;
-  std::filesystem::create_directories(o.out / "gt");
+  createDirectories(o.out / "gt");
   saveSceneFile(o.out / "gt" / "scene.json", gt);
   const double largestVertexOffset = writeCaptureMesh(o, gt);
   writeObjectNames(o, gt.appearance);

@@ -100,7 +100,7 @@ TEST(Transforms, MalformedInputsGiveOneLineErrors) {
        "not orthonormal"},
       {R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0]]}]})",
        "missing 'file_path'"},
-      {R"({"fl_x": 10, "w": 10, "h": 10, "exposure": 0, "frames": [{)" + frame + "}]}", "exposure must be positive"},
+      {R"({"fl_x": 10, "w": 10, "h": 10, "exposure": 0, "frames": [{)" + frame + "}]}", "'exposure' is 0, must be in [1e-08, 1e+08]"},
       {R"({"fl_x": 10, "w": 10, "h": 10, "camera_model": 3, "frames": [{)" + frame + "}]}",
        "'camera_model' must be a string"},
       // Finite as a double, infinite as a float: Embree used to abort on the rays.

@@ -206,11 +206,11 @@ TEST(SceneFile, RejectsBadFields) {
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "roughness": "rough"}]})", "'roughness' must be a number"},
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": [1, 2]}]})", "[r,g,b]"},
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": [-1, 0, 0]}]})",
-       "objects[0]: 'emission[0]' is -1, must be >= 0 and finite in float"},
+       "objects[0]: 'emission[0]' is -1, must be in [0, 1e8] (the radiance bound)"},
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": 1e39}]})",
-       "objects[0]: 'emission' is 1e+39, must be >= 0 and finite in float"},
+       "objects[0]: 'emission' is 1e+39, must be in [0, 1e8] (the radiance bound)"},
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "emission": [0, 1e300, 0]}]})",
-       "'emission[1]' is 1e+300, must be >= 0 and finite in float"},
+       "'emission[1]' is 1e+300, must be in [0, 1e8] (the radiance bound)"},
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "albedo": 1.5}]})", "'albedo' is 1.5, must be in [0, 1]"},
       {R"({"mesh": "scene_mesh.ply", "objects": [{"id": 0, "albedo": [0.5, 0.5, -0.1]}]})",
        "'albedo[2]' is -0.1, must be in [0, 1]"},
@@ -264,7 +264,16 @@ TEST(SceneFile, RejectsTexelsOutsideTheirDomain) {
     loadSceneFile(writeBytes("tex_emission.json", R"({"mesh": "uv_mesh.ply", "objects": [{"id": 0,
       "emission_texture": "negative_emission.exr", "emission_window": [0, 0, 2, 2]}]})"));
   });
-  EXPECT_NE(err.find("negative_emission.exr: texel (1, 1) channel 1 is -2, must be >= 0"), std::string::npos) << err;
+  EXPECT_NE(err.find("negative_emission.exr: texel (1, 1) channel 1 is -2, must be in [0, 1e8]"), std::string::npos)
+      << err;
+  img.rgb[3 * 3 + 1] = 1e9f;  // finite, but beyond the radiance bound
+  writeExr(tmpDir() / "bright_emission.exr", img);
+  err = errorOf([] {
+    loadSceneFile(writeBytes("tex_bright_emission.json", R"({"mesh": "uv_mesh.ply", "objects": [{"id": 0,
+      "emission_texture": "bright_emission.exr", "emission_window": [0, 0, 2, 2]}]})"));
+  });
+  EXPECT_NE(err.find("bright_emission.exr: texel (1, 1) channel 1 is 1000000000, must be in [0, 1e8]"), std::string::npos)
+      << err;
   err = errorOf([] {
     loadSceneFile(writeBytes("window.json", R"({"mesh": "uv_mesh.ply", "objects": [{"id": 0,
       "emission_texture": "bright_albedo.exr", "emission_window": [0, 0, 4294967298, 2]}]})"));

@@ -44,6 +44,9 @@ fs::path makeFloorCapture(const std::string& name, int n, const std::vector<int>
         const Vec3 p = c.position + (-c.position.y() / d.y()) * d;
         img.set(x, y, Color::Constant(bright && Vec2(p.x(), p.z()).norm() < 0.3f ? 20.0f : 0.3f));
       }
+    // Pixel (0, 0) looks past the floor: a value of its own there keeps the frames' files distinct,
+    // since prepare skips a repeated image (and refuses one shown from two poses).
+    img.set(0, 0, Color::Constant(0.3f + 0.01f * i));
     f.image = dir / "images" / fmt::format("{:02d}.exr", i);
     writeExr(f.image, img);
     frames.push_back(f);

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <iterator>
 
+#include "capture/frame_image.h"
 #include "capture/transforms.h"
 #include "core/error.h"
 #include "scenes/synth.h"

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <map>
 
+#include "capture/capture_folder.h"
 #include "capture/frame_store.h"
 #include "capture/objects.h"
 #include "core/error.h"
@@ -348,9 +349,8 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   fs::create_directories(work);
   if (const size_t stale = removeStaleTemporaries(work))
     spdlog::info("prepare: removed {} temporaries of killed runs", stale);
-  const fs::path transformsPath = capture / "transforms.json";
   const fs::path meshPath = findMesh(capture);
-  const Capture cap = readTransforms(transformsPath);
+  const Capture cap = readCapture(capture);
   Json report = previousReport(work / "prepare.json", o.force);
   const Json reportBefore = report;
   Json phases = report.value("phases", Json::object());
@@ -390,7 +390,7 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   const Scene scene(mesh);
 
   // Frames: convert, then filter.
-  std::vector<fs::path> imagePaths{transformsPath};
+  std::vector<fs::path> imagePaths = cap.files;
   for (const Frame& f : cap.frames) imagePaths.push_back(f.image);
   const std::string framesPrint =
       fingerprintOf(imagePaths, fmt::format("frames {} {} {} {} {}", o.maxOverexposed, o.maxUnderexposed, o.maxSpeed,

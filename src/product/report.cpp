@@ -7,7 +7,7 @@
 #include <map>
 #include <optional>
 
-#include "capture/transforms.h"
+#include "capture/capture_folder.h"
 #include "core/error.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
@@ -112,7 +112,7 @@ std::string percentOf(double value, double scale) {
 std::string viewsSection(const fs::path& out, const SceneDescription& fit, const SceneDescription* truth,
                          const Json& prepare, const ReportOptions& o) {
   const fs::path capture = prepare.at("capture").get<std::string>();
-  const std::vector<Frame> frames = readTransforms(capture / "transforms.json").frames;
+  const std::vector<Frame> frames = readCapture(capture).frames;
   const auto kept = prepare.at("phases").at("frames").at("kept").get<std::vector<uint32_t>>();
   if (kept.empty() || o.frames <= 0) return "<p>No frames.</p>";
   const Scene scene(fit.mesh);

@@ -2,12 +2,15 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <cstring>
 #include <fstream>
 #include <functional>
 #include <iterator>
 #include <map>
 #include <stdexcept>
 
+#include "capture/colmap.h"
 #include "capture/frame_store.h"
 #include "capture/objects.h"
 #include "capture/transforms.h"
@@ -24,7 +27,8 @@ namespace fs = std::filesystem;
 namespace {
 
 // A per-process folder holding the scratch input and what fuzzed files may refer to: scene.json's
-// mesh (two objects with uv) and texture.exr. Removed at exit.
+// mesh (two objects with uv) and texture.exr, the images COLMAP seeds name (images/a.png ... f.png,
+// images/sub/g.png; their content is never read). Removed at exit.
 struct ScratchDir {
   const fs::path path = fs::temp_directory_path() / fmt::format("relume_fuzz_{}", getpid());
   ScratchDir() {
@@ -38,6 +42,9 @@ struct ScratchDir {
     Image texture(2, 2);
     texture.rgb.assign(texture.rgb.size(), 0.5f);
     writeExr(path / "texture.exr", texture);
+    fs::create_directories(path / "images" / "sub");
+    for (const char* name : {"a.png", "b.png", "c.png", "d.png", "e.png", "f.png", "sub/g.png"})
+      std::ofstream(path / "images" / name) << "placeholder";
   }
   ~ScratchDir() {
     std::error_code ec;
@@ -95,11 +102,35 @@ void parseImperfectionSpec(const fs::path& file) {
     throw std::logic_error("imperfection spec '" + spec + "' does not round-trip through '" + canonical + "'");
 }
 
+// A COLMAP model is two files. The input is split at a 4-byte little-endian length prefix: that
+// many bytes (at most what follows) are cameras.<ext>, the rest images.<ext>. One input so mutates
+// both files, and a mutation of the prefix moves bytes from one to the other.
+void readColmapModel(const fs::path& file, const std::string& ext) {
+  std::ifstream in(file, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  uint32_t cameraBytes = 0;
+  std::memcpy(&cameraBytes, bytes.data(), std::min<size_t>(4, bytes.size()));
+  const std::string rest = bytes.size() > 4 ? bytes.substr(4) : std::string();
+  const size_t split = std::min<size_t>(cameraBytes, rest.size());
+  const fs::path model = scratchDir() / ("colmap_" + ext);
+  fs::create_directories(model);
+  std::ofstream(model / ("cameras." + ext), std::ios::binary) << rest.substr(0, split);
+  std::ofstream(model / ("images." + ext), std::ios::binary) << rest.substr(split);
+  const Capture cap = readColmap(model, scratchDir() / "images");
+  for (const Frame& f : cap.frames) {  // what prepare does with a camera first: project and cast rays
+    const Camera& c = f.camera;
+    (void)c.project(c.position + c.rotation.col(2));
+    (void)c.rayDirection(Vec2(0.5f * c.width, 0.5f * c.height));
+  }
+}
+
 const std::map<std::string, Reader>& readers() {
   static const std::map<std::string, Reader> table = {
       {"ply", {"input.ply", [](const fs::path& f) { (void)loadMesh(f); }}},
       {"obj", {"input.obj", [](const fs::path& f) { (void)loadMesh(f); }}},
       {"transforms", {"transforms.json", [](const fs::path& f) { (void)readTransforms(f); }}},
+      {"colmap-text", {"colmap_text.model", [](const fs::path& f) { readColmapModel(f, "txt"); }}},
+      {"colmap-binary", {"colmap_binary.model", [](const fs::path& f) { readColmapModel(f, "bin"); }}},
       {"objects", {"objects.json", [](const fs::path& f) { (void)readObjectNames(f); }}},
       {"scene", {"scene.json", [](const fs::path& f) { (void)loadSceneFile(f); }}},
       {"image", {"input.exr", [](const fs::path& f) { (void)readImage(f); }}},

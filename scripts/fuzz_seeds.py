@@ -5,6 +5,7 @@
   relume prepare S/cap --out S/work --res 64 --gutter-res 64 --tile 16
   echo '{"stop_after_iterations": 2, "checkpoint_every": 1}' > S/fit.json && relume fit S/work --config S/fit.json
   scripts/fuzz_seeds.py S
+`scripts/fuzz_seeds.py --colmap` writes only the COLMAP seeds (made by hand, no build needed).
 Inputs the fuzzer found (crash-*, timeout-*, oom-*) live next to the seeds and are never rewritten."""
 import json, os, shutil, struct, sys
 
@@ -15,6 +16,51 @@ def put(reader, name, data):
     os.makedirs(os.path.join(out, reader), exist_ok=True)
     with open(os.path.join(out, reader, "seed_" + name), "wb") as f:
         f.write(data if isinstance(data, bytes) else data.encode())
+
+
+# A COLMAP model is two files; the harness splits its input into cameras and images at a 4-byte
+# little-endian length prefix (fuzz/readers.cpp). Images a.png ... f.png and sub/g.png exist in the
+# scratch folder, so the seeds read without error.
+def colmap_model(cameras, images):
+    return struct.pack("<I", len(cameras)) + cameras + images
+
+
+def colmap_seeds():
+    cameras = ("# Camera list with one line of data per camera:\n#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
+               "1 PINHOLE 16 12 20 21 8 6\n")
+    images = ("# Image list with two lines of data per image:\n"
+              "1 0.99500416527802582 0.099833416646828155 0 0 0.5 -0.25 3 1 a.png\n"
+              "1.5 2.5 -1 3.25 4.75 7\n"
+              "2 1 0 0 0 0 0 2 1 b.png\n\n")
+    put("colmap-text", "pinhole", colmap_model(cameras.encode(), images.encode()))
+    cameras = ("1 SIMPLE_PINHOLE 16 12 20 8 6\n2 SIMPLE_RADIAL 16 12 20 8 6 -0.1\n\n3 RADIAL 16 12 20 8 6 -0.1 0.01\n"
+               "4 OPENCV 16 12 20 21 8 6 -0.1 0.01 0.001 -0.002\n"
+               "5 FULL_OPENCV 16 12 20 21 8 6 -0.1 0.01 0.001 -0.002 0.003 0 0 0\n")
+    images = "".join(f"{i} 0.5 0.5 0.5 0.5 0 0 {i} {i} {'abcde'[i - 1]}.png\n\n" for i in range(1, 6))
+    images += "6 1 0 0 0 0 0 1 4 f.png\n\n7 1 0 0 0 0 0 1 2 sub/g.png\n"
+    put("colmap-text", "models", colmap_model(cameras.encode(), images.encode()))
+
+    def camera(cid, model, w, h, params):
+        return struct.pack("<iiQQ", cid, model, w, h) + struct.pack(f"<{len(params)}d", *params)
+
+    def image(iid, q, t, cid, name, points):
+        data = struct.pack("<I7dI", iid, *q, *t, cid) + name + b"\0" + struct.pack("<Q", len(points))
+        return data + b"".join(struct.pack("<ddq", x, y, p) for x, y, p in points)
+
+    cams = struct.pack("<Q", 1) + camera(1, 1, 16, 12, [20, 21, 8, 6])
+    ims = struct.pack("<Q", 2) + image(1, [1, 0, 0, 0], [0, 0, 2], 1, b"a.png", []) + image(
+        2, [0.99500416527802582, 0.099833416646828155, 0, 0], [0.5, -0.25, 3], 1, b"b.png", [(1.5, 2.5, -1), (3, 4, 7)])
+    put("colmap-binary", "pinhole", colmap_model(cams, ims))
+    cams = struct.pack("<Q", 3) + camera(1, 0, 16, 12, [20, 8, 6]) + camera(2, 3, 16, 12, [20, 8, 6, -0.1, 0.01]) + \
+        camera(3, 4, 16, 12, [20, 21, 8, 6, -0.1, 0.01, 0.001, -0.002])
+    ims = struct.pack("<Q", 3) + b"".join(image(i, [0.5, 0.5, 0.5, 0.5], [0, 0, i], i, b"abc"[i - 1:i] + b".png", [])
+                                          for i in range(1, 4))
+    put("colmap-binary", "models", colmap_model(cams, ims))
+
+
+if sys.argv[1:] == ["--colmap"]:
+    colmap_seeds()
+    sys.exit(0)
 
 
 def read(*path):
@@ -73,3 +119,4 @@ header["meta"] = {k: header["meta"][k] for k in list(header["meta"])[:4]}
 text = compact(header).encode()
 put("checkpoint", "fit.bin", ck[:8] + struct.pack("<Q", len(text)) + text + bytes(sum(n for _, n in header["arrays"])))
 put("checkpoint", "empty.bin", ck[:8] + struct.pack("<Q", 24) + b'{"arrays":[],"meta":{}} ')
+colmap_seeds()

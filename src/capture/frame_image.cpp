@@ -32,8 +32,8 @@ FrameImage loadFrame(const Frame& frame, bool encodingClips) {
   Image& img = f.image;
   img = readImageCodes(frame.image, &f.read);
   if (img.width != frame.camera.width || img.height != frame.camera.height)
-    fail("{}: image is {}x{} but the capture says {}x{}", frame.image.string(), img.width, img.height,
-         frame.camera.width, frame.camera.height);
+    fail("{}: image is {}x{} but {} says {}x{}", frame.image.string(), img.width, img.height,
+         frame.cameraSource.empty() ? "its camera" : frame.cameraSource, frame.camera.width, frame.camera.height);
   if (f.read.bits == 0 && !frame.response.isDefault())
     spdlog::warn("{}: a float image is linear; the capture's response ({}) is not applied", frame.image.string(),
                  frame.response.describe());

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "capture/camera_checks.h"
 #include "core/error.h"
 #include "io/file_system.h"
 #include "io/json.h"
@@ -9,11 +10,6 @@
 namespace relume {
 namespace {
 
-// Bounds of a plausible camera: beyond them Embree's rays are invalid or the input is garbage.
-constexpr double kMaxFocal = 1e7;               // pixels
-constexpr double kMaxPrincipalOffset = 10.0;    // |c - size/2| <= this many image sizes
-constexpr double kMaxPosition = 1e6;            // metres, per coordinate
-constexpr double kOrthonormalTolerance = 1e-3;  // on every entry of R^T R - I, and on det R - 1
 // Radiance is pixel / exposure: at exposure 1e-8 a pixel of 1 is radiance 1e8, the largest a scene
 // may emit (kMaxEmission, scene/appearance.h); the bound is symmetric.
 constexpr double kMinExposure = 1e-8, kMaxExposure = 1e8;
@@ -91,6 +87,7 @@ static Capture parseTransforms(const std::filesystem::path& path) {
                                 : Response();
   Capture cap;
   cap.file = path;
+  cap.files = {path};
   const auto dir = path.parent_path();
   for (size_t i = 0; i < root["frames"].size(); ++i) {
     const Json& f = root["frames"][i];
@@ -98,35 +95,21 @@ static Capture parseTransforms(const std::filesystem::path& path) {
     if (!f.is_object()) fail("{}: must be an object", where);
     Intrinsics in = global;
     readIntrinsics(f, in, where);
-    Frame fr;
-    Camera& c = fr.camera;
-    const double w = need(in.w, "w", where), h = need(in.h, "h", where);
-    if (!(w >= 1 && w <= 65536 && h >= 1 && h <= 65536) || w != std::floor(w) || h != std::floor(h))
-      fail("{}: bad image size {}x{} (integers in [1, 65536])", where, w, h);
-    c.width = static_cast<int>(w);
-    c.height = static_cast<int>(h);
-    const double fx = need(in.fx, "fl_x", where), fy = in.fy.value_or(fx);
-    if (!(fx > 0 && fx < kMaxFocal)) fail("{}: 'fl_x' is {}, must be in (0, {:g}) pixels", where, fx, kMaxFocal);
-    if (!(fy > 0 && fy < kMaxFocal)) fail("{}: 'fl_y' is {}, must be in (0, {:g}) pixels", where, fy, kMaxFocal);
-    c.fx = static_cast<float>(fx);
-    c.fy = static_cast<float>(fy);
-    const double cx = in.cx.value_or(w * 0.5), cy = in.cy.value_or(h * 0.5);
-    if (std::abs(cx - 0.5 * w) > kMaxPrincipalOffset * w)
-      fail("{}: 'cx' is {}, must be in [{}, {}] (image width {} times {} around its centre)", where, cx,
-           0.5 * w - kMaxPrincipalOffset * w, 0.5 * w + kMaxPrincipalOffset * w, w, kMaxPrincipalOffset);
-    if (std::abs(cy - 0.5 * h) > kMaxPrincipalOffset * h)
-      fail("{}: 'cy' is {}, must be in [{}, {}] (image height {} times {} around its centre)", where, cy,
-           0.5 * h - kMaxPrincipalOffset * h, 0.5 * h + kMaxPrincipalOffset * h, h, kMaxPrincipalOffset);
-    c.cx = static_cast<float>(cx);
-    c.cy = static_cast<float>(cy);
+    RawIntrinsics raw;
+    raw.width = need(in.w, "w", where), raw.height = need(in.h, "h", where);
+    raw.fx = need(in.fx, "fl_x", where), raw.fy = in.fy.value_or(raw.fx);
+    raw.cx = in.cx.value_or(raw.width * 0.5), raw.cy = in.cy.value_or(raw.height * 0.5);
     const std::string model = in.model.value_or("PINHOLE");
     if (model == "OPENCV") {
-      c.distortion = {static_cast<float>(in.k1.value_or(0)), static_cast<float>(in.k2.value_or(0)),
-                      static_cast<float>(in.p1.value_or(0)), static_cast<float>(in.p2.value_or(0)),
-                      static_cast<float>(in.k3.value_or(0))};
+      raw.k1 = in.k1.value_or(0), raw.k2 = in.k2.value_or(0), raw.p1 = in.p1.value_or(0), raw.p2 = in.p2.value_or(0),
+      raw.k3 = in.k3.value_or(0);
     } else if (model != "PINHOLE") {
       fail("{}: unsupported camera_model '{}' (PINHOLE or OPENCV)", where, model);
     }
+    Frame fr;
+    fr.camera = checkedIntrinsics(raw, IntrinsicNames{}, where);
+    fr.cameraSource = fmt::format("{} (frame {})", file, i);
+    Camera& c = fr.camera;
     if (!f.contains("transform_matrix") || !f["transform_matrix"].is_array() || f["transform_matrix"].size() < 3)
       fail("{}: 'transform_matrix' must be a 4x4 (or 3x4) array", where);
     Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
@@ -141,12 +124,11 @@ static Capture parseTransforms(const std::filesystem::path& path) {
     }
     const Eigen::Matrix3d r = m.block<3, 3>(0, 0);
     const double offOrthonormal = (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
-    if (offOrthonormal > kOrthonormalTolerance || std::abs(r.determinant() - 1.0) > kOrthonormalTolerance)
+    if (offOrthonormal > kRotationTolerance || std::abs(r.determinant() - 1.0) > kRotationTolerance)
       fail("{}: transform_matrix rotation is not orthonormal (det {}, |R^T R - I| {}, tolerance {})", where,
-           r.determinant(), offOrthonormal, kOrthonormalTolerance);
+           r.determinant(), offOrthonormal, kRotationTolerance);
     for (int k = 0; k < 3; ++k)
-      if (!(std::abs(m(k, 3)) < kMaxPosition))
-        fail("{}: transform_matrix[{}][3] (position) is {}, must be within +-{:g} m", where, k, m(k, 3), kMaxPosition);
+      checkPositionCoordinate(m(k, 3), where, fmt::format("transform_matrix[{}][3] (position)", k));
     c.filter = in.filter.value_or(PixelFilter{});
     c.rotation = Camera::rotationFromOpenGL(r.cast<float>());
     c.position = m.block<3, 1>(0, 3).cast<float>();

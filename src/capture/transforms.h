@@ -13,6 +13,7 @@ namespace relume {
 struct Frame {
   Camera camera;
   std::filesystem::path image;    // absolute
+  std::string cameraSource;       // the file and entry that gave `camera` ("F: frame 3"), named by errors
   float exposure = 1.0f;          // pixels are divided by it to get scene radiance
   bool exposureRecorded = false;  // the capture gave `exposure` (else 1 is assumed, not known)
   // Clip thresholds in the linear (exposure-corrected) domain: values at or beyond them are
@@ -23,7 +24,8 @@ struct Frame {
 };
 
 struct Capture {
-  std::filesystem::path file;
+  std::filesystem::path file;                // transforms.json, or COLMAP's images.txt|bin
+  std::vector<std::filesystem::path> files;  // every file the cameras were read from (fingerprints)
   std::vector<Frame> frames;
 };
 

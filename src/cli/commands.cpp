@@ -79,7 +79,7 @@ void registerPrepare(CLI::App& app, CommandTable& table) {
   auto init = std::make_shared<std::string>("median");
   CLI::App* c =
       app.add_subcommand("prepare", "build the texture-space data of a capture: atlas, frame cache, visibility, init");
-  c->add_option("capture", *capture, "capture folder (mesh.ply|obj, transforms.json, images)")
+  c->add_option("capture", *capture, "capture folder (mesh.ply|obj; transforms.json or a COLMAP sparse/0 + images/)")
       ->required()
       ->check(kExistingFolder);
   c->add_option("--out", *work, "work folder")->required();

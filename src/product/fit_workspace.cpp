@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "capture/capture_folder.h"
 #include "core/error.h"
 #include "io/file_system.h"
 #include "io/image.h"
@@ -20,7 +21,7 @@ Workspace::Workspace(const fs::path& work) : dir(work) {
     if (!pathExists(work / f)) fail("{}: missing {}; rerun `relume prepare`", work.string(), f);
   withJsonErrors(pj, [&] {
     const fs::path capture = prepare.at("capture").get<std::string>();
-    frames = readTransforms(capture / "transforms.json").frames;
+    frames = readCapture(capture).frames;
     kept = jsonIntegers<uint32_t>(prepare.at("phases").at("frames").at("kept"), 0, UINT32_MAX, pj.string(), "kept");
     resolutions = jsonIntegers<int>(prepare.at("resolutions"), 1, kMaxTextureResolution, pj.string(), "resolutions");
     if (resolutions.empty()) fail("{}: no resolutions; rerun `relume prepare`", pj.string());
@@ -35,7 +36,7 @@ Workspace::Workspace(const fs::path& work) : dir(work) {
   scene = std::make_unique<Scene>(mesh);
   store = std::make_unique<FrameStore>(work / "frames.bin");
   if (store->frameCount() != frames.size())
-    fail("{}: frames.bin has {} frames but transforms.json {}; rerun `relume prepare`", work.string(),
+    fail("{}: frames.bin has {} frames but the capture's cameras {}; rerun `relume prepare`", work.string(),
          store->frameCount(), frames.size());
   for (uint32_t k : kept)
     if (k >= frames.size()) fail("{}: prepare.json keeps frame {} of {}", pj.string(), k, frames.size());

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <map>
 
+#include "capture/capture_folder.h"
 #include "capture/duplicate_frames.h"
 #include "capture/frame_store.h"
 #include "capture/objects.h"
@@ -379,9 +380,8 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   createDirectories(work);
   if (const size_t stale = removeStaleTemporaries(work))
     spdlog::info("prepare: removed {} temporaries of killed runs", stale);
-  const fs::path transformsPath = capture / "transforms.json";
   const fs::path meshPath = findMesh(capture);
-  Capture cap = readTransforms(transformsPath);
+  Capture cap = readCapture(capture);
   Json report = previousReport(work / "prepare.json", o.force);
   report.erase("response");
   if (!o.response.empty()) report["response"] = {{"spec", o.response}, {"dir", fs::current_path().string()}};
@@ -424,11 +424,11 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   const TriangleMesh mesh = loadMesh(work / "atlas_mesh.ply");
   const Scene scene(mesh);
 
-  // Frames: convert, then filter. "frames2": the filter that drops duplicates, so work folders
-  // filtered before it are filtered again.
-  std::vector<fs::path> imagePaths{transformsPath};
+  // Frames: convert, then filter.
+  std::vector<fs::path> imagePaths = cap.files;
   for (const Frame& f : cap.frames) imagePaths.push_back(f.image);
-  // "frames3": the frame cache's format (with clip thresholds), so older caches are rebuilt.
+  // "frames3": the frame cache's format (with clip thresholds) and the filter that drops
+  // duplicates, so work folders made before them are converted and filtered again.
   std::string responses;
   for (const Frame& f : cap.frames) responses += f.response.fingerprint() + ";";
   const std::string framesPrint =

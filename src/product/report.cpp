@@ -7,8 +7,8 @@
 #include <map>
 #include <optional>
 
+#include "capture/capture_folder.h"
 #include "capture/frame_image.h"
-#include "capture/transforms.h"
 #include "core/error.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
@@ -115,7 +115,7 @@ std::string percentOf(double value, double scale) {
 std::string viewsSection(const fs::path& out, const SceneDescription& fit, const SceneDescription* truth,
                          const Json& prepare, const std::map<uint32_t, Color>& gains, const ReportOptions& o) {
   const fs::path capture = prepare.at("capture").get<std::string>();
-  std::vector<Frame> frames = readTransforms(capture / "transforms.json").frames;
+  std::vector<Frame> frames = readCapture(capture).frames;
   applyPreparedResponse(prepare, frames);
   const auto kept = prepare.at("phases").at("frames").at("kept").get<std::vector<uint32_t>>();
   if (kept.empty() || o.frames <= 0) return "<p>No frames.</p>";

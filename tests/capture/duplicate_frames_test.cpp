@@ -40,7 +40,7 @@ class DuplicateFramesTest : public ::testing::Test {
     f.image = file;
     return f;
   }
-  Capture capture(std::vector<Frame> frames) { return {dir_ / "transforms.json", std::move(frames)}; }
+  Capture capture(std::vector<Frame> frames) { return {dir_ / "transforms.json", {}, std::move(frames)}; }
 
   fs::path dir_;
 };

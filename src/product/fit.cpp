@@ -299,7 +299,12 @@ void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const
     const GradientResult gr = computeGradients(*w_.scene, appearance_, *lights_, batch.rays, settings, iteration, grads,
                                                gains_.estimated() ? &estimates : nullptr);
     w_.scene->throwIfEmbreeFailed();
-    gains_.update(batch.rays, batch.frame, estimates);
+    // The gains move with the albedo: in the emission stage the estimates start from no light.
+    if (st.active.active(ParamKind::Albedo) && it >= st.iterations / 2) {
+      std::vector<uint8_t> ownRadiance(roles_.emitter.size());
+      for (size_t o = 0; o < ownRadiance.size(); ++o) ownRadiance[o] = roles_.emitter[o] || roles_.outOfModel[o];
+      gains_.update(batch.rays, batch.frame, batch.object, ownRadiance, estimates);
+    }
     now.primal = gr.times.primal, now.loss = gr.times.loss, now.adjoint = gr.times.adjoint;
     Timer to;
     bool averagesStart = false;

@@ -52,14 +52,18 @@ void FrameGains::apply(std::span<BatchRay> rays, std::span<const uint32_t> frame
 }
 
 void FrameGains::update(std::span<const BatchRay> rays, std::span<const uint32_t> frameOf,
+                        std::span<const int> objectOf, std::span<const uint8_t> excluded,
                         std::span<const Color> estimates) {
   if (!estimated()) return;
-  CHECK(rays.size() == frameOf.size() && rays.size() == estimates.size());
+  CHECK(rays.size() == frameOf.size() && rays.size() == estimates.size() && rays.size() == objectOf.size());
   for (double& s : sumReference_) s *= memory_;
   for (double& s : sumEstimate_) s *= memory_;
   for (double& n : rays_) n *= memory_;
   for (size_t j = 0; j < rays.size(); ++j) {
-    if (!usableForGain(rays[j], estimates[j])) continue;
+    const int object = objectOf[j];
+    if (!usableForGain(rays[j], estimates[j]) ||
+        (object >= 0 && static_cast<size_t>(object) < excluded.size() && excluded[static_cast<size_t>(object)]))
+      continue;
     const size_t f = frameOf[j];
     for (int c = 0; c < 3; ++c) {
       sumReference_[3 * f + c] += rays[j].reference[c];

@@ -52,8 +52,12 @@ class FrameGains {
   // Sets every ray's gain to its frame's (frameOf[j]: ray j's frame).
   void apply(std::span<BatchRay> rays, std::span<const uint32_t> frameOf) const;
   // Adds the batch (each ray's gain-free radiance estimate) to the decayed sums, then gives every
-  // frame with evidence its closed-form gain and fixes the gauge.
-  void update(std::span<const BatchRay> rays, std::span<const uint32_t> frameOf, std::span<const Color> estimates);
+  // frame with evidence its closed-form gain and fixes the gauge. Rays aimed at objects whose
+  // radiance is a fitted unknown of its own (`excluded[object]`: light sources, whose emission
+  // shares the gains' scale, and what the model cannot hold) are left out: in a frame that sees a
+  // lamp its pixels would outweigh all others.
+  void update(std::span<const BatchRay> rays, std::span<const uint32_t> frameOf, std::span<const int> objectOf,
+              std::span<const uint8_t> excluded, std::span<const Color> estimates);
   void serialise(CheckpointIo& io);
   // result/frames.json: the mode, the gauge and each frame's gain and evidence.
   Json toJson(const std::vector<Frame>& frames) const;

@@ -159,9 +159,12 @@ bool LightDecisions::decide(const TexelSpace& space, const std::string& after, b
     } else {
       // A light's emission is set when it becomes one (and, with light_albedo_zero, at the
       // first decision, where its albedo goes to 0); a re-decision that agrees changes nothing.
+      // Where its pixels are saturated their mean is only a lower bound: the emission fitted from
+      // the light it casts is kept when it is brighter.
       const bool wasEmitting = a_.isEmissive(o);
       if (c_.lightAlbedoZero && (first || !wasEmitting))
-        a_.emission[o] = evidence[o].meanObservedColor();
+        a_.emission[o] = evidence[o].saturatedRays > 0 ? Color(evidence[o].meanObservedColor().max(a_.emission[o]))
+                                                       : evidence[o].meanObservedColor();
       else if (!wasEmitting)
         a_.emission[o] = evidence[o].emissionEstimate();
       changed |= !first && !wasEmitting;

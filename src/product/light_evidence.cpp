@@ -125,6 +125,7 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
     const double I = luminance(rays[j].reference), B = luminance(reflectorColor) + mirrorBound[j];
     const double P = luminance(mirrored[j]);
     ++e.rays;
+    e.saturatedRays += (rays[j].reference >= rays[j].clip.high).any();
     e.observed += I, e.observedSquares += I * I, e.observedColor += rays[j].reference;
     e.reflector += B;
     e.reflectorColor += reflectorColor + Color::Constant(mirrorBound[j]);

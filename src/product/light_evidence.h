@@ -52,7 +52,8 @@ void forEachMirrorDirection(const SurfaceHit& hit, const Vec3& dir, Fn&& fn) {
 // Sums over one object's rays; means and errors derived below.
 struct LightEvidence {
   uint64_t rays = 0;
-  double observed = 0;  // sum of I
+  uint64_t saturatedRays = 0;  // whose reference is saturated in some channel: I is only a lower bound
+  double observed = 0;         // sum of I
   Color observedColor = Color::Zero();
   double reflector = 0;                  // sum of B
   Color reflectorColor = Color::Zero();  // sum of B per channel

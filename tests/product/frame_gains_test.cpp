@@ -15,11 +15,13 @@ struct GainScene {
   std::vector<Color> truth;
   std::vector<BatchRay> rays;
   std::vector<uint32_t> frameOf;
+  std::vector<int> objectOf;
   std::vector<Color> estimates;
 
   void draw(uint64_t iteration, size_t count) {
     Pcg32 rng(iteration * 7919 + 1);
     rays.clear(), frameOf.clear(), estimates.clear();
+    objectOf.assign(count, 0);
     for (size_t j = 0; j < count; ++j) {
       const uint32_t f = rng.nextU32() % truth.size();
       const Color radiance(0.1f + 0.5f * rng.next1D(), 0.1f + 0.5f * rng.next1D(), 0.1f + 0.5f * rng.next1D());
@@ -39,7 +41,7 @@ FrameGains fitted(FrameGainMode mode, int reference, std::vector<Color> truth = 
   FrameGains gains(mode, truth.size(), {0, 1, 2, 3}, reference, 0.9f);
   for (uint64_t it = 0; it < 300; ++it) {
     scene.draw(it, 4000);
-    gains.update(scene.rays, scene.frameOf, scene.estimates);
+    gains.update(scene.rays, scene.frameOf, scene.objectOf, {}, scene.estimates);
   }
   return gains;
 }
@@ -82,7 +84,7 @@ TEST(FrameGains, ApplySetsEachRaysGain) {
   FrameGains none(FrameGainMode::None, 2, {0, 1}, -1, 0.9f);
   GainScene scene{{Color::Constant(2.0f), Color::Constant(0.5f)}};
   scene.draw(0, 100);
-  none.update(scene.rays, scene.frameOf, scene.estimates);
+  none.update(scene.rays, scene.frameOf, scene.objectOf, {}, scene.estimates);
   none.apply(scene.rays, scene.frameOf);
   for (const BatchRay& r : scene.rays) EXPECT_TRUE(r.gain.isApprox(Color::Ones()));
   const FrameGains rgb = fitted(FrameGainMode::Rgb, -1);

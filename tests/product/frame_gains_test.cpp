@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "core/rng.h"
+#include "product/fit_checkpoint.h"
 
 using namespace relume;
 
@@ -92,4 +93,28 @@ TEST(FrameGains, ApplySetsEachRaysGain) {
   other.draw(1, 50);
   rgb.apply(other.rays, other.frameOf);
   for (size_t j = 0; j < other.rays.size(); ++j) EXPECT_EQ(other.rays[j].gain[1], rgb.gain(other.frameOf[j])[1]);
+}
+
+// A checkpoint holds the gains and their evidence: a fit resumed from it updates them exactly as
+// the uninterrupted one does.
+TEST(FrameGains, ACheckpointContinuesThemExactly) {
+  GainScene scene{kTruth};
+  FrameGains whole(FrameGainMode::Rgb, 4, {0, 1, 2, 3}, -1, 0.9f);
+  for (uint64_t it = 0; it < 20; ++it) {
+    scene.draw(it, 500);
+    whole.update(scene.rays, scene.frameOf, scene.objectOf, {}, scene.estimates);
+  }
+  Checkpoint ck;
+  CheckpointIo writer = CheckpointIo::writer(ck);
+  whole.serialise(writer);
+  FrameGains resumed(FrameGainMode::Rgb, 4, {0, 1, 2, 3}, -1, 0.9f);
+  CheckpointIo reader = CheckpointIo::reader(ck);
+  resumed.serialise(reader);
+  for (uint64_t it = 20; it < 30; ++it) {
+    scene.draw(it, 500);
+    whole.update(scene.rays, scene.frameOf, scene.objectOf, {}, scene.estimates);
+    resumed.update(scene.rays, scene.frameOf, scene.objectOf, {}, scene.estimates);
+  }
+  for (uint32_t f = 0; f < 4; ++f)
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(whole.gain(f)[c], resumed.gain(f)[c]);
 }

@@ -39,9 +39,9 @@ class Fit {
         roles_(appearance_.objectCount()),
         batches_(c_, w_),
         optimiser_(c_),
-        decisions_(c_, w_, appearance_, roles_, settings_.path),
         gains_(resolveFrameGains(c_.frameGains, w_.frames, *w_.store, w_.kept), w_.frames.size(), w_.kept,
-               c_.gainReferenceFrame, c_.gainMemory) {
+               c_.gainReferenceFrame, c_.gainMemory),
+        decisions_(c_, w_, appearance_, roles_, settings_.path, gains_) {
     settings_.mode = c_.gradients;
     settings_.emitters = c_.emitterGradients;
     settings_.pairing = c_.pairing;
@@ -95,8 +95,8 @@ class Fit {
   ObjectRoles roles_;
   FitBatches batches_;
   GroupOptimiser optimiser_;
-  LightDecisions decisions_;
   FrameGains gains_;
+  LightDecisions decisions_;
   SamplerStats stats_;
   std::optional<LightSampler> lights_;  // by the current emission; each iteration's shares the last's tables
   size_t lightSamplerBytesPeak_ = 0;    // the most lights_->bytes() has been
@@ -201,6 +201,7 @@ std::unique_ptr<TexelSpace> Fit::start(const Stage& first) {
                              [](float, float) { return 0.0f; });
   }
   initialiseAlbedo(*space);
+  if (gains_.estimated()) gains_.start(w_.consistencyGains());
   decisions_.excludeUnseen(*space);
   decisions_.applyHint();
   if (!c_.lights.empty()) decisions_.zeroLightAlbedo(*space);
@@ -300,7 +301,7 @@ void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const
                                                gains_.estimated() ? &estimates : nullptr);
     w_.scene->throwIfEmbreeFailed();
     // The gains move with the albedo: in the emission stage the estimates start from no light.
-    if (st.active.active(ParamKind::Albedo) && it >= st.iterations / 2) {
+    if (c_.gainRefine && st.active.active(ParamKind::Albedo) && it >= st.iterations / 2) {
       std::vector<uint8_t> ownRadiance(roles_.emitter.size());
       for (size_t o = 0; o < ownRadiance.size(); ++o) ownRadiance[o] = roles_.emitter[o] || roles_.outOfModel[o];
       gains_.update(batch.rays, batch.frame, batch.object, ownRadiance, estimates);

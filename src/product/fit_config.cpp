@@ -75,6 +75,7 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("frame_gains", ConfigField(&c.frameGains));
   fn("gain_reference_frame", ConfigField(&c.gainReferenceFrame));
   fn("gain_memory", ConfigField(&c.gainMemory));
+  fn("gain_refine", ConfigField(&c.gainRefine));
   fn("coarse_to_fine", ConfigField(&c.coarseToFine));
   fn("emission_textures", ConfigField(&c.emissionTextures));
   fn("emission_texture_resolution", ConfigField(&c.emissionTextureResolution));

@@ -126,6 +126,7 @@ struct FitConfig {
   FrameGainMode frameGains = FrameGainMode::Auto;
   int gainReferenceFrame = -1;  // the frame whose gain is 1; -1: the gains' geometric mean is 1
   float gainMemory = 0.9f;      // per-iteration decay of a frame's evidence sums (~1/(1-m) iterations)
+  bool gainRefine = false;      // update the gains in the fit too (closed form), not only prepare's
   uint64_t seed = 1;
   int checkpointEvery = 100, metricsEvery = 10;
   int stopAfterIterations = 0;  // stop (with a checkpoint) after this many iterations; 0 = run to the end

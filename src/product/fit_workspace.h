@@ -38,6 +38,8 @@ struct Workspace {
   // Observations of the init-resolution texel that contains texel t of a `res` map.
   float coverageOf(size_t t, int res) const;
   TrainingFrames trainingFrames() const { return {&frames, store.get(), kept}; }
+  // Per frame, the gains prepare found in the frames' agreement (frame_gains.json; 1 where none).
+  std::vector<Color> consistencyGains() const;
   // The resolution the frames resolve: the smallest prepared resolution whose texel is no larger
   // than the median footprint on the surface of the pixels of `batch`'s rays.
   int resolvedResolution(const Batch& batch) const;

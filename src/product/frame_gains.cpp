@@ -46,6 +46,16 @@ FrameGains::FrameGains(FrameGainMode mode, size_t frameCount, std::vector<uint32
     fail("fit: gain_reference_frame {} is not one of the {} frames prepare kept", reference_, kept_.size());
 }
 
+void FrameGains::start(const std::vector<Color>& initial) {
+  if (!estimated()) return;
+  CHECK(initial.size() == gain_.size());
+  for (uint32_t f : kept_) {
+    const Color g = initial[f].max(kMinGain).min(kMaxGain);
+    gain_[f] = mode_ == FrameGainMode::Exposure ? Color::Constant(std::cbrt(g[0] * g[1] * g[2])) : g;
+  }
+  fixGauge();
+}
+
 void FrameGains::apply(std::span<BatchRay> rays, std::span<const uint32_t> frameOf) const {
   CHECK(rays.size() == frameOf.size());
   for (size_t j = 0; j < rays.size(); ++j) rays[j].gain = gain_[frameOf[j]];

@@ -2,12 +2,13 @@
 // balances white per shot records gain x radiance with a gain nobody wrote down; the fit then
 // predicts a frame's pixel as its gain times the rendered radiance (BatchRay::gain).
 //
-// A frame's pixels are linear in its gain, as a texel's are in its albedo, so each iteration
-// updates it in closed form: the ratio of the frame's reference sum to its (gain-free) estimate
-// sum over the rays whose reference is neither clipped nor masked, both sums decayed over the
-// last iterations. The ratio estimator is unbiased by the estimates' path-tracing noise (a least-
-// squares fit, sum(I x) / sum(x^2), is pulled down by it). Gains and radiance trade one scale,
-// so the gauge is fixed: the gains' geometric mean over the kept frames is 1, or one frame's is 1.
+// The gains start from prepare's (the frames' agreement on diffuse texels, solved exactly). With
+// gain_refine, the fit also updates them: a frame's pixels are linear in its gain, as a texel's
+// are in its albedo, so each iteration updates it in closed form: the ratio of the frame's reference sum to its
+// (gain-free) estimate sum over the rays whose reference is neither clipped nor masked, both sums decayed over the last
+// iterations. The ratio estimator is unbiased by the estimates' path-tracing noise (a least- squares fit, sum(I x) /
+// sum(x^2), is pulled down by it). Gains and radiance trade one scale, so the gauge is fixed: the gains' geometric mean
+// over the kept frames is 1, or one frame's is 1.
 #pragma once
 #include <array>
 #include <span>
@@ -49,6 +50,9 @@ class FrameGains {
   FrameGainMode mode() const { return mode_; }
   bool estimated() const { return mode_ != FrameGainMode::None; }
   const Color& gain(uint32_t frame) const { return gain_[frame]; }
+  // The gains prepare found in the frames' agreement (frame_gains.json, photometric_consistency.h),
+  // per channel; in exposure mode each frame's channels' geometric mean. The gauge is then fixed.
+  void start(const std::vector<Color>& initial);
   // Sets every ray's gain to its frame's (frameOf[j]: ray j's frame).
   void apply(std::span<BatchRay> rays, std::span<const uint32_t> frameOf) const;
   // Adds the batch (each ray's gain-free radiance estimate) to the decayed sums, then gives every

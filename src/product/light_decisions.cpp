@@ -42,7 +42,8 @@ void ObjectRoles::serialise(CheckpointIo& io) {
 
 void LightDecisions::observe(const Batch& batch) {
   for (size_t j = 0; j < batch.rays.size(); ++j)
-    r_.observedSum[batch.object[j]] += luminance(batch.rays[j].reference), ++r_.observedCount[batch.object[j]];
+    r_.observedSum[batch.object[j]] += luminance(batch.rays[j].reference / batch.rays[j].gain),
+        ++r_.observedCount[batch.object[j]];
 }
 
 std::vector<uint8_t> LightDecisions::albedoHeld() const {
@@ -115,6 +116,7 @@ bool LightDecisions::decide(const TexelSpace& space, const std::string& after, b
     batch.append(own.sample(hashTuple({stream, static_cast<uint64_t>(o)}), 0,
                             {c_.lightEvidenceTexels, c_.framesPerTexel, RayFootprint::Point, 1}));
   }
+  gains_.apply(batch.rays, batch.frame);
   // Each ray's camera, found by its origin (the sampler's rays start at the camera).
   std::map<std::array<float, 3>, const Camera*> byPosition;
   for (uint32_t k : w_.kept) {
@@ -272,12 +274,13 @@ void LightDecisions::decideHighlights(const TexelSpace& space, const FitBatches&
   const int objects = a_.objectCount();
   HighlightEvidence evidence(objects);
   for (uint64_t probe = 0; probe < kHighlightProbeBatches; ++probe) {
-    const Batch batch = batches.sample(space, (uint64_t{1} << 40) + probe, c_.rayFootprint);
+    Batch batch = batches.sample(space, (uint64_t{1} << 40) + probe, c_.rayFootprint);
+    gains_.apply(batch.rays, batch.frame);
     std::vector<int8_t> sawLight(batch.rays.size(), -1);
     std::vector<float> lum(batch.rays.size(), 0.0f);
     tbb::parallel_for(size_t{0}, batch.rays.size(), [&](size_t j) {
       sawLight[j] = seesLightReflected(*w_.scene, a_, r_.emitter, batch.rays[j]);
-      if (sawLight[j] >= 0) lum[j] = luminance(batch.rays[j].reference);
+      if (sawLight[j] >= 0) lum[j] = luminance(batch.rays[j].reference / batch.rays[j].gain);
     });
     evidence.addBatch(batch.slot, batch.object, lum, sawLight);
   }

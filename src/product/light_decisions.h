@@ -14,6 +14,7 @@
 #include "product/fit_checkpoint.h"
 #include "product/fit_config.h"
 #include "product/fit_workspace.h"
+#include "product/frame_gains.h"
 #include "product/light_evidence.h"
 
 namespace relume {
@@ -35,8 +36,10 @@ struct ObjectRoles {
 
 class LightDecisions {
  public:
-  LightDecisions(const FitConfig& c, const Workspace& w, Appearance& a, ObjectRoles& roles, const PathSettings& path)
-      : c_(c), w_(w), a_(a), r_(roles), path_(path) {}
+  // `gains`: the frames' (the evidence compares radiance, each frame's pixels divided by its gain).
+  LightDecisions(const FitConfig& c, const Workspace& w, Appearance& a, ObjectRoles& roles, const PathSettings& path,
+                 const FrameGains& gains)
+      : c_(c), w_(w), a_(a), r_(roles), path_(path), gains_(gains) {}
 
   // An object no kept frame sees is no light-source candidate: nothing of its own radiance is
   // observed, so its emission trades off against the albedo of what it lights.
@@ -75,6 +78,7 @@ class LightDecisions {
   Appearance& a_;
   ObjectRoles& r_;
   const PathSettings& path_;
+  const FrameGains& gains_;
 };
 
 }  // namespace relume

@@ -122,15 +122,16 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
     if (!valid[j] || (!interior[j] && interiorRays[objects[j]] >= kMinInteriorRays)) continue;
     LightEvidence& e = out[objects[j]];
     const Color reflectorColor = (returned[j] - ownEmission[j]).max(0.0f);
-    const double I = luminance(rays[j].reference), B = luminance(reflectorColor) + mirrorBound[j];
+    const Color radiance = rays[j].reference / rays[j].gain;  // the frame's pixel as radiance
+    const double I = luminance(radiance), B = luminance(reflectorColor) + mirrorBound[j];
     const double P = luminance(mirrored[j]);
     ++e.rays;
     e.saturatedRays += (rays[j].reference >= rays[j].clip.high).any();
-    e.observed += I, e.observedSquares += I * I, e.observedColor += rays[j].reference;
+    e.observed += I, e.observedSquares += I * I, e.observedColor += radiance;
     e.reflector += B;
     e.reflectorColor += reflectorColor + Color::Constant(mirrorBound[j]);
     e.excess += I - B, e.excessSquares += (I - B) * (I - B);
-    e.excessColor += rays[j].reference - reflectorColor - Color::Constant(mirrorBound[j]);
+    e.excessColor += radiance - reflectorColor - Color::Constant(mirrorBound[j]);
     e.mirrorResidualSquares += (I - P) * (I - P);
     if (I > B) {
       e.deficit += I - B;

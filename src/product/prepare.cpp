@@ -12,6 +12,7 @@
 #include "capture/duplicate_frames.h"
 #include "capture/frame_store.h"
 #include "capture/objects.h"
+#include "capture/photometric_consistency.h"
 #include "core/error.h"
 #include "core/rng.h"
 #include "core/system.h"
@@ -19,6 +20,7 @@
 #include "io/file_system.h"
 #include "io/image.h"
 #include "io/json.h"
+#include "product/frame_gains.h"
 #include "scene/scene.h"
 #include "scene/texel_map.h"
 #include "sampling/median_sketch.h"
@@ -240,10 +242,10 @@ class TexelObservations {
     });
   }
 
-  // Calls add(texel, radiance) for every observation. Frames in order and, inside a frame, its
-  // tiles in parallel: a texel (and its tile's bits) is only ever updated by one thread at a
+  // Calls add(texel, frame, radiance) for every observation. Frames in order and, inside a frame,
+  // its tiles in parallel: a texel (and its tile's bits) is only ever updated by one thread at a
   // time, so nothing needs atomics.
-  void pass(const char* label, const std::function<void(size_t, const Color&)>& add) {
+  void pass(const char* label, const std::function<void(size_t, uint32_t, const Color&)>& add) {
     const bool traced = passes_++ > 0;
     const int initRes = map_.resolution(), tilesPerSide = initRes / tileTexels_;
     Progress progress(label, kept_.size());
@@ -269,7 +271,7 @@ class TexelObservations {
             const auto c = store_.bilinear(k, *px);
             if (!c) continue;
             if (!traced) bits[bit / 64] |= uint64_t{1} << (bit % 64);
-            add(texel, *c);
+            add(texel, static_cast<uint32_t>(k), *c);
           }
       });
       progress.advance();
@@ -292,6 +294,28 @@ class TexelObservations {
   int passes_ = 0;
 };
 
+// Frame gains from the frames' agreement on a regular sample of texels (photometric_consistency.h),
+// written to frame_gains.json: what the fit starts its frame gains from, and a check of recorded
+// exposures.
+constexpr size_t kConsistencyTexels = 65536;
+ConsistencyGains consistencyGains(TexelObservations& observations, const TexelMap& initMap, const FrameStore& store,
+                                  const std::vector<size_t>& kept, const fs::path& work) {
+  const size_t stride = std::max<size_t>(1, initMap.texelCount() / kConsistencyTexels);
+  std::vector<std::vector<GainObservation>> sampled((initMap.texelCount() + stride - 1) / stride);
+  observations.pass("frame gains", [&](size_t t, uint32_t f, const Color& c) {
+    const FrameStats& s = store.stats(f);
+    if (t % stride == 0 && (c > s.clipLow).all() && (c < s.clipHigh).all() && (c > 0.0f).all())
+      sampled[t / stride].push_back({f, c});
+  });
+  const std::vector<uint32_t> keptFrames(kept.begin(), kept.end());
+  const ConsistencyGains g = solveConsistencyGains(sampled, store.frameCount(), keptFrames);
+  Json frames = Json::array();
+  for (uint32_t f : keptFrames)
+    frames.push_back({{"frame", f}, {"gain", {g.gain[f][0], g.gain[f][1], g.gain[f][2]}}, {"texels", g.texels[f]}});
+  writeJson(work / "frame_gains.json", {{"frames", frames}, {"log_residual_rms", g.residualRms}});
+  return g;
+}
+
 // Initial albedo: the streaming median (or mean) of each texel's observed radiance, and how many
 // observations each texel had (coverage).
 Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, const std::vector<size_t>& kept,
@@ -309,13 +333,21 @@ Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, 
   MedianSketch sketch(texels);
   std::vector<Eigen::Array3d> sum(o.init == InitStatistic::Mean ? texels : 0, Eigen::Array3d::Zero());
   std::vector<uint32_t> coverage(texels, 0);
+  const ConsistencyGains gains = consistencyGains(observations, initMap, store, kept, work);
+  // The init averages radiance: frames whose gains the fit estimates are divided by them first.
+  const bool corrected = resolveFrameGains(FrameGainMode::Auto, cap.frames, store,
+                                           std::vector<uint32_t>(kept.begin(), kept.end())) != FrameGainMode::None;
+  const auto radiance = [&](uint32_t f, const Color& c) { return corrected ? Color(c / gains.gain[f]) : c; };
   if (o.init == InitStatistic::Median) {
-    observations.pass("median (coarse)", [&](size_t t, const Color& c) { sketch.addCoarse(t, c); });
+    observations.pass("median (coarse)",
+                      [&](size_t t, uint32_t f, const Color& c) { sketch.addCoarse(t, radiance(f, c)); });
     sketch.startFine();
-    observations.pass("median (fine)", [&](size_t t, const Color& c) { sketch.addFine(t, c); });
+    observations.pass("median (fine)",
+                      [&](size_t t, uint32_t f, const Color& c) { sketch.addFine(t, radiance(f, c)); });
     for (size_t t = 0; t < texels; ++t) coverage[t] = sketch.count(t);
   } else {
-    observations.pass("mean", [&](size_t t, const Color& c) { sum[t] += c.cast<double>(), ++coverage[t]; });
+    observations.pass(
+        "mean", [&](size_t t, uint32_t f, const Color& c) { sum[t] += radiance(f, c).cast<double>(), ++coverage[t]; });
   }
   Image albedo(initRes, initRes), cov(initRes, initRes);
   size_t valid = 0, unobserved = 0;
@@ -447,8 +479,10 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
            [&] { return visibilityPhase(scene, initMap, cap, kept, work, o); });
 
   // Initial albedo (streaming median of observed radiance) and coverage.
-  const std::string initPrint = fingerprintOf({}, fmt::format("init {} {}", visPrint, static_cast<int>(o.init)));
-  runPhase("init", initPrint, {work / "albedo_init.exr", work / "coverage.exr", work / "coverage.png"},
+  // "init2": with the frame gains of the frames' agreement.
+  const std::string initPrint = fingerprintOf({}, fmt::format("init2 {} {}", visPrint, static_cast<int>(o.init)));
+  runPhase("init", initPrint,
+           {work / "albedo_init.exr", work / "coverage.exr", work / "coverage.png", work / "frame_gains.json"},
            [&] { return initPhase(scene, initMap, cap, kept, work, o); });
 
   PrepareSummary s;

@@ -351,7 +351,8 @@ std::string lightsSection(const fs::path& file) {
 std::string framesSection(const Json& prepare, const Json& gains) {
   const Json frames = prepare.at("phases").at("frames");
   std::string s = "<p>Encodings: ";
-  for (const auto& [encoding, count] : frames.value("encodings", Json::object()).items())
+  const Json encodings = frames.value("encodings", Json::object());  // items() of a temporary would dangle
+  for (const auto& [encoding, count] : encodings.items())
     s += fmt::format("{} frames {}; ", count.get<int>(), html(encoding));
   const Json saturated = frames.value("saturated_pixel_fraction", Json::object());
   double worst = 0;
@@ -366,7 +367,8 @@ std::string framesSection(const Json& prepare, const Json& gains) {
                    html(gains.value("gauge", std::string())));
   s += "<table><tr><th>frame</th><th>image</th><th>gain R</th><th>gain G</th><th>gain B</th><th>evidence "
        "(rays)</th></tr>";
-  for (const Json& f : gains.value("frames", Json::array()))
+  const Json list = gains.value("frames", Json::array());
+  for (const Json& f : list)
     s += fmt::format("<tr><td>{}</td><td>{}</td><td>{:.4f}</td><td>{:.4f}</td><td>{:.4f}</td><td>{:.0f}</td></tr>",
                      f.value("frame", 0), html(f.value("image", std::string())), f["gain"][0].get<double>(),
                      f["gain"][1].get<double>(), f["gain"][2].get<double>(), f.value("rays", 0.0));
@@ -377,7 +379,8 @@ std::string framesSection(const Json& prepare, const Json& gains) {
 std::map<uint32_t, Color> frameGainsOf(const Json& gains) {
   std::map<uint32_t, Color> out;
   if (gains.value("mode", std::string("none")) == "none") return out;
-  for (const Json& f : gains.value("frames", Json::array()))
+  const Json list = gains.value("frames", Json::array());
+  for (const Json& f : list)
     out[f.at("frame").get<uint32_t>()] =
         Color(f["gain"][0].get<float>(), f["gain"][1].get<float>(), f["gain"][2].get<float>());
   return out;

@@ -75,12 +75,16 @@ TEST(LdrFit, SaturatedLightsAreBoundsNotValues) {
 }
 
 // Exposure drifting by exp(N(0, 0.3)) and white balance by 3% per channel, recorded nowhere: the
-// estimated gains move towards the truth (in the gauge, geometric mean 1) and the albedo improves.
+// gains come back to 1% (median; 3% at worst) in the gauge (geometric mean 1) and the albedo is
+// that of the clean capture's fit (0.047 on this capture) rather than 0.14.
 TEST(LdrFit, UnrecordedGainsAreEstimated) {
   const fs::path dir = preparedCapture("ldr_fit_gains", smallRoom("exposure-drift=0.3;wb=0.03"), 256);
   const TruthComparison without = fitAndScore(dir / "work", dir / "capture", smallConfig(FrameGainMode::None));
   const TruthComparison with = fitAndScore(dir / "work", dir / "capture", smallConfig(FrameGainMode::Rgb));
-  EXPECT_LT(with.albedoMae, without.albedoMae - 0.01);
+  EXPECT_LT(with.albedoMae, 0.06);
+  EXPECT_GT(without.albedoMae, 0.1);
+  EXPECT_EQ(with.emittersCorrect, with.emittersTrue);
+  EXPECT_LT(with.emissionRelError, 0.05);
 
   const Json gains = readJson(dir / "work" / "result" / "frames.json");
   const Json truth = readJson(dir / "capture" / "gt" / "imperfections.json");
@@ -101,7 +105,9 @@ TEST(LdrFit, UnrecordedGainsAreEstimated) {
       assumedOne.push_back(std::abs(1.0 / t[c] - 1));
     }
   }
-  EXPECT_LT(median(estimated), 0.6 * median(assumedOne));
+  EXPECT_LT(median(estimated), 0.01);
+  EXPECT_LT(*std::max_element(estimated.begin(), estimated.end()), 0.03);
+  EXPECT_GT(median(assumedOne), 0.1);
   std::printf("LdrFit gains: median error %.3f (gains taken as 1: %.3f), albedo MAE %.4f (without gains %.4f)\n",
               median(estimated), median(assumedOne), with.albedoMae, without.albedoMae);
 }

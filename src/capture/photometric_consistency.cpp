@@ -1,0 +1,82 @@
+#include "capture/photometric_consistency.h"
+
+#include <Eigen/Dense>
+#include <cmath>
+
+#include "core/check.h"
+
+namespace relume {
+namespace {
+
+// Huber's threshold in log units: within it an observation weighs 1 (a few percent of noise), beyond
+// it 1/|e| (a highlight, a shadow edge the mesh misplaces).
+constexpr double kHuber = 0.05;
+constexpr int kReweightings = 4;
+
+}  // namespace
+
+ConsistencyGains solveConsistencyGains(const std::vector<std::vector<GainObservation>>& observations, size_t frameCount,
+                                       std::span<const uint32_t> kept) {
+  ConsistencyGains out;
+  out.gain.assign(frameCount, Color::Ones());
+  out.texels.assign(frameCount, 0);
+  out.residualRms.assign(3, 0.0);
+  std::vector<int> index(frameCount, -1);  // frame -> unknown
+  for (size_t k = 0; k < kept.size(); ++k) index[kept[k]] = static_cast<int>(k);
+  const int n = static_cast<int>(kept.size());
+  for (const auto& obs : observations)
+    if (obs.size() >= 2)
+      for (const GainObservation& o : obs) ++out.texels[o.frame];
+  if (n < 2) return out;
+  for (int c = 0; c < 3; ++c) {
+    Eigen::VectorXd a = Eigen::VectorXd::Zero(n);  // log gains
+    std::vector<std::vector<double>> weight(observations.size());
+    for (size_t x = 0; x < observations.size(); ++x) weight[x].assign(observations[x].size(), 1.0);
+    double rms = 0;
+    for (int round = 0; round <= kReweightings; ++round) {
+      Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
+      Eigen::VectorXd r = Eigen::VectorXd::Zero(n);
+      for (size_t x = 0; x < observations.size(); ++x) {
+        const auto& obs = observations[x];
+        if (obs.size() < 2) continue;
+        double W = 0, wy = 0;
+        for (size_t i = 0; i < obs.size(); ++i) W += weight[x][i], wy += weight[x][i] * std::log(obs[i].value[c]);
+        const double mean = wy / W;
+        for (size_t i = 0; i < obs.size(); ++i) {
+          const int fi = index[obs[i].frame];
+          CHECK(fi >= 0);
+          const double wi = weight[x][i];
+          A(fi, fi) += wi;
+          r[fi] += wi * (std::log(obs[i].value[c]) - mean);
+          for (size_t j = 0; j < obs.size(); ++j) A(fi, index[obs[j].frame]) -= wi * weight[x][j] / W;
+        }
+      }
+      // The gauge: the log gains sum to 0 (A's null space is the constant vector); a frame tied to
+      // no other (a disconnected part) is held at gain 1 by a vanishing ridge.
+      A += Eigen::MatrixXd::Constant(n, n, 1.0 / n);
+      A.diagonal().array() += 1e-9 * (1.0 + A.diagonal().maxCoeff());
+      a = A.ldlt().solve(r);
+      // Residuals under these gains, and the next round's weights.
+      double squares = 0, weights = 0;
+      for (size_t x = 0; x < observations.size(); ++x) {
+        const auto& obs = observations[x];
+        if (obs.size() < 2) continue;
+        double W = 0, wb = 0;
+        for (size_t i = 0; i < obs.size(); ++i)
+          W += weight[x][i], wb += weight[x][i] * (std::log(obs[i].value[c]) - a[index[obs[i].frame]]);
+        const double b = wb / W;
+        for (size_t i = 0; i < obs.size(); ++i) {
+          const double e = std::log(obs[i].value[c]) - a[index[obs[i].frame]] - b;
+          squares += weight[x][i] * e * e, weights += weight[x][i];
+          weight[x][i] = std::abs(e) <= kHuber ? 1.0 : kHuber / std::abs(e);
+        }
+      }
+      rms = weights > 0 ? std::sqrt(squares / weights) : 0.0;
+    }
+    for (int k = 0; k < n; ++k) out.gain[kept[k]][c] = static_cast<float>(std::exp(a[k]));
+    out.residualRms[c] = rms;
+  }
+  return out;
+}
+
+}  // namespace relume

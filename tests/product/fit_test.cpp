@@ -14,6 +14,7 @@
 #include "product/prepare.h"
 #include "scenes/synth.h"
 #include "scene/texel_map.h"
+#include "support/small_fit_config.h"
 
 using namespace relume;
 namespace fs = std::filesystem;
@@ -45,17 +46,7 @@ fs::path cornellWork(const std::string& name, const std::vector<int>& resolution
   return smallWork(name, SynthSceneKind::Room, 8, 256, resolutions);
 }
 
-FitConfig smallConfig() {
-  FitConfig c;
-  c.batchTexels = 2048;
-  c.maxDepth = 4;
-  c.emissionIterations = 80;
-  c.materialIterations = 20;
-  c.albedoPasses = 40;
-  c.emissionTextureIterations = 0;
-  c.checkpointEvery = 25;
-  return c;
-}
+FitConfig smallConfig() { return smallFitConfig(); }
 
 TruthComparison score(const fs::path& dir) {
   const SceneDescription fit = loadSceneFile(dir / "work" / "result" / "scene.json");

@@ -13,6 +13,7 @@
 #include "product/fit.h"
 #include "scene/appearance.h"
 #include "support/prepared_capture.h"
+#include "support/small_fit_config.h"
 
 using namespace relume;
 namespace fs = std::filesystem;
@@ -28,13 +29,7 @@ SynthCaptureOptions smallRoom(const std::string& imperfections) {
 }
 
 FitConfig smallConfig(FrameGainMode gains) {
-  FitConfig c;
-  c.batchTexels = 2048;
-  c.maxDepth = 4;
-  c.emissionIterations = 80;
-  c.materialIterations = 20;
-  c.albedoPasses = 40;
-  c.emissionTextureIterations = 0;
+  FitConfig c = smallFitConfig();
   c.checkpointEvery = 1000;
   c.frameGains = gains;
   return c;

@@ -348,7 +348,7 @@ std::string lightsSection(const fs::path& file) {
 
 // The frames' encodings and saturation (prepare.json) and, where the fit estimated them, their
 // gains (result/frames.json).
-std::string framesSection(const Json& prepare, const Json& gains) {
+std::string framesSection(const Json& prepare, const Json& gains, const Json& consistency) {
   const Json frames = prepare.at("phases").at("frames");
   std::string s = "<p>Encodings: ";
   const Json encodings = frames.value("encodings", Json::object());  // items() of a temporary would dangle
@@ -365,13 +365,16 @@ std::string framesSection(const Json& prepare, const Json& gains) {
     return s + "<p>Frame gains not estimated (<code>frame_gains</code>: every exposure known).</p>";
   s += fmt::format("<p>Frame gains estimated (<code>{}</code>), gauge: {}.</p>", html(gains["mode"].get<std::string>()),
                    html(gains.value("gauge", std::string())));
-  s += "<table><tr><th>frame</th><th>image</th><th>gain R</th><th>gain G</th><th>gain B</th><th>evidence "
-       "(rays)</th></tr>";
+  std::map<uint32_t, uint32_t> ties;  // per frame: the texels that tie it to other frames (prepare's solve)
+  const Json solved = consistency.value("frames", Json::array());
+  for (const Json& f : solved) ties[f.value("frame", 0u)] = f.value("texels", 0u);
+  s += "<table><tr><th>frame</th><th>image</th><th>gain R</th><th>gain G</th><th>gain B</th><th>texels tying it "
+       "to other frames</th></tr>";
   const Json list = gains.value("frames", Json::array());
   for (const Json& f : list)
-    s += fmt::format("<tr><td>{}</td><td>{}</td><td>{:.4f}</td><td>{:.4f}</td><td>{:.4f}</td><td>{:.0f}</td></tr>",
+    s += fmt::format("<tr><td>{}</td><td>{}</td><td>{:.4f}</td><td>{:.4f}</td><td>{:.4f}</td><td>{}</td></tr>",
                      f.value("frame", 0), html(f.value("image", std::string())), f["gain"][0].get<double>(),
-                     f["gain"][1].get<double>(), f["gain"][2].get<double>(), f.value("rays", 0.0));
+                     f["gain"][1].get<double>(), f["gain"][2].get<double>(), ties[f.value("frame", 0u)]);
   return s + "</table>";
 }
 
@@ -484,7 +487,9 @@ img.tex{width:256px;height:256px} figure{display:inline-block;margin:4px} figcap
   page += "<h2>Textures</h2>" + textures;
   page += "<h2>Materials</h2>" + materialsSection(materials, truth);
   page += "<h2>Light sources</h2>" + lightsSection(work / "result" / "lights.json");
-  page += "<h2>Frames</h2>" + framesSection(prepare, gains);
+  const fs::path consistencyFile = work / "frame_gains.json";
+  page += "<h2>Frames</h2>" +
+          framesSection(prepare, gains, pathExists(consistencyFile) ? readJson(consistencyFile) : Json::object());
   page += "<h2>Loss and time per stage</h2>" + stagesSection(readJsonLines(work / "metrics.jsonl"));
   page += "<h2>Prepare and memory</h2>" + prepareSection(prepare, materials);
   page += "<h2>Config</h2><pre>" + html(materials.value("config", Json::object()).dump(2)) + "</pre></body></html>\n";

@@ -282,7 +282,7 @@ void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const
                                               : BatchFocus{};
   const std::vector<uint8_t> albedoHeld = decisions_.albedoHeld();
   const GradientMasks masks{space, w_.mesh, albedoHeld, roles_.highlight, roles_.emitter};
-  std::vector<Color> estimates;  // each ray's, for the frame gains
+  std::vector<Color> estimates;  // each ray's, for gain_refine
   for (int it = firstIteration; it < st.iterations; ++it) {
     const uint64_t iteration = static_cast<uint64_t>(globalIteration_);
     FitPhaseTimes now;
@@ -297,11 +297,14 @@ void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const
     now.lights = tl.seconds();
     if (lights_->builtTables() > 0)
       spdlog::debug("fit: light sampler built the tables of {} objects", lights_->builtTables());
+    // gain_refine: the gains follow the albedo in the second half of each albedo stage (in the
+    // emission stage the estimates start from no light).
+    const bool refineGains =
+        c_.gainRefine && gains_.estimated() && st.active.active(ParamKind::Albedo) && it >= st.iterations / 2;
     const GradientResult gr = computeGradients(*w_.scene, appearance_, *lights_, batch.rays, settings, iteration, grads,
-                                               gains_.estimated() ? &estimates : nullptr);
+                                               refineGains ? &estimates : nullptr);
     w_.scene->throwIfEmbreeFailed();
-    // The gains move with the albedo: in the emission stage the estimates start from no light.
-    if (c_.gainRefine && st.active.active(ParamKind::Albedo) && it >= st.iterations / 2) {
+    if (refineGains) {
       std::vector<uint8_t> ownRadiance(roles_.emitter.size());
       for (size_t o = 0; o < ownRadiance.size(); ++o) ownRadiance[o] = roles_.emitter[o] || roles_.outOfModel[o];
       gains_.update(batch.rays, batch.frame, batch.object, ownRadiance, estimates);

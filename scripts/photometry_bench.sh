@@ -15,6 +15,9 @@ echo '{"emission_iterations": 100, "material_iterations": 150, "albedo_passes": 
   "emission_texture_iterations": 40}' > "$OUT/fit.json"
 echo '{"emission_iterations": 100, "material_iterations": 150, "albedo_passes": 40, "samples_per_ray": 1,
   "emission_texture_iterations": 40, "frame_gains": "none"}' > "$OUT/fit_no_gains.json"
+# Float frames count as radiometrically known (frame_gains auto: none): the drift rows ask for gains.
+echo '{"emission_iterations": 100, "material_iterations": 150, "albedo_passes": 40, "samples_per_ray": 1,
+  "emission_texture_iterations": 40, "frame_gains": "rgb"}' > "$OUT/fit_rgb.json"
 
 # name | imperfection spec | prepare flags | fit config
 declare -A SPEC PREP CFG
@@ -24,7 +27,7 @@ add ldr8 "ldr=8" "" fit_no_gains.json
 add ldr8_values "ldr=8" "--no-encoding-clips" fit_no_gains.json
 add ldr8_bracket "bracket=-1.5,0,1.5;ldr=8" "" fit.json
 add ldr8_bracket_values "bracket=-1.5,0,1.5;ldr=8" "--no-encoding-clips" fit.json
-add drift "exposure-drift=0.3;wb=0.03" "" fit.json
+add drift "exposure-drift=0.3;wb=0.03" "" fit_rgb.json
 add drift_no_gains "exposure-drift=0.3;wb=0.03" "" fit_no_gains.json
 add noise "noise=1000,0.002" "" fit.json
 add handheld "pose=1cm,0.3deg;bracket=-1.5,0,1.5;wb=0.03;noise=1000,0.002;ldr=8;mesh=5mm;segmentation=none" "" fit.json

@@ -41,7 +41,7 @@ FrameImage loadFrame(const Frame& frame, bool encodingClips) {
   for (float& v : img.rgb) v = (f.read.bits ? frame.response.toLinear(v, f.read.fileSaysLinear) : v) * inv;
   // A huge finite pixel may overflow once divided by a small exposure: masked like NaN/Inf on disk.
   for (size_t i = 0; i < img.rgb.size() / 3; ++i)
-    if (!isFinite(img.at(static_cast<int>(i % img.width), static_cast<int>(i / img.width))))
+    if (!isFinite(Color(img.rgb[3 * i], img.rgb[3 * i + 1], img.rgb[3 * i + 2])))
       f.read.nonFiniteIndex.push_back(i), ++f.read.nonFinitePixels;
   if (f.read.nonFinitePixels)
     spdlog::warn("{}: {} NaN/Inf pixels masked", frame.image.string(), f.read.nonFinitePixels);

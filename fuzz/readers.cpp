@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <functional>
@@ -13,6 +14,7 @@
 #include "capture/colmap.h"
 #include "capture/frame_store.h"
 #include "capture/objects.h"
+#include "capture/response.h"
 #include "capture/transforms.h"
 #include "core/error.h"
 #include "io/image.h"
@@ -102,6 +104,19 @@ void parseImperfectionSpec(const fs::path& file) {
     throw std::logic_error("imperfection spec '" + spec + "' does not round-trip through '" + canonical + "'");
 }
 
+// A response table (`prepare --response table:FILE`): one that reads must map every code to a
+// finite linear value, non-decreasing in the code (the reader refuses tables that are not).
+void readResponseTable(const fs::path& file) {
+  const Response r = Response::parse("table:" + file.filename().string(), file.parent_path(), "fuzz");
+  float previous = -INFINITY;
+  for (int code = 0; code <= 65535; code += 17) {
+    const float linear = r.toLinear(code / 65535.0f, false);
+    if (!std::isfinite(linear) || linear < previous)
+      throw std::logic_error(fmt::format("response table: code {} maps to {} after {}", code, linear, previous));
+    previous = linear;
+  }
+}
+
 // A COLMAP model is two files. The input is split at a 4-byte little-endian length prefix: that
 // many bytes (at most what follows) are cameras.<ext>, the rest images.<ext>. One input so mutates
 // both files, and a mutation of the prefix moves bytes from one to the other.
@@ -138,6 +153,7 @@ const std::map<std::string, Reader>& readers() {
       {"visibility", {"visibility.bin", touchVisibility}},
       {"checkpoint", {"checkpoint.bin", touchCheckpoint}},
       {"imperfections", {"imperfections.txt", parseImperfectionSpec}},
+      {"response-table", {"response.txt", readResponseTable}},
   };
   return table;
 }

@@ -12,7 +12,7 @@ BUILD="$ROOT/build-fuzz"
 SECONDS_EACH="${1:-60}"
 shift || true
 READERS=("$@")
-((${#READERS[@]})) || READERS=(checkpoint colmap-binary colmap-text frames image imperfections obj objects ply scene transforms visibility)
+((${#READERS[@]})) || READERS=(checkpoint colmap-binary colmap-text frames image imperfections obj objects ply response-table scene transforms visibility)
 if ! command -v clang++ > /dev/null; then
   [[ $(id -u) -eq 0 ]] || { echo "fuzz.sh: needs clang (apt-get install clang)" >&2; exit 1; }
   DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends clang

@@ -20,6 +20,7 @@ enum class RandomStream : uint64_t {
   LightDecision = 0x6c69676874,     // product/light_decisions.cpp: each decision's evidence rays
   ReflectorBound = 0x7265666c,      // product/light_evidence.cpp: the albedo-1 bound's paths
   MirrorPath = 0x6d697272,          // product/light_evidence.cpp: the perfect-mirror paths
+  ClippedLightScale = 0x636c6970,   // product/clipped_light_scale.cpp: its texels and paths
   ExperimentRays = 0x7261,          // lab/experiment.cpp: a gradient experiment's rays
   ExperimentPerturbation = 0x7065,  // lab/experiment.cpp: its current parameters' perturbation
   LeakRays = 0x6c65,                // lab/profile.cpp: the edge-leak study's rays
@@ -34,17 +35,15 @@ enum class RandomStream : uint64_t {
 inline constexpr uint64_t streamTag(RandomStream s) { return static_cast<uint64_t>(s); }
 
 namespace detail {
-inline constexpr std::array kAllRandomStreams{RandomStream::FilmPixel,         RandomStream::PrimalPass,
-                                              RandomStream::AdjointPass,       RandomStream::TextureSampler,
-                                              RandomStream::ImageSampler,      RandomStream::HighlightProbe,
-                                              RandomStream::MaterialBatch,     RandomStream::HighlightBatch,
-                                              RandomStream::EmissionBatch,     RandomStream::LightDecision,
-                                              RandomStream::ReflectorBound,    RandomStream::MirrorPath,
-                                              RandomStream::ExperimentRays,    RandomStream::ExperimentPerturbation,
-                                              RandomStream::LeakRays,          RandomStream::SynthPose,
-                                              RandomStream::SynthWhiteBalance, RandomStream::SynthExposureDrift,
-                                              RandomStream::SynthSensorNoise,  RandomStream::SynthMeshNoise,
-                                              RandomStream::SynthMissingFrames};
+inline constexpr std::array kAllRandomStreams{
+    RandomStream::FilmPixel,          RandomStream::PrimalPass,       RandomStream::AdjointPass,
+    RandomStream::TextureSampler,     RandomStream::ImageSampler,     RandomStream::HighlightProbe,
+    RandomStream::MaterialBatch,      RandomStream::HighlightBatch,   RandomStream::EmissionBatch,
+    RandomStream::LightDecision,      RandomStream::ReflectorBound,   RandomStream::MirrorPath,
+    RandomStream::ClippedLightScale,  RandomStream::ExperimentRays,   RandomStream::ExperimentPerturbation,
+    RandomStream::LeakRays,           RandomStream::SynthPose,        RandomStream::SynthWhiteBalance,
+    RandomStream::SynthExposureDrift, RandomStream::SynthSensorNoise, RandomStream::SynthMeshNoise,
+    RandomStream::SynthMissingFrames};
 constexpr bool allTagsDistinct() {
   for (size_t i = 0; i < kAllRandomStreams.size(); ++i)
     for (size_t j = i + 1; j < kAllRandomStreams.size(); ++j)

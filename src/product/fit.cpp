@@ -151,7 +151,9 @@ FitSummary Fit::run(bool resumeRequested) {
   FitSummary summary;
   for (size_t si = at.stage; si < stages.size(); ++si) {
     const Stage& st = stages[si];
-    if (st.refit && !roles_.refitEmission) continue;
+    if ((st.refit && !roles_.refitEmission) || (st.onlyWithClippedLights && !roles_.clippedLights) ||
+        (st.afterClippedScale && !roles_.clippedScaleMoving))
+      continue;
     if (st.resolution != space->resolution) {
       auto finer = std::make_unique<TexelSpace>(w_, st.resolution, roles_.outOfModel);
       upsampleAlbedo(*space, *finer);
@@ -397,6 +399,8 @@ void Fit::finishStage(const Stage& st, size_t stageIndex, const TexelSpace& spac
     if (decisions_.decide(space, st.name, st.pruneAfter)) optimiser_.restartAfterLightChange();
     lights_.reset();  // no table for the candidates that stopped being lights
   }
+  if (st.pruneAfter && c_.emitterParameterisation && c_.clippedLightScale) decisions_.findClippedLights(space);
+  if (st.scaleClippedLightsAfter && decisions_.scaleClippedLights(space, st.name)) optimiser_.restartAfterLightChange();
   if (hooks_.writeFiles) writeCheckpoint(stageIndex + 1, 0, space);
 }
 

@@ -14,7 +14,7 @@
 namespace relume {
 
 // Version 4: frame gains (version 3: light decisions and out-of-model objects).
-inline constexpr int kFitCheckpointVersion = 4;
+inline constexpr int kFitCheckpointVersion = 5;
 
 class CheckpointIo {
  public:

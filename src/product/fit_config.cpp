@@ -62,6 +62,7 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("light_min_contrast", ConfigField(&c.lightMinContrast));
   fn("light_evidence_texels", ConfigField(&c.lightEvidenceTexels));
   fn("light_redecide", ConfigField(&c.lightRedecide));
+  fn("clipped_light_scale", ConfigField(&c.clippedLightScale));
   fn("emission_refit_iterations", ConfigField(&c.emissionRefitIterations));
   fn("lights", ConfigField(&c.lights));
   fn("light_albedo_zero", ConfigField(&c.lightAlbedoZero));

@@ -110,6 +110,9 @@ struct FitConfig {
   bool lightRedecide = true;          // decide again after the first albedo stage
   int emissionRefitIterations = 100;  // emission-only stage after a re-decision that changed the lights
   std::vector<std::string> lights;    // hint: exactly these objects (by name) emit; no decision taken
+  // Lights whose pixels all clip: after the first albedo stage their emission is scaled to make each
+  // object's albedo most uniform (product/clipped_light_scale.h); false = keep the init's scale.
+  bool clippedLightScale = true;
   // A light source's radiance is all emission (albedo 0, not fitted): from any view a Lambertian
   // emission and a diffuse reflection look the same, and windows and shades transmit their light.
   bool lightAlbedoZero = true;

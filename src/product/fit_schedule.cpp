@@ -6,6 +6,9 @@
 #include <cmath>
 
 namespace relume {
+namespace {
+constexpr int kScaleProbes = 4;  // at most: each a quarter of the first albedo stage
+}  // namespace
 
 float Stage::settleScale(int it, float finalFraction) const {
   const float half = 0.5f * iterations;
@@ -60,6 +63,20 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   // (I = E), while fitted together with the albedo it drifts along the near-null direction
   // "brighter lights, darker albedo" (room: 3% after stage 1, 10% after the albedo stages).
   const ParamMask albedo = ParamMask::only({K::Albedo});
+  // When the first decision finds lights seen only saturated, short albedo stages each end in
+  // their scale (clipped_light_scale.h). Each after the first runs while the last scale moved them
+  // by more than its error: where the albedo sat at 1 under far too dark lights, the surfaces lit
+  // the rest of the room too dimly, and a scale falls short of the truth until the albedo has
+  // followed it. The albedo stage proper then fits under the last scale.
+  if (c.emitterParameterisation && c.clippedLightScale)
+    for (int k = 1; k <= kScaleProbes; ++k) {
+      s.push_back({k == 1 ? fmt::format("scale_probe@{}", resolutions.front())
+                          : fmt::format("scale_probe_{}@{}", k, resolutions.front()),
+                   albedo, resolutions.front(), std::max(1, albedoIterations(resolutions.front()) / 4)});
+      s.back().scaleClippedLightsAfter = true;
+      s.back().onlyWithClippedLights = true;
+      s.back().afterClippedScale = k > 1;
+    }
   s.push_back({fmt::format("albedo@{}", resolutions.front()), albedo, resolutions.front(),
                albedoIterations(resolutions.front())});
   // The light sources decided again now that the albedo explains the lit surfaces; when that

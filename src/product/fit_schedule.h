@@ -29,6 +29,9 @@ struct Stage {
   bool refit = false;                            // emission only, run when the re-decision changed the light sources
   bool focusEmitters = false;                    // draws emission_batch_texels from the light-source candidates
   bool fillUnobservedAfter = false;              // unobserved texels take their object's mean albedo at its end
+  bool scaleClippedLightsAfter = false;          // lights seen only saturated are scaled at its end
+  bool onlyWithClippedLights = false;            // run only when the lights include such lights
+  bool afterClippedScale = false;                // run only while their last scale moved them
 
   // The learning-rate factor at iteration `it` for the kinds this stage settles: 1 over its first
   // half, then linear down to `finalFraction` (1 for the kinds it does not settle).

@@ -10,6 +10,7 @@
 #include "core/error.h"
 #include "core/random_streams.h"
 #include "core/rng.h"
+#include "product/clipped_light_scale.h"
 #include "render/lights.h"
 #include "sampling/highlight_evidence.h"
 #include "sampling/samplers.h"
@@ -33,6 +34,8 @@ void ObjectRoles::serialise(CheckpointIo& io) {
   io.array("emitter", emitter);
   io.array("out_of_model", outOfModel);
   io.single("refit_emission", refitEmission);
+  io.single("clipped_lights", clippedLights);
+  io.single("clipped_scale_moving", clippedScaleMoving);
   io.array("highlight", highlight);
   io.array("highlight_pairs", highlightPairs);
   io.array("highlight_contrast", highlightContrast);
@@ -182,6 +185,38 @@ bool LightDecisions::decide(const TexelSpace& space, const std::string& after, b
       {{"after", after}, {"objects", lightDecisionsJson(evidence, decisions, a_.names, test, last)}});
   return changed;
 }
+namespace {
+ClippedLightSettings clippedLightSettings(const FitConfig& c) {
+  return {.texelsPerObject = 4 * c.lightEvidenceTexels, .framesPerTexel = c.framesPerTexel};
+}
+}  // namespace
+
+void LightDecisions::findClippedLights(const TexelSpace& space) {
+  const std::vector<int> lights =
+      lightsSeenOnlySaturated(w_, space, a_, r_.emitter, gains_, clippedLightSettings(c_), c_.seed);
+  r_.clippedLights = !lights.empty();
+  for (int o : lights) spdlog::info("fit: light {} ({}) is seen only saturated", o, a_.names[o]);
+}
+
+bool LightDecisions::scaleClippedLights(const TexelSpace& space, const std::string& after) {
+  const ClippedLightScale scale = relume::scaleClippedLights(w_, space, a_, r_.emitter, r_.outOfModel, gains_, path_,
+                                                             clippedLightSettings(c_), c_.seed);
+  if (scale.lights.empty()) return false;
+  if (scale.applied)
+    spdlog::info("fit: after {}: {}", after, scale.why);
+  else
+    spdlog::warn("fit: after {}: {}", after, scale.why);
+  std::string perObject;
+  for (const auto& [o, s] : scale.fit.perObject) perObject += fmt::format(" {} {:.3g};", a_.names[o], s);
+  spdlog::info("fit: after {}: each object's most uniform scale:{}", after, perObject);
+  Json entry = {{"after", after}, {"clipped_light_scale", scale.toJson(a_)}};
+  r_.lightDecisions.push_back(std::move(entry));
+  r_.clippedScaleMoving = 0;
+  for (size_t k = 0; k < scale.lights.size() && scale.applied; ++k)
+    r_.clippedScaleMoving |= std::abs(std::log(scale.fit.scale[k])) > scale.fit.logError[k];
+  return scale.applied;
+}
+
 // Texels no frame saw are never updated; they light the rest of the scene all the same (a
 // capture that faces one way leaves most of a room unseen: 78% of the White Room's texels). They
 // take their object's mean albedo over its observed texels, or 0.5 on an object no frame saw,

@@ -24,6 +24,8 @@ struct ObjectRoles {
   std::vector<uint8_t> outOfModel;        // excluded from emission and albedo (light_evidence.h)
   std::vector<uint8_t> highlight;         // roughness and specular fitted
   uint8_t refitEmission = 0;              // the re-decision changed the light sources: run emission_refit
+  uint8_t clippedLights = 0;              // the first decision's lights include some seen only saturated
+  uint8_t clippedScaleMoving = 0;         // their last scale moved them by more than its error
   Json lightDecisions = Json::array();    // each decision's evidence (result/lights.json)
   std::vector<uint64_t> highlightPairs;   // texels compared with and without a light reflected
   std::vector<double> highlightContrast;  // their mean contrast
@@ -51,6 +53,11 @@ class LightDecisions {
   // Decides the light sources after stage `after` (`first`: the first decision). Returns whether
   // they changed, in which case the emission is refitted and the albedo's running fits restart.
   bool decide(const TexelSpace& space, const std::string& after, bool first);
+  // Notes whether the lights include some seen only saturated (the scale probes run then).
+  void findClippedLights(const TexelSpace& space);
+  // Lights seen only saturated take the emission that makes each object's albedo most uniform
+  // (clipped_light_scale.h), recorded with the decisions. Returns whether it changed them.
+  bool scaleClippedLights(const TexelSpace& space, const std::string& after);
   // Unobserved texels take their object's mean albedo (or 0.5 on an object no frame saw).
   void fillUnobservedAlbedo(const TexelSpace& space);
   // Which objects the frames show a highlight on. Probe connections either see a light reflected

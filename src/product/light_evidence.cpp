@@ -36,9 +36,6 @@ double LightEvidence::constantResidualSquares() const {
   return rays ? std::max(0.0, observedSquares - observed * observed / static_cast<double>(rays)) : 0.0;
 }
 
-namespace {
-
-// Whether the pixel of `camera` that sees `p` and its 8 neighbours all show `object`.
 bool interiorPixel(const Scene& scene, const Camera& camera, const Vec3& p, int object) {
   const auto pixel = camera.project(p);
   if (!pixel || pixel->x() < 1 || pixel->y() < 1 || pixel->x() >= camera.width - 1 || pixel->y() >= camera.height - 1)
@@ -54,7 +51,15 @@ bool interiorPixel(const Scene& scene, const Camera& camera, const Vec3& p, int 
   return true;
 }
 
-}  // namespace
+Appearance albedoOneAppearance(const Appearance& appearance) {
+  Appearance white(appearance.objectCount());
+  white.model = appearance.model;
+  white.roughness = appearance.roughness;
+  white.specular = appearance.specular;
+  std::fill(white.albedoConstant.begin(), white.albedoConstant.end(), Color::Constant(1.0f));
+  std::fill(white.albedoFromTexture.begin(), white.albedoFromTexture.end(), 0);
+  return white;
+}
 
 std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const TriangleMesh& mesh,
                                                const Appearance& appearance, const LightSampler& lights,
@@ -65,12 +70,7 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
   const size_t n = rays.size();
   // The first vertex of every path evaluated with albedo 1 (sampling stays with the fitted
   // appearance, so the estimate is unbiased whatever the albedo).
-  Appearance white(appearance.objectCount());
-  white.model = appearance.model;
-  white.roughness = appearance.roughness;
-  white.specular = appearance.specular;
-  std::fill(white.albedoConstant.begin(), white.albedoConstant.end(), Color::Constant(1.0f));
-  std::fill(white.albedoFromTexture.begin(), white.albedoFromTexture.end(), 0);
+  const Appearance white = albedoOneAppearance(appearance);
   const AppearanceScope whiteFirst{&appearance, &white, &appearance, &appearance, &appearance};
   const std::vector<Color> returned = traceRays(scene, lights, whiteFirst, rays, path, [&](size_t j) {
     return hashTuple({seed, streamTag(RandomStream::ReflectorBound), j});

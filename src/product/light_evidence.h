@@ -81,6 +81,14 @@ struct LightEvidence {
   double constantResidualSquares() const;
 };
 
+// Whether the pixel of `camera` that sees `p` and its 8 neighbours all show `object` (a pixel at the
+// border of the image, or whose neighbours show something else, mixes them into its value).
+bool interiorPixel(const Scene& scene, const Camera& camera, const Vec3& p, int object);
+
+// `appearance`'s roughness and specular with albedo 1 everywhere and no emission: evaluated at a
+// path's first vertex, what a white surface there would return.
+Appearance albedoOneAppearance(const Appearance& appearance);
+
 // Per ray: I, B and P as above (B and P from one path each, seeded from `seed`). Rays whose
 // reference is masked, that miss, or that reach another object than `objects[j]` are not counted,
 // nor, with `cameras` (ray j's camera), rays whose pixel has a neighbour (of the 8) showing

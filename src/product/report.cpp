@@ -319,6 +319,11 @@ std::string lightsSection(const fs::path& file) {
                         "(docs/design/light-sources.md).</p>"
                       : "<p>Test <code>" + html(test) + "</code>.</p>";
   for (const Json& d : lights.value("decisions", Json::array())) {
+    if (const Json scale = d.value("clipped_light_scale", Json()); scale.is_object()) {
+      s += "<h3>Lights seen only saturated, after " + html(d.value("after", std::string())) + "</h3><p>" +
+           html(scale.value("why", std::string())) + ".</p>";
+      continue;
+    }
     s += "<h3>After " + html(d.value("after", std::string())) +
          "</h3><table><tr><th>object</th><th>decision</th><th>rays</th>"
          "<th>observed</th><th>reflector bound</th><th>unexplained</th><th>power "

@@ -1,0 +1,413 @@
+#include "product/clipped_light_scale.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <Eigen/Dense>
+
+#include "adjoint/solver.h"
+#include "core/check.h"
+#include "core/random_streams.h"
+#include "core/rng.h"
+#include "product/light_evidence.h"
+#include "render/lights.h"
+#include "sampling/samplers.h"
+
+namespace relume {
+namespace {
+
+constexpr double kRange = 16;       // the common scale is searched in [1/16, 16]
+constexpr int kGridSteps = 160;     // log-spaced: 3.5% apart
+constexpr double kApartRange = 4;   // each light's own within [1/4, 4] of the common scale
+constexpr int kApartSteps = 80;     // 3.5% apart
+constexpr int kMaxLightsApart = 8;  // beyond, one scale for all
+constexpr int kSweeps = 6;          // of the coordinate descent
+constexpr size_t kMinTexels = 32;   // an object's texels for it to count
+
+bool saturated(const BatchRay& r) { return (r.reference >= r.clip.high).any(); }
+bool usable(const BatchRay& r) {
+  return r.reference.allFinite() && r.reference.minCoeff() >= 0 && !saturated(r) && (r.reference > r.clip.low).all();
+}
+
+// Point i of a log grid of `steps` intervals over [1/range, range].
+double gridLog(int i, int steps, double range) { return std::log(range) * (2.0 * i / steps - 1.0); }
+
+// The minimiser of J on its grid refined by the parabola through its neighbours; NaN on the grid's
+// edge (the minimum may lie beyond it) or where J is flat (nothing depends on it).
+double argminLog(const std::vector<double>& J, double range) {
+  const int steps = static_cast<int>(J.size()) - 1;
+  const auto [lowest, highest] = std::minmax_element(J.begin(), J.end());
+  const int i = static_cast<int>(lowest - J.begin());
+  if (i == 0 || i == steps || !(*highest - *lowest > 1e-6)) return std::numeric_limits<double>::quiet_NaN();
+  const double a = J[i - 1], b = J[i], c = J[i + 1], step = gridLog(1, steps, range) - gridLog(0, steps, range);
+  const double curvature = a - 2 * b + c;
+  const double offset = curvature > 0 ? 0.5 * (a - c) / curvature : 0.0;
+  return gridLog(i, steps, range) + std::clamp(offset, -0.5, 0.5) * step;
+}
+
+// Jackknife standard error of estimates each made with one object left out (NaN in: infinite).
+double jackknifeError(const std::vector<double>& leftOut) {
+  const double n = static_cast<double>(leftOut.size());
+  double mean = 0, variance = 0;
+  for (double l : leftOut) mean += l / n;
+  for (double l : leftOut) variance += (l - mean) * (l - mean);
+  return std::isnan(variance) ? INFINITY : std::sqrt((n - 1) / n * variance);
+}
+
+using Objects = std::vector<std::vector<const ScaleTexel*>>;
+
+// One object's term of the negative log-likelihood at light scales s, profiled over its mean
+// log-albedo and its own variance: n/2 log(S/n), S the sum of squared deviations of
+// log I - log(sum_c s_c D_c + R) from their mean, less the paths' noise (the delta method:
+// Var(log X) ~ Var(X) / X^2, X = s.D + R).
+double objectTerm(const std::vector<const ScaleTexel*>& texels, const std::vector<double>& s) {
+  const size_t K = s.size();
+  double sum = 0, squares = 0, noise = 0;
+  for (const ScaleTexel* t : texels) {
+    double lit = t->mean[K], variance = 0;
+    for (size_t c = 0; c < K; ++c) lit += s[c] * t->mean[c];
+    for (size_t c = 0; c <= K; ++c)
+      for (size_t d = 0; d <= K; ++d)
+        variance += (c < K ? s[c] : 1.0) * (d < K ? s[d] : 1.0) * t->covariance[c * (K + 1) + d];
+    const double logAlbedo = std::log(t->shown) - std::log(lit);
+    sum += logAlbedo, squares += logAlbedo * logAlbedo, noise += variance / (lit * lit);
+  }
+  // The delta method holds for small noise: it may take at most 90% of the spread away.
+  const double n = static_cast<double>(texels.size()), spread = squares - sum * sum / n;
+  return 0.5 * n * std::log(std::max(1e-300, std::max(spread - noise * (n - 1) / n, 0.1 * spread) / n));
+}
+
+// Per object (rows), the term at every common scale of the grid.
+std::vector<std::vector<double>> commonTerms(const Objects& objects, size_t K) {
+  std::vector<std::vector<double>> terms(objects.size(), std::vector<double>(kGridSteps + 1));
+  tbb::parallel_for(size_t{0}, objects.size(), [&](size_t o) {
+    for (int i = 0; i <= kGridSteps; ++i)
+      terms[o][i] = objectTerm(objects[o], std::vector<double>(K, std::exp(gridLog(i, kGridSteps, kRange))));
+  });
+  return terms;
+}
+
+// Each light's own scale by coordinate descent from `start` over the objects not left out
+// (`leftOut` < 0: none); NaN entries where a light's minimum lies on the edge of its search.
+std::vector<double> scalesApart(const Objects& objects, std::vector<double> s, double common, int leftOut) {
+  for (int sweep = 0; sweep < kSweeps; ++sweep)
+    for (size_t c = 0; c < s.size(); ++c) {
+      std::vector<double> J(kApartSteps + 1, 0.0);
+      tbb::parallel_for(0, kApartSteps + 1, [&](int i) {
+        std::vector<double> trial = s;
+        trial[c] = common * std::exp(gridLog(i, kApartSteps, kApartRange));
+        for (size_t o = 0; o < objects.size(); ++o)
+          if (static_cast<int>(o) != leftOut) J[i] += objectTerm(objects[o], trial);
+      });
+      const double u = argminLog(J, kApartRange);
+      if (std::isnan(u)) return std::vector<double>(s.size(), std::numeric_limits<double>::quiet_NaN());
+      s[c] = common * std::exp(u);
+    }
+  return s;
+}
+
+// Standard errors of log s from the curvature of the pooled negative log-likelihood at s (central
+// differences in log s): the diagonal of the inverse Hessian, infinite where it is singular.
+std::vector<double> likelihoodErrors(const Objects& objects, const std::vector<double>& s) {
+  constexpr double h = 0.002;
+  const size_t K = s.size();
+  auto total = [&](const std::vector<double>& logStep) {
+    std::vector<double> at(K);
+    for (size_t c = 0; c < K; ++c) at[c] = s[c] * (1 + logStep[c]);
+    double sum = 0;
+    for (const auto& o : objects) sum += objectTerm(o, at);
+    return sum;
+  };
+  Eigen::MatrixXd H(K, K);
+  for (size_t c = 0; c < K; ++c)
+    for (size_t d = c; d < K; ++d) {
+      auto f = [&](double hc, double hd) {
+        std::vector<double> step(K, 0.0);
+        step[c] += hc, step[d] += hd;
+        return total(step);
+      };
+      H(c, d) = H(d, c) = (f(h, h) - f(h, -h) - f(-h, h) + f(-h, -h)) / (4 * h * h);
+    }
+  std::vector<double> errors(K, INFINITY);
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(H);
+  if (eigen.info() != Eigen::Success || !(eigen.eigenvalues().minCoeff() > 0)) return errors;
+  const Eigen::MatrixXd covariance = H.inverse();
+  for (size_t c = 0; c < K; ++c) errors[c] = std::sqrt(std::max(0.0, covariance(c, c)));
+  return errors;
+}
+
+}  // namespace
+
+ScaleFit fitClippedScales(const std::vector<ScaleTexel>& texels, size_t minTexels, double maxLogError) {
+  const size_t K = texels.empty() ? 0 : texels.front().mean.size() - 1;
+  int objectCount = 0;
+  for (const ScaleTexel& t : texels) objectCount = std::max(objectCount, t.object + 1);
+  Objects byObject(objectCount);
+  for (const ScaleTexel& t : texels) {
+    CHECK_EQ(t.mean.size(), K + 1);
+    CHECK_EQ(t.covariance.size(), (K + 1) * (K + 1));
+    bool valid = t.shown > 0 && t.mean[K] > 0;
+    for (size_t c = 0; c < K; ++c) valid &= t.mean[c] >= 0;
+    if (valid) byObject[t.object].push_back(&t);
+  }
+  ScaleFit fit;
+  fit.scale.assign(K, 1.0);
+  fit.logError.assign(K, INFINITY);
+  Objects objects;
+  std::vector<int> ids;
+  for (int o = 0; o < objectCount; ++o)
+    if (byObject[o].size() >= std::max<size_t>(minTexels, 2)) objects.push_back(byObject[o]), ids.push_back(o);
+  fit.objects = static_cast<int>(objects.size());
+  for (const auto& o : objects) fit.texels += o.size();
+  if (K == 0 || objects.empty()) return fit;
+
+  // One scale for all.
+  const std::vector<std::vector<double>> terms = commonTerms(objects, K);
+  std::vector<double> J(kGridSteps + 1, 0.0);
+  for (size_t o = 0; o < objects.size(); ++o) {
+    for (int i = 0; i <= kGridSteps; ++i) J[i] += terms[o][i];
+    fit.perObject.push_back({ids[o], std::exp(argminLog(terms[o], kRange))});
+  }
+  const double logCommon = argminLog(J, kRange);
+  if (std::isnan(logCommon)) return fit;
+  const double common = std::exp(logCommon);
+  fit.scale.assign(K, common);
+  if (objects.size() < 3) return fit;
+  std::vector<double> leftOut;
+  for (size_t out = 0; out < objects.size(); ++out) {
+    std::vector<double> Jo(J);
+    for (int i = 0; i <= kGridSteps; ++i) Jo[i] -= terms[out][i];
+    leftOut.push_back(argminLog(Jo, kRange));
+  }
+  fit.logError.assign(K, jackknifeError(leftOut));
+  if (K < 2 || K > static_cast<size_t>(kMaxLightsApart) || !(fit.logError[0] <= maxLogError)) return fit;
+
+  // Each light its own, kept when every one is resolved.
+  const std::vector<double> apart = scalesApart(objects, fit.scale, common, -1);
+  if (std::any_of(apart.begin(), apart.end(), [](double x) { return std::isnan(x); })) return fit;
+  std::vector<std::vector<double>> logLeftOut(K);
+  for (size_t out = 0; out < objects.size(); ++out) {
+    const std::vector<double> s = scalesApart(objects, apart, common, static_cast<int>(out));
+    for (size_t c = 0; c < K; ++c) logLeftOut[c].push_back(std::log(s[c]));
+  }
+  // The jackknife sees objects that disagree; a direction along which no object's albedo changes
+  // (two lights whose light falls everywhere in the same proportion) moves no left-out solution
+  // and shows only in the curvature: each light's error is the larger of the two.
+  const std::vector<double> curvatureErrors = likelihoodErrors(objects, apart);
+  std::vector<double> errors(K);
+  for (size_t c = 0; c < K; ++c) errors[c] = std::max(jackknifeError(logLeftOut[c]), curvatureErrors[c]);
+  if (std::all_of(errors.begin(), errors.end(), [&](double e) { return e <= maxLogError; })) {
+    fit.scale = apart, fit.logError = errors, fit.common = false;
+  }
+  return fit;
+}
+
+Json ClippedLightScale::toJson(const Appearance& a) const {
+  Json perLight = Json::array(), perObject = Json::array();
+  for (size_t k = 0; k < lights.size(); ++k)
+    perLight.push_back({{"id", lights[k]},
+                        {"name", a.names[lights[k]]},
+                        {"scale", fit.scale[k]},
+                        {"log_error", std::isfinite(fit.logError[k]) ? Json(fit.logError[k]) : Json(nullptr)},
+                        {"lower_bound", lowerBound[k]}});
+  for (const auto& [o, scale] : fit.perObject)
+    perObject.push_back(
+        {{"id", o}, {"name", a.names[o]}, {"scale", std::isfinite(scale) ? Json(scale) : Json(nullptr)}});
+  return {{"lights", perLight},
+          {"common", fit.common},
+          {"objects", fit.objects},
+          {"texels", fit.texels},
+          {"per_object", perObject},
+          {"applied", applied},
+          {"why", why}};
+}
+
+namespace {
+
+std::vector<std::vector<uint32_t>> texelsByObject(const Workspace& w, const TexelSpace& space, int objectCount) {
+  std::vector<std::vector<uint32_t>> texels(objectCount);
+  for (uint32_t t : space.sampleable) texels[space.objectOf(t, w.mesh)].push_back(t);
+  return texels;
+}
+
+// `settings.texelsPerObject` of object o's texels, `framesPerTexel` rays each, with the frames' gains.
+Batch drawTexels(const Workspace& w, const TexelSpace& space, const std::vector<uint32_t>& texels, int o,
+                 const FrameGains& gains, const ClippedLightSettings& settings, uint64_t stream) {
+  const TextureSpaceSampler own(*w.scene, space.map, texels, w.vis, w.trainingFrames());
+  Batch b = own.sample(hashTuple({stream, static_cast<uint64_t>(o)}), 0,
+                       {settings.texelsPerObject, settings.framesPerTexel, RayFootprint::Point, 1});
+  gains.apply(b.rays, b.frame);
+  return b;
+}
+
+constexpr double kOnlySaturatedShare = 0.95;
+
+}  // namespace
+
+std::vector<int> lightsSeenOnlySaturated(const Workspace& w, const TexelSpace& space, const Appearance& a,
+                                         const std::vector<uint8_t>& emitter, const FrameGains& gains,
+                                         const ClippedLightSettings& settings, uint64_t seed,
+                                         std::vector<double>* bounds) {
+  const std::vector<std::vector<uint32_t>> texels = texelsByObject(w, space, a.objectCount());
+  const uint64_t stream = hashTuple({seed, streamTag(RandomStream::ClippedLightScale)});
+  std::vector<int> lights;
+  if (bounds) bounds->clear();
+  for (int o = 0; o < a.objectCount(); ++o) {
+    if (!emitter[o] || !a.isEmissive(o) || texels[o].empty()) continue;
+    size_t rays = 0, clipped = 0;
+    double bound = 0;
+    for (const BatchRay& r : drawTexels(w, space, texels[o], o, gains, settings, stream).rays) {
+      if (!r.reference.allFinite() || r.reference.minCoeff() < 0) continue;
+      ++rays;
+      clipped += saturated(r);
+      bound += luminance(r.reference / r.gain);
+    }
+    if (rays == 0 || static_cast<double>(clipped) < kOnlySaturatedShare * static_cast<double>(rays)) continue;
+    lights.push_back(o);
+    if (bounds) bounds->push_back(bound / static_cast<double>(rays) / luminance(a.emission[o]));
+  }
+  return lights;
+}
+
+ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space, Appearance& a,
+                                     const std::vector<uint8_t>& emitter, const std::vector<uint8_t>& outOfModel,
+                                     const FrameGains& gains, const PathSettings& path,
+                                     const ClippedLightSettings& settings, uint64_t seed) {
+  CHECK(a.emissionTextures.empty());  // runs before the emission textures exist
+  const int objectCount = a.objectCount();
+  const std::vector<std::vector<uint32_t>> texels = texelsByObject(w, space, objectCount);
+  const uint64_t stream = hashTuple({seed, streamTag(RandomStream::ClippedLightScale)});
+  ClippedLightScale out;
+  out.lights = lightsSeenOnlySaturated(w, space, a, emitter, gains, settings, seed, &out.lowerBound);
+  if (out.lights.empty()) return out;
+  const size_t K = out.lights.size();
+
+  // Each reflector's texels. A ray counts when its pixel is unsaturated and shows the object alone
+  // (a pixel at a silhouette mixes in its neighbours), and when no light lies near its mirror
+  // direction (a highlight adds radiance the albedo does not scale, and the lobe is not fitted yet).
+  Batch batch;
+  for (int o = 0; o < objectCount; ++o)
+    if (!emitter[o] && !outOfModel[o] && !texels[o].empty())
+      batch.append(drawTexels(w, space, texels[o], o, gains, settings, stream));
+  std::vector<uint8_t> counts(batch.rays.size(), 0);
+  tbb::parallel_for(size_t{0}, batch.rays.size(), [&](size_t j) {
+    const BatchRay& r = batch.rays[j];
+    if (!usable(r)) return;
+    const auto hit = w.scene->intersect(r.origin, r.dir);
+    if (!hit || hit->object != batch.object[j] ||
+        !interiorPixel(*w.scene, w.frames[batch.frame[j]].camera, hit->p, batch.object[j]))
+      return;
+    bool seesLight = false;
+    forEachMirrorDirection(*hit, r.dir, [&](const Vec3& d) {
+      const auto other = w.scene->intersect(Scene::offsetOrigin(*hit, d), d);
+      seesLight = other && emitter[other->object] && a.isEmissive(other->object);
+      return !seesLight;
+    });
+    counts[j] = !seesLight;
+  });
+  std::vector<BatchRay> rays;
+  std::vector<size_t> rayOf;  // the batch ray each traced ray repeats
+  for (size_t j = 0; j < batch.rays.size(); ++j)
+    if (counts[j])
+      for (int k = 0; k < settings.pathsPerRay; ++k) rays.push_back(batch.rays[j]), rayOf.push_back(j);
+
+  // D_c: reached from the first vertex (albedo 1) straight from clipped light c; R: everything else.
+  const Appearance white = albedoOneAppearance(a);
+  Appearance none = a, notClipped = a;
+  for (int o = 0; o < objectCount; ++o) none.emission[o] = Color::Zero();
+  for (int o : out.lights) notClipped.emission[o] = Color::Zero();
+  const LightSampler lights(*w.scene, a);
+  std::vector<std::vector<Color>> traced(K + 1);
+  for (size_t c = 0; c < K; ++c) {
+    Appearance only = none;
+    only.emission[out.lights[c]] = a.emission[out.lights[c]];
+    traced[c] = traceRays(*w.scene, lights, {&a, &white, &a, &only, &none}, rays, path, [&](size_t j) {
+      return hashTuple({stream, 1 + c, j});
+    });
+  }
+  traced[K] = traceRays(*w.scene, lights, {&a, &white, &a, &notClipped, &a}, rays, path, [&](size_t j) {
+    return hashTuple({stream, 0, j});
+  });
+
+  // Per texel: the means over its paths and their covariance.
+  std::vector<ScaleTexel> perTexel(batch.texel.size());
+  std::vector<double> samples(batch.texel.size(), 0.0);
+  for (size_t s = 0; s < perTexel.size(); ++s) {
+    perTexel[s].object = space.objectOf(batch.texel[s], w.mesh);
+    perTexel[s].mean.assign(K + 1, 0.0), perTexel[s].covariance.assign((K + 1) * (K + 1), 0.0);
+  }
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const size_t j = rayOf[i];
+    ScaleTexel& t = perTexel[batch.slot[j]];
+    t.shown += luminance(batch.rays[j].reference / batch.rays[j].gain);
+    for (size_t c = 0; c <= K; ++c) {
+      const double x = luminance(traced[c][i]);
+      t.mean[c] += x;
+      for (size_t d = 0; d <= K; ++d) t.covariance[c * (K + 1) + d] += x * luminance(traced[d][i]);
+    }
+    samples[batch.slot[j]] += 1;
+  }
+  for (size_t s = 0; s < perTexel.size(); ++s) {
+    const double n = samples[s];
+    ScaleTexel& t = perTexel[s];
+    if (n < 2) {
+      t.shown = 0;
+      continue;
+    }
+    t.shown /= n;
+    for (double& m : t.mean) m /= n;
+    for (size_t c = 0; c <= K; ++c)
+      for (size_t d = 0; d <= K; ++d) {
+        double& v = t.covariance[c * (K + 1) + d];
+        v = (v / n - t.mean[c] * t.mean[d]) / (n - 1);
+      }
+  }
+  std::erase_if(perTexel, [&](const ScaleTexel& t) { return t.shown <= 0; });
+  out.fit = fitClippedScales(perTexel, kMinTexels, settings.maxLogError);
+
+  std::string names;
+  for (int o : out.lights) names += fmt::format("{}{} ({})", names.empty() ? "" : ", ", o, a.names[o]);
+  const double worst = *std::max_element(out.fit.logError.begin(), out.fit.logError.end());
+  if (!(worst <= settings.maxLogError)) {
+    out.why = fmt::format(
+        "lights {} are seen only saturated and the surfaces they light do not tell their emission apart from the "
+        "albedo (scale {:.3g}, log error {:.3g} over {} objects): both keep the scale init_white_point gave them",
+        names, out.fit.scale.front(), worst, out.fit.objects);
+    return out;
+  }
+  out.applied = true;
+  std::vector<double> s(K);
+  std::string scales;
+  for (size_t c = 0; c < K; ++c) {
+    s[c] = std::max(out.fit.scale[c], out.lowerBound[c]);
+    scales += fmt::format("{}{} x {:.3g} (+-{:.0f}%{})", c ? ", " : "", a.names[out.lights[c]], s[c],
+                          100 * out.fit.logError[c], s[c] > out.fit.scale[c] ? ", raised to its pixels' bound" : "");
+    a.emission[out.lights[c]] *= static_cast<float>(s[c]);
+  }
+  out.why = fmt::format(
+      "lights {} are seen only saturated; the albedo is most uniform within each object at emission {} ({}; {} "
+      "objects, {} texels)",
+      names, scales, out.fit.common ? "one scale for all" : "each its own", out.fit.objects, out.fit.texels);
+  // Each reflector's albedo by its texels' mean ratio a(s) / a(1) (the next stages refit it).
+  std::vector<double> logRatio(objectCount, 0.0), count(objectCount, 0.0);
+  for (const ScaleTexel& t : perTexel) {
+    double before = t.mean[K], after = t.mean[K];
+    for (size_t c = 0; c < K; ++c) before += t.mean[c], after += s[c] * t.mean[c];
+    if (before > 0 && after > 0) logRatio[t.object] += std::log(before / after), count[t.object] += 1;
+  }
+  for (size_t t = 0; t < space.map.texelCount(); ++t) {
+    if (!space.map.valid(t)) continue;
+    const int o = space.objectOf(t, w.mesh);
+    if (count[o] == 0) continue;
+    const float ratio = static_cast<float>(std::exp(logRatio[o] / count[o]));
+    for (int c = 0; c < 3; ++c) a.albedo.rgb[3 * t + c] = std::clamp(a.albedo.rgb[3 * t + c] * ratio, 0.0f, 1.0f);
+  }
+  return out;
+}
+
+}  // namespace relume

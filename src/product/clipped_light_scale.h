@@ -1,0 +1,93 @@
+// The emission of light sources the frames show only saturated (docs/design/light-sources.md,
+// "Lights seen only saturated").
+//
+// A light whose every pixel clips shows only a lower bound on its emission. The surfaces it lights
+// are explained as well by brighter lights and darker surfaces as by the truth: with each texel's
+// albedo free, a texel's albedo absorbs any scale s of the light it receives directly,
+//   a_k(s) = I_k / (s D_k + R_k),
+// I_k what the frames show at texel k, D_k the radiance an albedo-1 texel returns of the light it
+// receives straight from the clipped lights, R_k the rest (the other lights, and the surfaces the
+// frames see, which s does not change since their radiance is observed). What tells s apart is
+// that one material has one albedo where the clipped lights reach it directly and where they do
+// not (a wall's far corner, the floor under a table, the top of a wall beside a ceiling panel):
+// only the true s makes each surface's albedo as uniform as it is. The scale is the s that
+// minimises the spread of the log-albedo within each object (each object's Gaussian likelihood with
+// its own variance, so a textured rug weighs less than a plain wall), pooled over objects, with a
+// jackknife error over objects; with several such lights, each its own where the frames tell them
+// apart. It is applied only when that error is small, and never below what the clipped pixels
+// bound the emission by.
+#pragma once
+#include <string>
+#include <vector>
+
+#include "io/json.h"
+#include "params/parameters.h"
+#include "product/fit_workspace.h"
+#include "product/frame_gains.h"
+#include "render/path_tracer.h"
+
+namespace relume {
+
+// One texel: what the frames show (I, luminance) and the means over its paths of what an albedo-1
+// texel returns straight from each clipped light (D_1..D_K) and of everything else (R), with the
+// covariance of those means (the paths' noise, which the fit removes from each object's spread:
+// it shrinks relative to s D + R as s grows, and left in it pulls s up).
+struct ScaleTexel {
+  int object = 0;
+  double shown = 0;
+  std::vector<double> mean;        // D_1..D_K, R
+  std::vector<double> covariance;  // of the means, (K+1)^2, row-major
+};
+
+struct ScaleFit {
+  std::vector<double> scale;     // per clipped light
+  std::vector<double> logError;  // per light: jackknife standard error of log(scale), over objects
+  bool common = true;            // one scale for all: their own were not resolved (or K = 1)
+  int objects = 0;               // objects with enough texels
+  size_t texels = 0;
+  // Each object's own common scale (NaN where it lies on the grid's edge): where they agree.
+  std::vector<std::pair<int, double>> perObject;
+};
+
+// The fit above. First one scale for all the lights, on a log grid over [1/16, 16] refined by a
+// parabola; then, with 2 to 8 lights, each light's own by coordinate descent around it, kept when
+// every light's error is at most `maxLogError`. Objects with fewer than `minTexels` texels are
+// left out. The errors are infinite with fewer than three objects, when a scale lands on the
+// grid's edge or when nothing depends on it.
+ScaleFit fitClippedScales(const std::vector<ScaleTexel>& texels, size_t minTexels, double maxLogError);
+
+struct ClippedLightSettings {
+  int texelsPerObject = 1024;  // reflector texels drawn per object
+  int framesPerTexel = 4;
+  int pathsPerRay = 8;  // of each D and of R
+  // Applied only when the scale is known to ~20%: the init's white point (the brightest surfaces
+  // taken for albedo 0.8, when they may be 0.6 or 0.9) is not known better.
+  double maxLogError = 0.2;
+};
+
+struct ClippedLightScale {
+  std::vector<int> lights;  // the lights seen only saturated
+  ScaleFit fit;
+  std::vector<double> lowerBound;  // per light: the smallest s that keeps it at its pixels' bound
+  bool applied = false;
+  std::string why;  // one line: what was decided and why
+  Json toJson(const Appearance& a) const;
+};
+
+// The lights among `emitter` seen only saturated: at least 95% of the rays drawn on their own
+// texels clip. With `bounds`, per such light the smallest scale of its emission that keeps it at
+// what its pixels bound it by (the mean of their radiance over its emission).
+std::vector<int> lightsSeenOnlySaturated(const Workspace& w, const TexelSpace& space, const Appearance& a,
+                                         const std::vector<uint8_t>& emitter, const FrameGains& gains,
+                                         const ClippedLightSettings& settings, uint64_t seed,
+                                         std::vector<double>* bounds = nullptr);
+
+// Finds the lights among `emitter` seen only saturated and, when there are any, fits their scale
+// and applies it: their emission x s, and each reflector's albedo by its texels' mean a(s) / a(1).
+// Each light's scale is at least what its own clipped pixels bound it by.
+ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space, Appearance& a,
+                                     const std::vector<uint8_t>& emitter, const std::vector<uint8_t>& outOfModel,
+                                     const FrameGains& gains, const PathSettings& path,
+                                     const ClippedLightSettings& settings, uint64_t seed);
+
+}  // namespace relume

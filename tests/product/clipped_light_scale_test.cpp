@@ -1,0 +1,123 @@
+// The scale of lights seen only saturated, from texel sums whose truth the test sets: each object
+// one albedo, its texels lit directly by the clipped lights in different measure.
+#include "product/clipped_light_scale.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+using namespace relume;
+
+namespace {
+
+// `objects` objects of `perObject` texels: albedo a_o; light c reaches a texel with a direct share
+// that varies over the object (light 1 from the other end of the room than light 0). What the frames show is a_o (sum_c
+// s_c D_c + R) times log-normal noise of `noise`; the paths are exact (no covariance).
+std::vector<ScaleTexel> texels(const std::vector<double>& truth, int objects, int perObject, double noise,
+                               uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::normal_distribution<double> n(0, 1);
+  const size_t K = truth.size();
+  std::vector<ScaleTexel> out;
+  for (int o = 0; o < objects; ++o) {
+    const double albedo = 0.2 + 0.6 * u(rng);
+    for (int k = 0; k < perObject; ++k) {
+      ScaleTexel t;
+      t.object = o;
+      const double x = u(rng);  // where the texel lies between the two ends
+      for (size_t c = 0; c < K; ++c) t.mean.push_back((c % 2 == 0 ? x : 1 - x) * u(rng));
+      t.mean.push_back(0.05 + 0.3 * u(rng));
+      double lit = t.mean[K];
+      for (size_t c = 0; c < K; ++c) lit += truth[c] * t.mean[c];
+      t.shown = albedo * lit * std::exp(noise * n(rng));
+      t.covariance.assign((K + 1) * (K + 1), 0.0);
+      out.push_back(t);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(ClippedLightScale, TheUniformAlbedoScaleIsFound) {
+  for (double truth : {0.5, 1.0, 1.6, 3.0}) {
+    const ScaleFit exact = fitClippedScales(texels({truth}, 6, 200, 0.01, 1), 32, 0.1);
+    EXPECT_NEAR(exact.scale[0] / truth, 1.0, 0.02) << truth;
+    EXPECT_LT(exact.logError[0], 0.02) << truth;
+    const ScaleFit noisy = fitClippedScales(texels({truth}, 6, 200, 0.1, 2), 32, 0.1);
+    EXPECT_NEAR(noisy.scale[0] / truth, 1.0, 0.08) << truth;
+    EXPECT_LT(noisy.logError[0], 0.1) << truth;
+    EXPECT_EQ(noisy.objects, 6);
+    EXPECT_EQ(noisy.texels, 1200u);
+  }
+}
+
+// Two lights lighting the room from its two ends: each gets its own scale.
+TEST(ClippedLightScale, LightsThatLightDifferentPlacesGetTheirOwn) {
+  const ScaleFit fit = fitClippedScales(texels({1.7, 1.3}, 8, 300, 0.02, 7), 32, 0.1);
+  EXPECT_FALSE(fit.common);
+  EXPECT_NEAR(fit.scale[0] / 1.7, 1.0, 0.04);
+  EXPECT_NEAR(fit.scale[1] / 1.3, 1.0, 0.04);
+}
+
+// Two lights whose light falls everywhere in the same proportion: only their common scale is known.
+TEST(ClippedLightScale, LightsNoSurfaceTellsApartShareOneScale) {
+  std::vector<ScaleTexel> same = texels({1.5}, 6, 200, 0.02, 8);
+  for (ScaleTexel& t : same) {  // light 0 gives two thirds of the direct light everywhere, light 1 a third
+    t.mean = {2 * t.mean[0] / 3, t.mean[0] / 3, t.mean[1]};
+    t.covariance.assign(9, 0.0);
+  }
+  const ScaleFit fit = fitClippedScales(same, 32, 0.1);
+  EXPECT_TRUE(fit.common);
+  EXPECT_NEAR(fit.scale[0] / 1.5, 1.0, 0.04);
+  EXPECT_EQ(fit.scale[0], fit.scale[1]);
+}
+
+// The paths' noise in D and R, left in the spread, pulls the scale up: taken out, the scale is
+// that of exact paths.
+TEST(ClippedLightScale, PathNoiseDoesNotPullTheScale) {
+  std::mt19937 rng(9);
+  std::normal_distribution<double> n(0, 1);
+  std::vector<ScaleTexel> noisy = texels({1.5}, 8, 300, 0.02, 9);
+  const double paths = 32;  // 4 frames x 8 paths
+  for (ScaleTexel& t : noisy) {
+    const double sdD = 0.1 * t.mean[0], sdR = 1.5 * t.mean[1];  // per path: a light sampled, the rest traced
+    t.mean[0] = std::max(0.0, t.mean[0] + sdD / std::sqrt(paths) * n(rng));
+    t.mean[1] = std::max(1e-3, t.mean[1] + sdR / std::sqrt(paths) * n(rng));
+    t.covariance = {sdD * sdD / paths, 0, 0, sdR * sdR / paths};
+  }
+  std::vector<ScaleTexel> ignored = noisy;
+  for (ScaleTexel& t : ignored) t.covariance.assign(4, 0.0);
+  const double corrected = fitClippedScales(noisy, 32, 0.1).scale[0];
+  const double uncorrected = fitClippedScales(ignored, 32, 0.1).scale[0];
+  EXPECT_NEAR(corrected / 1.5, 1.0, 0.015);
+  EXPECT_GT(uncorrected / 1.5, 1.03);
+  std::printf("ClippedLightScale noise: scale %.3f with the noise taken out, %.3f left in (truth 1.5)\n", corrected,
+              uncorrected);
+}
+
+// Lit alike everywhere (the same direct share at every texel), a surface's albedo is uniform at
+// any scale: nothing is known, and the error says so.
+TEST(ClippedLightScale, NoContrastInTheDirectLightIsNoEvidence) {
+  std::vector<ScaleTexel> flat = texels({2.0}, 5, 100, 0.05, 3);
+  for (ScaleTexel& t : flat) {
+    const double a = t.shown / (2.0 * t.mean[0] + t.mean[1]);
+    t.mean = {0.5, 0.2}, t.shown = a * (2.0 * 0.5 + 0.2);
+  }
+  EXPECT_FALSE(std::isfinite(fitClippedScales(flat, 32, 0.1).logError[0]));
+}
+
+TEST(ClippedLightScale, TooFewObjectsOrTexelsGiveNoError) {
+  EXPECT_FALSE(std::isfinite(fitClippedScales(texels({1.5}, 2, 200, 0.01, 4), 32, 0.1).logError[0]));
+  const ScaleFit few = fitClippedScales(texels({1.5}, 6, 20, 0.01, 5), 32, 0.1);
+  EXPECT_EQ(few.objects, 0);
+  EXPECT_FALSE(std::isfinite(few.logError[0]));
+  EXPECT_TRUE(fitClippedScales({}, 32, 0.1).scale.empty());
+}
+
+// Beyond the searched range the minimum is on its edge: not taken for an answer.
+TEST(ClippedLightScale, AScaleBeyondTheRangeIsNotTakenForOne) {
+  EXPECT_FALSE(std::isfinite(fitClippedScales(texels({40.0}, 6, 200, 0.01, 6), 32, 0.1).logError[0]));
+}

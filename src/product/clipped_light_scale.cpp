@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -218,13 +219,8 @@ Json ClippedLightScale::toJson(const Appearance& a) const {
   for (const auto& [o, scale] : fit.perObject)
     perObject.push_back(
         {{"id", o}, {"name", a.names[o]}, {"scale", std::isfinite(scale) ? Json(scale) : Json(nullptr)}});
-  return {{"lights", perLight},
-          {"common", fit.common},
-          {"objects", fit.objects},
-          {"texels", fit.texels},
-          {"per_object", perObject},
-          {"applied", applied},
-          {"why", why}};
+  return {{"lights", perLight},   {"common", fit.common},    {"coloured", coloured}, {"objects", fit.objects},
+          {"texels", fit.texels}, {"per_object", perObject}, {"applied", applied},   {"why", why}};
 }
 
 namespace {
@@ -246,6 +242,52 @@ Batch drawTexels(const Workspace& w, const TexelSpace& space, const std::vector<
 }
 
 constexpr double kOnlySaturatedShare = 0.95;
+
+// A colour's band: a channel (0-2) or its luminance (3).
+double bandOf(const Color& x, int band) { return band < 3 ? x[band] : luminance(x); }
+
+// Per drawn texel, in one band: the mean of what its rays show, and the means over its paths of
+// each traced term (traced[c][i]: term c of traced ray i, which repeats batch ray rayOf[i]) with
+// their covariance. Texels with fewer than two paths are left out.
+std::vector<ScaleTexel> texelSums(const Batch& batch, const std::vector<size_t>& rayOf,
+                                  const std::vector<std::vector<Color>>& traced, const TexelSpace& space,
+                                  const TriangleMesh& mesh, int band) {
+  const size_t terms = traced.size();
+  std::vector<ScaleTexel> perTexel(batch.texel.size());
+  std::vector<double> samples(batch.texel.size(), 0.0);
+  for (size_t s = 0; s < perTexel.size(); ++s) {
+    perTexel[s].object = space.objectOf(batch.texel[s], mesh);
+    perTexel[s].mean.assign(terms, 0.0), perTexel[s].covariance.assign(terms * terms, 0.0);
+  }
+  for (size_t i = 0; i < rayOf.size(); ++i) {
+    const size_t j = rayOf[i];
+    ScaleTexel& t = perTexel[batch.slot[j]];
+    t.shown += bandOf(batch.rays[j].reference / batch.rays[j].gain, band);
+    for (size_t c = 0; c < terms; ++c) {
+      const double x = bandOf(traced[c][i], band);
+      t.mean[c] += x;
+      for (size_t d = 0; d < terms; ++d) t.covariance[c * terms + d] += x * bandOf(traced[d][i], band);
+    }
+    samples[batch.slot[j]] += 1;
+  }
+  for (size_t s = 0; s < perTexel.size(); ++s) {
+    const double n = samples[s];
+    ScaleTexel& t = perTexel[s];
+    if (n < 2) {
+      t.shown = 0;
+      continue;
+    }
+    t.shown /= n;
+    for (double& m : t.mean) m /= n;
+    for (size_t c = 0; c < terms; ++c)
+      for (size_t d = 0; d < terms; ++d) {
+        double& v = t.covariance[c * terms + d];
+        v = (v / n - t.mean[c] * t.mean[d]) / (n - 1);
+      }
+  }
+  std::erase_if(perTexel, [&](const ScaleTexel& t) { return t.shown <= 0; });
+  return perTexel;
+}
 
 }  // namespace
 
@@ -334,41 +376,10 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
     return hashTuple({stream, 0, j});
   });
 
-  // Per texel: the means over its paths and their covariance.
-  std::vector<ScaleTexel> perTexel(batch.texel.size());
-  std::vector<double> samples(batch.texel.size(), 0.0);
-  for (size_t s = 0; s < perTexel.size(); ++s) {
-    perTexel[s].object = space.objectOf(batch.texel[s], w.mesh);
-    perTexel[s].mean.assign(K + 1, 0.0), perTexel[s].covariance.assign((K + 1) * (K + 1), 0.0);
-  }
-  for (size_t i = 0; i < rays.size(); ++i) {
-    const size_t j = rayOf[i];
-    ScaleTexel& t = perTexel[batch.slot[j]];
-    t.shown += luminance(batch.rays[j].reference / batch.rays[j].gain);
-    for (size_t c = 0; c <= K; ++c) {
-      const double x = luminance(traced[c][i]);
-      t.mean[c] += x;
-      for (size_t d = 0; d <= K; ++d) t.covariance[c * (K + 1) + d] += x * luminance(traced[d][i]);
-    }
-    samples[batch.slot[j]] += 1;
-  }
-  for (size_t s = 0; s < perTexel.size(); ++s) {
-    const double n = samples[s];
-    ScaleTexel& t = perTexel[s];
-    if (n < 2) {
-      t.shown = 0;
-      continue;
-    }
-    t.shown /= n;
-    for (double& m : t.mean) m /= n;
-    for (size_t c = 0; c <= K; ++c)
-      for (size_t d = 0; d <= K; ++d) {
-        double& v = t.covariance[c * (K + 1) + d];
-        v = (v / n - t.mean[c] * t.mean[d]) / (n - 1);
-      }
-  }
-  std::erase_if(perTexel, [&](const ScaleTexel& t) { return t.shown <= 0; });
-  out.fit = fitClippedScales(perTexel, kMinTexels, settings.maxLogError);
+  // Per texel and band (red, green, blue, luminance): the means over its paths, their covariance.
+  std::array<std::vector<ScaleTexel>, 4> bands;
+  for (int band = 0; band < 4; ++band) bands[band] = texelSums(batch, rayOf, traced, space, w.mesh, band);
+  out.fit = fitClippedScales(bands[3], kMinTexels, settings.maxLogError);
 
   std::string names;
   for (int o : out.lights) names += fmt::format("{}{} ({})", names.empty() ? "" : ", ", o, a.names[o]);
@@ -380,32 +391,58 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
         names, out.fit.scale.front(), worst, out.fit.objects);
     return out;
   }
+  // The colour as well when each channel's own fit is resolved (a warm light's pixels clip white,
+  // and its colour, like its scale, shows only in how the surfaces' colour changes where it
+  // reaches them directly); else the luminance scale for all three.
+  std::vector<Color> scale(K);
+  for (size_t c = 0; c < K; ++c) scale[c] = Color::Constant(static_cast<float>(out.fit.scale[c]));
+  bool coloured = true;
+  std::array<ScaleFit, 3> channel;
+  for (int band = 0; band < 3; ++band) {
+    channel[band] = fitClippedScales(bands[band], kMinTexels, settings.maxLogError);
+    for (double e : channel[band].logError) coloured &= e <= settings.maxLogError;
+  }
+  out.coloured = coloured;
+  for (size_t c = 0; c < K; ++c) {
+    if (coloured)
+      for (int band = 0; band < 3; ++band) scale[c][band] = static_cast<float>(channel[band].scale[c]);
+    // Never below what the light's pixels bound it by.
+    const Color raised = a.emission[out.lights[c]] * scale[c];
+    const double atLeast = out.lowerBound[c] * luminance(a.emission[out.lights[c]]);
+    if (luminance(raised) < atLeast) scale[c] *= static_cast<float>(atLeast / luminance(raised));
+  }
   out.applied = true;
-  std::vector<double> s(K);
   std::string scales;
   for (size_t c = 0; c < K; ++c) {
-    s[c] = std::max(out.fit.scale[c], out.lowerBound[c]);
-    scales += fmt::format("{}{} x {:.3g} (+-{:.0f}%{})", c ? ", " : "", a.names[out.lights[c]], s[c],
-                          100 * out.fit.logError[c], s[c] > out.fit.scale[c] ? ", raised to its pixels' bound" : "");
-    a.emission[out.lights[c]] *= static_cast<float>(s[c]);
+    const Color before = a.emission[out.lights[c]];
+    a.emission[out.lights[c]] *= scale[c];
+    const Color& after = a.emission[out.lights[c]];
+    scales +=
+        fmt::format("{}{} x {:.3g} (+-{:.0f}%): {:.3g} {:.3g} {:.3g}", c ? ", " : "", a.names[out.lights[c]],
+                    luminance(after) / luminance(before), 100 * out.fit.logError[c], after[0], after[1], after[2]);
   }
   out.why = fmt::format(
-      "lights {} are seen only saturated; the albedo is most uniform within each object at emission {} ({}; {} "
-      "objects, {} texels)",
-      names, scales, out.fit.common ? "one scale for all" : "each its own", out.fit.objects, out.fit.texels);
-  // Each reflector's albedo by its texels' mean ratio a(s) / a(1) (the next stages refit it).
-  std::vector<double> logRatio(objectCount, 0.0), count(objectCount, 0.0);
-  for (const ScaleTexel& t : perTexel) {
-    double before = t.mean[K], after = t.mean[K];
-    for (size_t c = 0; c < K; ++c) before += t.mean[c], after += s[c] * t.mean[c];
-    if (before > 0 && after > 0) logRatio[t.object] += std::log(before / after), count[t.object] += 1;
-  }
+      "lights {} are seen only saturated; the albedo is most uniform within each object at emission {} ({}, {}; "
+      "{} objects, {} texels)",
+      names, scales, out.fit.common ? "one scale for all" : "each its own",
+      coloured ? "colour from each channel" : "colour kept", out.fit.objects, out.fit.texels);
+  // Each reflector's albedo by its texels' mean ratio a(s) / a(1), per channel (the next stages
+  // refit it).
+  std::vector<Eigen::Array3d> logRatio(objectCount, Eigen::Array3d::Zero());
+  std::vector<Eigen::Array3d> count(objectCount, Eigen::Array3d::Zero());
+  for (int band = 0; band < 3; ++band)
+    for (const ScaleTexel& t : bands[band]) {
+      double before = t.mean[K], after = t.mean[K];
+      for (size_t c = 0; c < K; ++c) before += t.mean[c], after += scale[c][band] * t.mean[c];
+      if (before > 0 && after > 0) logRatio[t.object][band] += std::log(before / after), count[t.object][band] += 1;
+    }
   for (size_t t = 0; t < space.map.texelCount(); ++t) {
     if (!space.map.valid(t)) continue;
     const int o = space.objectOf(t, w.mesh);
-    if (count[o] == 0) continue;
-    const float ratio = static_cast<float>(std::exp(logRatio[o] / count[o]));
-    for (int c = 0; c < 3; ++c) a.albedo.rgb[3 * t + c] = std::clamp(a.albedo.rgb[3 * t + c] * ratio, 0.0f, 1.0f);
+    for (int band = 0; band < 3; ++band)
+      if (count[o][band] > 0)
+        a.albedo.rgb[3 * t + band] = std::clamp(
+            a.albedo.rgb[3 * t + band] * static_cast<float>(std::exp(logRatio[o][band] / count[o][band])), 0.0f, 1.0f);
   }
   return out;
 }

@@ -70,7 +70,8 @@ struct ClippedLightScale {
   ScaleFit fit;
   std::vector<double> lowerBound;  // per light: the smallest s that keeps it at its pixels' bound
   bool applied = false;
-  std::string why;  // one line: what was decided and why
+  bool coloured = false;  // each channel scaled by its own fit (else all by the luminance's)
+  std::string why;        // one line: what was decided and why
   Json toJson(const Appearance& a) const;
 };
 
@@ -83,7 +84,8 @@ std::vector<int> lightsSeenOnlySaturated(const Workspace& w, const TexelSpace& s
                                          std::vector<double>* bounds = nullptr);
 
 // Finds the lights among `emitter` seen only saturated and, when there are any, fits their scale
-// and applies it: their emission x s, and each reflector's albedo by its texels' mean a(s) / a(1).
+// in luminance and in each channel, and applies it: their emission x s (per channel when every
+// channel's fit is resolved), and each reflector's albedo by its texels' mean a(s) / a(1).
 // Each light's scale is at least what its own clipped pixels bound it by.
 ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space, Appearance& a,
                                      const std::vector<uint8_t>& emitter, const std::vector<uint8_t>& outOfModel,

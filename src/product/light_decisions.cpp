@@ -185,6 +185,7 @@ bool LightDecisions::decide(const TexelSpace& space, const std::string& after, b
       {{"after", after}, {"objects", lightDecisionsJson(evidence, decisions, a_.names, test, last)}});
   return changed;
 }
+
 namespace {
 ClippedLightSettings clippedLightSettings(const FitConfig& c) {
   return {.texelsPerObject = 4 * c.lightEvidenceTexels, .framesPerTexel = c.framesPerTexel};

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Real captures I: what each imperfection of a hand-held capture costs and what each remedy buys.
 # The built-in room (synth's defaults: 24 frames of 256x192 at 16 spp; 4 held-out views at 32 spp)
-# is synthesised clean and with each flaw (`relume synth --imperfect`), prepared
-# and fitted with the demo's schedule; each remedy is also switched off. One row per fit: albedo
+# is synthesised clean and with each flaw (`relume synth --imperfect`), prepared and fitted with
+# the demo's schedule; each remedy is also switched off (`_values`: 8-bit codes taken as exact;
+# `_no_gains`: no frame gains; `_kept`: no scale for lights seen only saturated). One row per fit: albedo
 # MAE, held-out PSNR against the clean references, emitters, emission error, and the frame gains
 # against the truth (gt/imperfections.json, in the fit's gauge). A benchmark, not a test.
 # Usage: scripts/photometry_bench.sh [OUT]   RELUME=binary (default build/relume)  VARIANTS="name ..."
@@ -18,6 +19,8 @@ echo '{"emission_iterations": 100, "material_iterations": 150, "albedo_passes": 
 # Float frames count as radiometrically known (frame_gains auto: none): the drift rows ask for gains.
 echo '{"emission_iterations": 100, "material_iterations": 150, "albedo_passes": 40, "samples_per_ray": 1,
   "emission_texture_iterations": 40, "frame_gains": "rgb"}' > "$OUT/fit_rgb.json"
+echo '{"emission_iterations": 100, "material_iterations": 150, "albedo_passes": 40, "samples_per_ray": 1,
+  "emission_texture_iterations": 40, "clipped_light_scale": false}' > "$OUT/fit_kept.json"
 
 # name | imperfection spec | prepare flags | fit config
 declare -A SPEC PREP CFG
@@ -25,13 +28,15 @@ add() { SPEC[$1]="$2"; PREP[$1]="$3"; CFG[$1]="$4"; }
 add clean "" "" fit.json
 add ldr8 "ldr=8" "" fit_no_gains.json
 add ldr8_values "ldr=8" "--no-encoding-clips" fit_no_gains.json
+add ldr8_kept "ldr=8" "" fit_kept.json
 add ldr8_bracket "bracket=-1.5,0,1.5;ldr=8" "" fit.json
+add ldr8_bracket_kept "bracket=-1.5,0,1.5;ldr=8" "" fit_kept.json
 add ldr8_bracket_values "bracket=-1.5,0,1.5;ldr=8" "--no-encoding-clips" fit.json
 add drift "exposure-drift=0.3;wb=0.03" "" fit_rgb.json
 add drift_no_gains "exposure-drift=0.3;wb=0.03" "" fit_no_gains.json
 add noise "noise=1000,0.002" "" fit.json
 add handheld "pose=1cm,0.3deg;bracket=-1.5,0,1.5;wb=0.03;noise=1000,0.002;ldr=8;mesh=5mm;segmentation=none" "" fit.json
-ORDER="${VARIANTS:-clean ldr8 ldr8_values ldr8_bracket ldr8_bracket_values drift drift_no_gains noise handheld}"
+ORDER="${VARIANTS:-clean ldr8 ldr8_kept ldr8_values ldr8_bracket ldr8_bracket_kept ldr8_bracket_values drift drift_no_gains noise handheld}"
 
 for name in $ORDER; do
   cap="$OUT/capture_${SPEC[$name]//[^a-z0-9]/_}"

@@ -74,7 +74,7 @@ TEST(LdrFit, SaturatedLightsAreBoundsNotValues) {
 // the split. Scaled until each object's albedo is most uniform where the panels reach it directly
 // and where they do not, the emission comes out nearer the truth, and the albedo with it.
 TEST(LdrFit, LightsSeenOnlySaturatedTakeTheScaleTheAlbedoAgreesOn) {
-  const fs::path dir = preparedCapture("ldr_fit_clip", smallRoom("ldr=8"), 256);
+  const fs::path dir = preparedCapture("ldr_fit_clip_scale", smallRoom("ldr=8"), 256);
   FitConfig off = smallConfig(FrameGainMode::None);
   off.clippedLightScale = false;
   const TruthComparison kept = fitAndScore(dir / "work", dir / "capture", off);

@@ -6,6 +6,7 @@
 #include <cerrno>
 #include <charconv>
 #include <fstream>
+#include <string>
 
 #include "core/error.h"
 #include "io/file_system.h"
@@ -41,6 +42,21 @@ pid_t temporaryWriter(const std::string& name) {
   if (!extension.empty() && (extension[0] != '.' || extension.find('.', 1) != std::string_view::npos)) return 0;
   return pid;
 }
+
+// Whether `pid` is a process that can still write: it exists and is not a zombie. A writer killed
+// under `timeout -s KILL` stays a zombie until its new parent reaps it, which a container's pid 1
+// may never do; kill(pid, 0) alone still counts such a writer alive.
+bool processRunning(pid_t pid) {
+  if (kill(pid, 0) != 0 && errno != EPERM) return false;
+  std::ifstream stat(fmt::format("/proc/{}/stat", pid));
+  std::string line;
+  if (!std::getline(stat, line)) return true;  // no /proc: trust kill()
+  // "pid (comm) state ...": comm may hold spaces and parentheses, so read after the last ')'.
+  const size_t close = line.rfind(')');
+  if (close == std::string::npos || close + 2 >= line.size()) return true;
+  const char state = line[close + 2];
+  return state != 'Z' && state != 'X';
+}
 }  // namespace
 
 size_t removeStaleTemporaries(const std::filesystem::path& dir) {
@@ -51,7 +67,7 @@ size_t removeStaleTemporaries(const std::filesystem::path& dir) {
     const std::filesystem::directory_entry& entry = *it;
     const pid_t pid = temporaryWriter(entry.path().filename().string());
     if (!pid || !entry.is_regular_file(ec)) continue;
-    const bool writerAlive = pid == getpid() || kill(pid, 0) == 0 || errno == EPERM;
+    const bool writerAlive = pid == getpid() || processRunning(pid);
     if (!writerAlive && std::filesystem::remove(entry.path(), ec)) ++removed;
   }
   return removed;

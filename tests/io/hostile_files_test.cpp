@@ -2,6 +2,7 @@
 // of hanging; temporaries of killed runs are recognised and removed.
 #include <gtest/gtest.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <fstream>
@@ -74,4 +75,20 @@ TEST(AtomicFile, TemporariesOfDeadWritersAreRemovedOthersKept) {
   for (const auto& name : stale) EXPECT_FALSE(fs::exists(dir / name)) << name;
   for (const auto& name : kept) EXPECT_TRUE(fs::exists(dir / name)) << name;
   EXPECT_EQ(removeStaleTemporaries(dir / "missing"), 0u);  // never throws
+}
+
+// A writer killed under `timeout -s KILL` is a zombie nobody reaps; its temporary is stale.
+TEST(AtomicFile, AZombieWritersTemporaryIsStale) {
+  const fs::path dir = freshDir("relume_zombie_tmp");
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) _exit(0);
+  // Not reaped until the end: until then the child is a zombie.
+  siginfo_t info{};
+  ASSERT_EQ(waitid(P_PID, static_cast<id_t>(child), &info, WEXITED | WNOWAIT), 0);
+  const fs::path temporary = dir / fmt::format(".frames.tmp{}.bin", child);
+  std::ofstream(temporary) << "partial";
+  EXPECT_EQ(removeStaleTemporaries(dir), 1u);
+  EXPECT_FALSE(fs::exists(temporary));
+  waitpid(child, nullptr, 0);
 }

@@ -6,6 +6,7 @@
 
 #include "capture/colmap.h"
 #include "core/error.h"
+#include "io/file_system.h"
 
 namespace relume {
 namespace fs = std::filesystem;
@@ -39,6 +40,12 @@ Capture readCapture(const fs::path& folder) {
   spdlog::info("cameras: COLMAP model {} + {}, {} frames", cap.files[0].string(), cap.files[1].string(),
                cap.frames.size());
   return cap;
+}
+
+fs::path findCaptureMesh(const fs::path& folder) {
+  for (const char* name : {"mesh.ply", "mesh.obj"})
+    if (pathExists(folder / name)) return folder / name;
+  fail("{}: no mesh.ply or mesh.obj in the capture folder", folder.string());
 }
 
 }  // namespace relume

@@ -12,5 +12,7 @@ namespace relume {
 // the COLMAP model in sparse/0/ or sparse/. Logs what was read; neither is a one-line relume::Error
 // naming the folder and what was looked for.
 Capture readCapture(const std::filesystem::path& folder);
+// The capture's mesh: mesh.ply, else mesh.obj; neither is a one-line relume::Error naming the folder.
+std::filesystem::path findCaptureMesh(const std::filesystem::path& folder);
 
 }  // namespace relume

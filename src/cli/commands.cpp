@@ -21,6 +21,7 @@
 #include "product/report.h"
 #include "render/film.h"
 #include "scenes/demo.h"
+#include "scenes/degrade.h"
 #include "scenes/synth.h"
 
 namespace relume {
@@ -397,6 +398,29 @@ CommandTable registerCommands(CLI::App& app) {
     synthArgs->out = *outDir;
     const int n = writeSynthCapture(*synthArgs);
     spdlog::info("wrote {} frames of '{}' to {}", n, *synthScene, *outDir);
+    return 0;
+  };
+
+  auto degradeArgs = std::make_shared<DegradeOptions>();
+  auto degradePaths = std::make_shared<std::array<std::string, 3>>();
+  CLI::App* degrade = app.add_subcommand(
+      "degrade", "a clean capture with float frames (e.g. a Cycles render) as a hand-held camera delivers it");
+  degrade->add_option("capture", (*degradePaths)[0], "capture folder (transforms.json or COLMAP), float frames")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  degrade->add_option("--out", (*degradePaths)[1], "new capture folder (absent or empty)")->required();
+  degrade
+      ->add_option("--imperfect", (*degradePaths)[2],
+                   "the flaws, as synth --imperfect: KEY=VALUE;... (docs/user/commands.md#imperfect-captures)")
+      ->required();
+  degrade->add_option("--seed", degradeArgs->seed)->capture_default_str();
+  table[degrade] = [=] {
+    degradeArgs->capture = (*degradePaths)[0];
+    degradeArgs->out = (*degradePaths)[1];
+    degradeArgs->spec = parseImperfections((*degradePaths)[2]);
+    const DegradeSummary s = degradeCapture(*degradeArgs);
+    spdlog::info("wrote {} training frames ({} left out) and {} held-out frames to {}", s.framesWritten,
+                 s.framesLeftOut, s.heldOutCopied, degradeArgs->out.string());
     return 0;
   };
 

@@ -56,12 +56,6 @@ Json previousReport(const fs::path& file, bool force) {
   return Json::object();
 }
 
-fs::path findMesh(const fs::path& capture) {
-  for (const char* name : {"mesh.ply", "mesh.obj"})
-    if (pathExists(capture / name)) return capture / name;
-  fail("{}: no mesh.ply or mesh.obj in the capture folder", capture.string());
-}
-
 Image falseColour(const std::vector<uint32_t>& counts, int res) {
   uint32_t maxCount = 1;
   for (uint32_t c : counts) maxCount = std::max(maxCount, c);
@@ -412,7 +406,7 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   createDirectories(work);
   if (const size_t stale = removeStaleTemporaries(work))
     spdlog::info("prepare: removed {} temporaries of killed runs", stale);
-  const fs::path meshPath = findMesh(capture);
+  const fs::path meshPath = findCaptureMesh(capture);
   Capture cap = readCapture(capture);
   Json report = previousReport(work / "prepare.json", o.force);
   report.erase("response");

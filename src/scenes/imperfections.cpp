@@ -12,6 +12,7 @@
 #include "core/random_streams.h"
 #include "core/rng.h"
 #include "core/warp.h"
+#include "io/image.h"
 
 namespace relume {
 namespace {
@@ -280,6 +281,35 @@ double displaceVertices(MeshData& mesh, const Length& noise, uint64_t seed) {
     p = moved;
   }
   return largest;
+}
+
+Frame writeFlawedFrame(const ImperfectionSpec& spec, const FrameImperfection& frame, uint64_t seed,
+                       const std::filesystem::path& exrPath, Image radiance) {
+  applySensor(spec, frame, seed, radiance);
+  Frame f;
+  f.camera = frame.writtenPose;
+  f.exposure = frame.exposure;
+  f.exposureRecorded = frame.exposureRecorded;
+  const std::filesystem::path pngPath = std::filesystem::path(exrPath).replace_extension(".png");
+  f.image = spec.ldrBits ? pngPath : exrPath;
+  std::filesystem::remove(spec.ldrBits ? exrPath : pngPath);  // an earlier capture's frame in the other format
+  if (spec.ldrBits)
+    writeSrgbPng(f.image, radiance, *spec.ldrBits);
+  else
+    writeExr(f.image, radiance);
+  return f;
+}
+
+double writeFlawedMesh(const ImperfectionSpec& spec, MeshData mesh, const std::filesystem::path& folder,
+                       uint64_t seed) {
+  double largestOffset = 0;
+  if (spec.meshNoise) {
+    writePly(folder / "gt" / "mesh_clean.ply", mesh);
+    largestOffset = displaceVertices(mesh, *spec.meshNoise, seed);
+  }
+  if (!spec.segmentation) mesh.faceObject.clear(), mesh.objectNames.clear();
+  writePly(folder / "mesh.ply", mesh);
+  return largestOffset;
 }
 
 Json cameraToWorldJson(const Camera& c) {

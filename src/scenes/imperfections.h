@@ -12,6 +12,7 @@
 #include <string_view>
 #include <vector>
 
+#include "capture/transforms.h"
 #include "core/camera.h"
 #include "io/image.h"
 #include "io/json.h"
@@ -87,6 +88,17 @@ void applySensor(const ImperfectionSpec& spec, const FrameImperfection& frame, u
 // Moves every vertex by a random offset of length at most `noise` (uniform in the ball), a function
 // of the seed and the vertex position, so coincident vertices move together. Returns the largest offset.
 double displaceVertices(MeshData& mesh, const Length& noise, uint64_t seed);
+
+// A training frame as the flawed camera delivers it: applySensor on the true radiance, written as
+// `exrPath` or, for ldr frames, the PNG beside it (the other one removed), under the written pose and
+// recorded exposure. Returns the frame as transforms.json lists it.
+Frame writeFlawedFrame(const ImperfectionSpec& spec, const FrameImperfection& frame, uint64_t seed,
+                       const std::filesystem::path& exrPath, Image radiance);
+// A capture's mesh.ply in `folder` as a scanner would give it: with mesh noise the vertices
+// displaced (the given mesh kept as gt/mesh_clean.ply), without segmentation no object ids.
+// Returns the largest vertex offset.
+double writeFlawedMesh(const ImperfectionSpec& spec, MeshData mesh, const std::filesystem::path& folder,
+                       uint64_t seed);
 
 // gt/imperfections.json: the spec (as written and as values) and every training frame's truth.
 Json imperfectionsJson(const ImperfectionSpec& spec, uint64_t seed, const std::vector<FrameImperfection>& frames,

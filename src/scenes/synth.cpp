@@ -407,18 +407,11 @@ namespace {
 double writeCaptureMesh(const SynthCaptureOptions& o, const SceneDescription& gt) {
   MeshData capMesh = gt.mesh.toData();
   if (!o.withUv) capMesh.uvs.clear();
-  double largestOffset = 0;
-  if (const auto& flaws = o.imperfections) {
-    if (flaws->meshNoise) {
-      writePly(o.out / "gt" / "mesh_clean.ply", capMesh);
-      largestOffset = displaceVertices(capMesh, *flaws->meshNoise, o.seed);
-    }
-    if (!flaws->segmentation) capMesh.faceObject.clear();
-  }
   if (!o.imperfections || !o.imperfections->meshNoise)
     std::filesystem::remove(o.out / "gt" / "mesh_clean.ply");  // an earlier capture's
+  if (o.imperfections) return writeFlawedMesh(*o.imperfections, std::move(capMesh), o.out, o.seed);
   writePly(o.out / "mesh.ply", capMesh);
-  return largestOffset;
+  return 0;
 }
 
 // objects.json: the segmentation's names, as a capture would carry them (none with segmentation=none).
@@ -430,25 +423,6 @@ void writeObjectNames(const SynthCaptureOptions& o, const Appearance& a) {
   Json objects = Json::array();
   for (int id = 0; id < a.objectCount(); ++id) objects.push_back({{"id", id}, {"name", a.names[id]}});
   writeJson(o.out / "objects.json", Json{{"objects", objects}});
-}
-
-// A training frame as the flawed camera delivers it: sensor applied to the true radiance, written as
-// EXR or (ldr) PNG, under its written pose and recorded exposure.
-Frame writeFlawedFrame(const ImperfectionSpec& flaws, const FrameImperfection& plan, uint64_t seed,
-                       const std::filesystem::path& exrPath, Image radiance) {
-  applySensor(flaws, plan, seed, radiance);
-  Frame f;
-  f.camera = plan.writtenPose;
-  f.exposure = plan.exposure;
-  f.exposureRecorded = plan.exposureRecorded;
-  const std::filesystem::path pngPath = std::filesystem::path(exrPath).replace_extension(".png");
-  f.image = flaws.ldrBits ? pngPath : exrPath;
-  std::filesystem::remove(flaws.ldrBits ? exrPath : pngPath);  // an earlier capture's frame in the other format
-  if (flaws.ldrBits)
-    writeSrgbPng(f.image, radiance, *flaws.ldrBits);
-  else
-    writeExr(f.image, radiance);
-  return f;
 }
 
 }  // namespace

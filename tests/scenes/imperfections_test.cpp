@@ -12,6 +12,7 @@
 #include "capture/frame_image.h"
 #include "capture/transforms.h"
 #include "core/error.h"
+#include "scenes/degrade.h"
 #include "scenes/synth.h"
 
 using namespace relume;
@@ -347,4 +348,50 @@ TEST_F(ImperfectCapture, TheSameSeedGivesTheSameBytesAndAnotherSeedOtherFlaws) {
   const auto other = filesOf(write("c", spec, 8));
   EXPECT_NE(other.at("transforms.json"), a.at("transforms.json"));
   EXPECT_NE(other.at("mesh.ply"), a.at("mesh.ply"));
+}
+
+// `relume degrade` on the clean capture is `synth --imperfect` on the scene: the same frames,
+// cameras, mesh, segmentation and truth, byte for byte, with and without 8-bit frames.
+TEST_F(ImperfectCapture, DegradingTheCleanCaptureWritesWhatSynthImperfectWrites) {
+  const fs::path clean = write("clean", std::nullopt);
+  for (const std::string spec :
+       {"pose=1cm,0.3deg;bracket=-1.5,0,1.5;wb=0.03;exposure-drift=0.1;noise=1000,0.002;ldr=8;mesh=5mm;"
+        "segmentation=none;missing=25",
+        "pose=2mm,0.1deg;wb=0.05;noise=500,0.001;mesh=1cm"}) {
+    const auto direct = filesOf(write("direct", spec));
+    DegradeOptions o;
+    o.capture = clean, o.out = root / "degraded", o.spec = parseImperfections(spec), o.seed = 7;
+    fs::remove_all(o.out);
+    const DegradeSummary s = degradeCapture(o);
+    EXPECT_EQ(s.framesWritten + s.framesLeftOut, 4);
+    EXPECT_EQ(s.heldOutCopied, 1);
+    const auto degraded = filesOf(o.out);
+    EXPECT_EQ(degraded.size(), direct.size()) << spec;
+    for (const auto& [name, bytes] : direct)
+      EXPECT_TRUE(degraded.count(name) && degraded.at(name) == bytes) << name << " differs, " << spec;
+  }
+}
+
+TEST_F(ImperfectCapture, DegradeRefusesQuantisedFramesFlawedCapturesAndFoldersInUse) {
+  const auto errorOfDegrade = [&](const fs::path& capture, const fs::path& out) -> std::string {
+    DegradeOptions o;
+    o.capture = capture, o.out = out, o.spec = parseImperfections("wb=0.03");
+    try {
+      degradeCapture(o);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "(no error)";
+  };
+  const fs::path ldr = write("ldr", "ldr=8"), flawed = write("flawed", "wb=0.1"), clean = write("clean", std::nullopt);
+  const auto says = [](const std::string& error, std::initializer_list<const char*> parts) {
+    for (const char* part : parts) EXPECT_NE(error.find(part), std::string::npos) << error << " lacks " << part;
+  };
+  fs::remove_all(ldr / "gt");  // an 8-bit capture as a camera gives it
+  says(errorOfDegrade(ldr, root / "a"), {"frame_0000.png", "8-bit", "linear float"});
+  EXPECT_FALSE(fs::exists(root / "a")) << "a half-written capture was left";
+  says(errorOfDegrade(flawed, root / "b"), {"imperfections.json", "flaws already"});
+  says(errorOfDegrade(clean, clean), {"must not be the source"});
+  says(errorOfDegrade(clean, clean / "images"), {"not empty"});
+  EXPECT_EQ(errorOfDegrade(clean, root / "c"), "(no error)");
 }

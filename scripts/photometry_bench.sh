@@ -6,7 +6,11 @@
 # `_no_gains`: no frame gains; `_kept`: no scale for lights seen only saturated). One row per fit: albedo
 # MAE, held-out PSNR against the clean references, emitters, emission error, and the frame gains
 # against the truth (gt/imperfections.json, in the fit's gauge). A benchmark, not a test.
+# With SOURCE, any clean capture with float frames (e.g. scripts/cycles_capture.sh's OUT/capture)
+# takes the room's place: its variants are made by `relume degrade`, scored against TRUTH
+# (default SOURCE/gt/scene.json) and prepared with PREPARE_FLAGS (e.g. "--res 512,1024 --gutter-res 512").
 # Usage: scripts/photometry_bench.sh [OUT]   RELUME=binary (default build/relume)  VARIANTS="name ..."
+#   SOURCE=capture folder  TRUTH=scene.json  PREPARE_FLAGS="..."
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 R="${RELUME:-$ROOT/build/relume}"
@@ -40,16 +44,24 @@ ORDER="${VARIANTS:-clean ldr8 ldr8_kept ldr8_values ldr8_bracket ldr8_bracket_ke
 
 for name in $ORDER; do
   cap="$OUT/capture_${SPEC[$name]//[^a-z0-9]/_}"
-  [ -f "$cap/transforms.json" ] || "$R" --log warn synth --scene room --out "$cap" --test-spp 32 \
-    --imperfect "${SPEC[$name]}" > /dev/null
+  if [ -n "${SOURCE:-}" ] && [ -z "${SPEC[$name]}" ]; then
+    cap="$SOURCE"
+  elif [ -n "${SOURCE:-}" ]; then
+    [ -f "$cap/transforms.json" ] || { rm -rf "$cap" && "$R" --log warn degrade "$SOURCE" --out "$cap" \
+      --imperfect "${SPEC[$name]}" > /dev/null; }
+  else
+    [ -f "$cap/transforms.json" ] || "$R" --log warn synth --scene room --out "$cap" --test-spp 32 \
+      --imperfect "${SPEC[$name]}" > /dev/null
+  fi
+  truth="${TRUTH:-$cap/gt/scene.json}"
   work="$OUT/work_$name"
   start=$(date +%s)
   # shellcheck disable=SC2086
-  "$R" --log warn prepare "$cap" --out "$work" ${PREP[$name]} > /dev/null 2>&1
+  "$R" --log warn prepare "$cap" --out "$work" ${PREP[$name]} ${PREPARE_FLAGS:-} > /dev/null 2>&1
   "$R" --log warn fit "$work" --config "$OUT/${CFG[$name]}" --no-report > "$OUT/$name.fit.log" 2>&1
   # A capture whose mesh was perturbed (mesh=...) has no texel-wise truth: its views are scored alone.
   "$R" --log warn eval --scene "$work/result/scene.json" --cameras "$cap/transforms_test.json" --out "$OUT/$name.eval" \
-    --truth "$cap/gt/scene.json" --coverage "$work/coverage.exr" --spp 32 > /dev/null 2>&1 ||
+    --truth "$truth" --coverage "$work/coverage.exr" --spp 32 > /dev/null 2>&1 ||
     "$R" --log warn eval --scene "$work/result/scene.json" --cameras "$cap/transforms_test.json" \
       --out "$OUT/$name.eval" --coverage "$work/coverage.exr" --spp 32 > /dev/null 2>&1
   python3 - "$name" "$OUT/$name.eval/eval.json" "$work/result/frames.json" "$cap/gt/imperfections.json" \

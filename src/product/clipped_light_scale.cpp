@@ -289,14 +289,11 @@ std::vector<ScaleTexel> texelSums(const Batch& batch, const std::vector<size_t>&
   return perTexel;
 }
 
-}  // namespace
-
-std::vector<int> lightsSeenOnlySaturated(const Workspace& w, const TexelSpace& space, const Appearance& a,
-                                         const std::vector<uint8_t>& emitter, const FrameGains& gains,
-                                         const ClippedLightSettings& settings, uint64_t seed,
-                                         std::vector<double>* bounds) {
-  const std::vector<std::vector<uint32_t>> texels = texelsByObject(w, space, a.objectCount());
-  const uint64_t stream = hashTuple({seed, streamTag(RandomStream::ClippedLightScale)});
+// lightsSeenOnlySaturated on texels already grouped by object.
+std::vector<int> saturatedLights(const Workspace& w, const TexelSpace& space,
+                                 const std::vector<std::vector<uint32_t>>& texels, const Appearance& a,
+                                 const std::vector<uint8_t>& emitter, const FrameGains& gains,
+                                 const ClippedLightSettings& settings, uint64_t stream, std::vector<double>* bounds) {
   std::vector<int> lights;
   if (bounds) bounds->clear();
   for (int o = 0; o < a.objectCount(); ++o) {
@@ -316,6 +313,16 @@ std::vector<int> lightsSeenOnlySaturated(const Workspace& w, const TexelSpace& s
   return lights;
 }
 
+}  // namespace
+
+std::vector<int> lightsSeenOnlySaturated(const Workspace& w, const TexelSpace& space, const Appearance& a,
+                                         const std::vector<uint8_t>& emitter, const FrameGains& gains,
+                                         const ClippedLightSettings& settings, uint64_t seed,
+                                         std::vector<double>* bounds) {
+  return saturatedLights(w, space, texelsByObject(w, space, a.objectCount()), a, emitter, gains, settings,
+                         hashTuple({seed, streamTag(RandomStream::ClippedLightScale)}), bounds);
+}
+
 ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space, Appearance& a,
                                      const std::vector<uint8_t>& emitter, const std::vector<uint8_t>& outOfModel,
                                      const FrameGains& gains, const PathSettings& path,
@@ -325,7 +332,7 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
   const std::vector<std::vector<uint32_t>> texels = texelsByObject(w, space, objectCount);
   const uint64_t stream = hashTuple({seed, streamTag(RandomStream::ClippedLightScale)});
   ClippedLightScale out;
-  out.lights = lightsSeenOnlySaturated(w, space, a, emitter, gains, settings, seed, &out.lowerBound);
+  out.lights = saturatedLights(w, space, texels, a, emitter, gains, settings, stream, &out.lowerBound);
   if (out.lights.empty()) return out;
   const size_t K = out.lights.size();
 

@@ -3,7 +3,7 @@
 # The built-in room (synth's defaults: 24 frames of 256x192 at 16 spp; 4 held-out views at 32 spp)
 # is synthesised clean and with each flaw (`relume synth --imperfect`), prepared and fitted with
 # the demo's schedule; each remedy is also switched off (`_values`: 8-bit codes taken as exact;
-# `_no_gains`: no frame gains; `_kept`: no scale for lights seen only saturated). One row per fit: albedo
+# `_no_gains`: no frame gains; `_rgb`: rgb frame gains asked for, not left to `auto`; `_kept`: no scale for lights seen only saturated). One row per fit: albedo
 # MAE, held-out PSNR against the clean references, emitters, emission error, and the frame gains
 # against the truth (gt/imperfections.json, in the fit's gauge). A benchmark, not a test.
 # With SOURCE, any clean capture with float frames (e.g. scripts/cycles_capture.sh's OUT/capture)
@@ -36,11 +36,15 @@ add ldr8_kept "ldr=8" "" fit_kept.json
 add ldr8_bracket "bracket=-1.5,0,1.5;ldr=8" "" fit.json
 add ldr8_bracket_kept "bracket=-1.5,0,1.5;ldr=8" "" fit_kept.json
 add ldr8_bracket_values "bracket=-1.5,0,1.5;ldr=8" "--no-encoding-clips" fit.json
+add ldr8_drift "exposure-drift=0.3;wb=0.03;ldr=8" "" fit.json
+add ldr8_bracket_wb "bracket=-1.5,0,1.5;wb=0.03;ldr=8" "" fit.json
+add ldr8_bracket_wb_rgb "bracket=-1.5,0,1.5;wb=0.03;ldr=8" "" fit_rgb.json
+add ldr8_bracket_rgb "bracket=-1.5,0,1.5;ldr=8" "" fit_rgb.json
 add drift "exposure-drift=0.3;wb=0.03" "" fit_rgb.json
 add drift_no_gains "exposure-drift=0.3;wb=0.03" "" fit_no_gains.json
 add noise "noise=1000,0.002" "" fit.json
 add handheld "pose=1cm,0.3deg;bracket=-1.5,0,1.5;wb=0.03;noise=1000,0.002;ldr=8;mesh=5mm;segmentation=none" "" fit.json
-ORDER="${VARIANTS:-clean ldr8 ldr8_kept ldr8_values ldr8_bracket ldr8_bracket_kept ldr8_bracket_values drift drift_no_gains noise handheld}"
+ORDER="${VARIANTS:-clean ldr8 ldr8_kept ldr8_values ldr8_bracket ldr8_bracket_kept ldr8_bracket_values ldr8_bracket_rgb ldr8_drift ldr8_bracket_wb ldr8_bracket_wb_rgb drift drift_no_gains noise handheld}"
 
 for name in $ORDER; do
   cap="$OUT/capture_${SPEC[$name]//[^a-z0-9]/_}"

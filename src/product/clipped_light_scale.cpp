@@ -241,8 +241,6 @@ Batch drawTexels(const Workspace& w, const TexelSpace& space, const std::vector<
   return b;
 }
 
-constexpr double kOnlySaturatedShare = 0.95;
-
 // A colour's band: a channel (0-2) or its luminance (3).
 double bandOf(const Color& x, int band) { return band < 3 ? x[band] : luminance(x); }
 

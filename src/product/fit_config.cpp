@@ -60,6 +60,7 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("light_min_unexplained", ConfigField(&c.lightMinUnexplained));
   fn("light_significance", ConfigField(&c.lightSignificance));
   fn("light_min_contrast", ConfigField(&c.lightMinContrast));
+  fn("light_saturated_floor", ConfigField(&c.lightSaturatedFloor));
   fn("light_evidence_texels", ConfigField(&c.lightEvidenceTexels));
   fn("light_redecide", ConfigField(&c.lightRedecide));
   fn("clipped_light_scale", ConfigField(&c.clippedLightScale));

@@ -106,6 +106,7 @@ struct FitConfig {
   float lightMinUnexplained = 0.5f;   // share of its radiance no reflector returns
   float lightSignificance = 3.0f;     // standard errors the unexplained radiance must clear
   float lightMinContrast = 4.0f;      // a light's radiance over the median object's; 0 = off
+  bool lightSaturatedFloor = true;    // an object seen only saturated is judged by its floor
   int lightEvidenceTexels = 256;      // texels per object drawn for each decision
   bool lightRedecide = true;          // decide again after the first albedo stage
   int emissionRefitIterations = 100;  // emission-only stage after a re-decision that changed the lights

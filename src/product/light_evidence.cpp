@@ -176,7 +176,9 @@ std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& eviden
   double totalPower = 0;
   // The room's radiance: the median over the candidates that no excess singles out (all of them
   // when every one passes, as when no light is in view).
+  const auto floorOnly = [&](const LightEvidence& e) { return s.saturatedFloor && e.seenOnlySaturated(); };
   auto passesExcess = [&](const LightEvidence& e) {
+    if (floorOnly(e)) return e.meanExcess() + s.significance * e.excessError() >= 0;
     return e.meanExcess() - s.significance * e.excessError() > 0 && e.unexplainedShare() >= s.minUnexplained;
   };
   std::vector<double> room, all;
@@ -204,6 +206,14 @@ std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& eviden
       continue;
     }
     const double x = e.meanExcess(), se = e.excessError(), share = e.unexplainedShare();
+    if (!passesExcess(e) && floorOnly(e)) {
+      d.verdict = LightVerdict::Reflector;
+      d.why = fmt::format(
+          "seen only saturated, at least {:.3g}; a reflector with albedo <= 1 returns {:.3g}, more than {:.0f} sigma "
+          "above",
+          e.meanObserved(), e.meanReflector(), s.significance);
+      continue;
+    }
     if (!passesExcess(e)) {
       d.verdict = LightVerdict::Reflector;
       d.why = fmt::format(
@@ -229,7 +239,7 @@ std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& eviden
           e.meanObserved(), e.meanReflector(), e.mirrorResidualSquares / e.rays, e.constantResidualSquares() / e.rays);
       continue;
     }
-    power[o] = e.area * x;
+    power[o] = e.area * (floorOnly(e) ? e.meanObserved() : x);
     totalPower += power[o];
     d.verdict = LightVerdict::Light;
   }
@@ -237,9 +247,13 @@ std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& eviden
     if (out[o].verdict != LightVerdict::Light) continue;
     const LightEvidence& e = evidence[o];
     out[o].powerShare = totalPower > 0 ? power[o] / totalPower : 0.0;
-    const std::string excess = fmt::format(
-        "looks {:.3g}; a reflector returns at most {:.3g} (unexplained {:.0f}%, {:.1f} sigma)", e.meanObserved(),
-        e.meanReflector(), 100 * e.unexplainedShare(), e.meanExcess() / std::max(1e-30, e.excessError()));
+    const std::string excess =
+        floorOnly(e)
+            ? fmt::format("seen only saturated, at least {:.3g}; a reflector returns at most {:.3g}", e.meanObserved(),
+                          e.meanReflector())
+            : fmt::format("looks {:.3g}; a reflector returns at most {:.3g} (unexplained {:.0f}%, {:.1f} sigma)",
+                          e.meanObserved(), e.meanReflector(), 100 * e.unexplainedShare(),
+                          e.meanExcess() / std::max(1e-30, e.excessError()));
     if (out[o].powerShare < s.pruneFraction) {
       out[o].verdict = LightVerdict::Weak;
       out[o].why = fmt::format("{}, but {:.2f}% of the power (needs {:.0f}%)", excess, 100 * out[o].powerShare,

@@ -50,6 +50,9 @@ void forEachMirrorDirection(const SurfaceHit& hit, const Vec3& dir, Fn&& fn) {
 }
 
 // Sums over one object's rays; means and errors derived below.
+// The share of an object's rays that must clip for it to count as seen only saturated.
+inline constexpr double kOnlySaturatedShare = 0.95;
+
 struct LightEvidence {
   uint64_t rays = 0;
   uint64_t saturatedRays = 0;  // whose reference is saturated in some channel: I is only a lower bound
@@ -68,6 +71,9 @@ struct LightEvidence {
   Eigen::Vector3d deficitPoint = Eigen::Vector3d::Zero(), deficitNormal = Eigen::Vector3d::Zero();
 
   double meanObserved() const { return rays ? observed / rays : 0.0; }
+  bool seenOnlySaturated() const {
+    return rays > 0 && static_cast<double>(saturatedRays) >= kOnlySaturatedShare * static_cast<double>(rays);
+  }
   Color meanObservedColor() const { return rays ? Color(observedColor / static_cast<float>(rays)) : Color::Zero(); }
   double meanReflector() const { return rays ? reflector / rays : 0.0; }
   double meanExcess() const { return rays ? excess / rays : 0.0; }
@@ -111,6 +117,11 @@ struct LightTestSettings {
   // one passes). Below it the excess is taken for light the frames do not show (the object is
   // reported under-lit). 0 = off.
   double minContrast = 4.0;
+  // A candidate seen only saturated (kOnlySaturatedShare of its rays clip) shows a floor of its
+  // radiance, not its value, so its unexplained share is unknown: it passes when its floor is not
+  // significantly below what a reflector returns (mean excess + z se >= 0), and its power is its
+  // area times that floor. false: its floor is taken as its value (the ablation).
+  bool saturatedFloor = true;
 };
 
 enum class LightVerdict { Light, Reflector, OutOfModel, Weak, NotACandidate };

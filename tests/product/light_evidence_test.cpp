@@ -256,3 +256,45 @@ TEST(LightDecisions, SignificanceShareAndPowerEachDecide) {
   noContrast.minContrast = 0;
   EXPECT_EQ(decideLights(ev, candidate, noContrast)[5].verdict, LightVerdict::Light);
 }
+
+// A candidate whose every ray clips shows a floor, not a value: a window at 14 stored at the
+// darkest bracket's 2.83 looks no brighter than a white blind beside it can be. It is a light when
+// the floor is not significantly below what a reflector returns; its power counts the floor.
+TEST(LightDecisions, ACandidateSeenOnlySaturatedIsJudgedByItsFloor) {
+  auto evidence = [](double observed, double reflector, double spread, double area, bool saturated) {
+    LightEvidence e;
+    e.area = area;
+    for (int j = 0; j < 100; ++j) {
+      const double I = observed + (j % 2 ? 1 : -1) * spread, x = I - reflector;
+      ++e.rays, e.observed += I, e.observedSquares += I * I, e.reflector += reflector, e.excess += x,
+          e.excessSquares += x * x, e.mirrorResidualSquares += 100 * I * I;
+      e.saturatedRays += saturated && j % 20 != 0;  // 95% clip
+    }
+    return e;
+  };
+  std::vector<LightEvidence> ev = {
+      evidence(1.9, 1.95, 0.5, 1.2, true),    // the window: floor within noise of a reflector's
+      evidence(1.9, 1.95, 0.5, 1.2, false),   // the same, but its values are values: a reflector
+      evidence(1.2, 3.5, 0.2, 1.2, true),     // saturated, but far below what a reflector returns there
+      evidence(1.9, 1.5, 0.5, 0.002, true),   // a saturated sliver: a light by its floor, too weak
+      evidence(19.0, 1.0, 0.5, 1.0, false),   // an unsaturated light
+  };
+  for (int k = 0; k < 5; ++k) ev.push_back(evidence(0.3, 0.5, 0.05, 1.0, false));  // the room
+  const std::vector<uint8_t> candidate(ev.size(), 1);
+  const auto d = decideLights(ev, candidate, LightTestSettings{});
+  EXPECT_EQ(d[0].verdict, LightVerdict::Light) << d[0].why;
+  EXPECT_EQ(d[1].verdict, LightVerdict::Reflector) << d[1].why;
+  EXPECT_EQ(d[2].verdict, LightVerdict::Reflector) << d[2].why;
+  EXPECT_NE(d[2].why.find("seen only saturated"), std::string::npos) << d[2].why;
+  EXPECT_EQ(d[3].verdict, LightVerdict::Weak) << d[3].why;
+  EXPECT_EQ(d[4].verdict, LightVerdict::Light) << d[4].why;
+  // Power: area x floor for the saturated light, area x excess for the other.
+  EXPECT_NEAR(d[0].powerShare, 1.2 * 1.9 / (1.2 * 1.9 + 0.002 * 1.9 + 18.0), 1e-9);
+  // The ablation takes the floor for the value: the window is a reflector.
+  LightTestSettings values;
+  values.saturatedFloor = false;
+  EXPECT_EQ(decideLights(ev, candidate, values)[0].verdict, LightVerdict::Reflector);
+  // 94% clipped is not "only saturated".
+  ev[0].saturatedRays = 94;
+  EXPECT_EQ(decideLights(ev, candidate, LightTestSettings{})[0].verdict, LightVerdict::Reflector);
+}

@@ -119,8 +119,9 @@ struct LightTestSettings {
   double minContrast = 4.0;
   // A candidate seen only saturated (kOnlySaturatedShare of its rays clip) shows a floor of its
   // radiance, not its value, so its unexplained share is unknown: it passes when its floor is not
-  // significantly below what a reflector returns (mean excess + z se >= 0), and its power is its
-  // area times that floor. false: its floor is taken as its value (the ablation).
+  // significantly below what a reflector returns (mean excess + z se >= 0), its power is its area
+  // times that floor, and the contrast condition does not apply (the frames cannot record it).
+  // false: its floor is taken as its value (the ablation).
   bool saturatedFloor = true;
 };
 

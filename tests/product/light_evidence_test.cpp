@@ -278,8 +278,9 @@ TEST(LightDecisions, ACandidateSeenOnlySaturatedIsJudgedByItsFloor) {
       evidence(1.2, 3.5, 0.2, 1.2, true),     // saturated, but far below what a reflector returns there
       evidence(1.9, 1.5, 0.5, 0.002, true),   // a saturated sliver: a light by its floor, too weak
       evidence(19.0, 1.0, 0.5, 1.0, false),   // an unsaturated light
+      evidence(2.83, 0.84, 0.01, 1.0, true),  // the lounge's window: its floor 3.8x the room's median
   };
-  for (int k = 0; k < 5; ++k) ev.push_back(evidence(0.3, 0.5, 0.05, 1.0, false));  // the room
+  for (int k = 0; k < 5; ++k) ev.push_back(evidence(0.74, 0.9, 0.05, 1.0, false));  // the room
   const std::vector<uint8_t> candidate(ev.size(), 1);
   const auto d = decideLights(ev, candidate, LightTestSettings{});
   EXPECT_EQ(d[0].verdict, LightVerdict::Light) << d[0].why;
@@ -288,12 +289,17 @@ TEST(LightDecisions, ACandidateSeenOnlySaturatedIsJudgedByItsFloor) {
   EXPECT_NE(d[2].why.find("seen only saturated"), std::string::npos) << d[2].why;
   EXPECT_EQ(d[3].verdict, LightVerdict::Weak) << d[3].why;
   EXPECT_EQ(d[4].verdict, LightVerdict::Light) << d[4].why;
-  // Power: area x floor for the saturated light, area x excess for the other.
-  EXPECT_NEAR(d[0].powerShare, 1.2 * 1.9 / (1.2 * 1.9 + 0.002 * 1.9 + 18.0), 1e-9);
-  // The ablation takes the floor for the value: the window is a reflector.
+  EXPECT_EQ(d[5].verdict, LightVerdict::Light) << d[5].why;
+  // Power: area x floor for the saturated lights, area x excess for the other.
+  EXPECT_NEAR(d[0].powerShare, 1.2 * 1.9 / (1.2 * 1.9 + 0.002 * 1.9 + 18.0 + 2.83), 1e-9);
+  // The ablation takes the floor for the value: the window is a reflector, and the lounge's window
+  // does not outshine the room 4x.
   LightTestSettings values;
   values.saturatedFloor = false;
-  EXPECT_EQ(decideLights(ev, candidate, values)[0].verdict, LightVerdict::Reflector);
+  const auto v = decideLights(ev, candidate, values);
+  EXPECT_EQ(v[0].verdict, LightVerdict::Reflector);
+  EXPECT_EQ(v[5].verdict, LightVerdict::Reflector) << v[5].why;
+  EXPECT_NE(v[5].why.find("median"), std::string::npos) << v[5].why;
   // 94% clipped is not "only saturated".
   ev[0].saturatedRays = 94;
   EXPECT_EQ(decideLights(ev, candidate, LightTestSettings{})[0].verdict, LightVerdict::Reflector);

@@ -20,7 +20,8 @@ void checkOutputFolder(const DegradeOptions& o) {
   if (fs::equivalent(o.out, o.capture, ec))
     fail("{}: degrade writes a new capture; --out must not be the source capture", o.out.string());
   if (!isDirectory(o.out)) fail("{}: exists and is not a folder", o.out.string());
-  if (!fs::is_empty(o.out, ec)) fail("{}: not empty (degrade writes a new capture into an empty folder)", o.out.string());
+  if (!fs::is_empty(o.out, ec))
+    fail("{}: not empty (degrade writes a new capture into an empty folder)", o.out.string());
 }
 
 // A path the capture names relative to its folder, that stays inside it.
@@ -65,7 +66,8 @@ void writeObjectNames(const fs::path& capture, const MeshData& mesh, const fs::p
   }
   if (mesh.objectNames.empty()) return;
   Json objects = Json::array();
-  for (size_t id = 0; id < mesh.objectNames.size(); ++id) objects.push_back({{"id", id}, {"name", mesh.objectNames[id]}});
+  for (size_t id = 0; id < mesh.objectNames.size(); ++id)
+    objects.push_back({{"id", id}, {"name", mesh.objectNames[id]}});
   writeJson(out / "objects.json", Json{{"objects", objects}});
 }
 
@@ -94,8 +96,8 @@ DegradeSummary writeDegraded(const DegradeOptions& o, const Capture& source, con
     // Masked (non-finite) pixels have no radiance to expose; the sensor sees black there.
     for (float& v : radiance.image.rgb)
       if (v < 0) v = 0, ++summary.maskedPixels;
-    written.push_back(writeFlawedFrame(o.spec, plan[i], o.seed,
-                                       o.out / "images" / fmt::format("frame_{:04d}.exr", i), radiance.image));
+    written.push_back(writeFlawedFrame(o.spec, plan[i], o.seed, o.out / "images" / fmt::format("frame_{:04d}.exr", i),
+                                       radiance.image));
     ++summary.framesWritten;
   }
   writeTransforms(o.out / "transforms.json", written);

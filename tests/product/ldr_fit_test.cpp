@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <set>
+#include <string>
 
 #include "io/image.h"
 #include "io/json.h"
@@ -93,6 +95,31 @@ TEST(LdrFit, LightsSeenOnlySaturatedTakeTheScaleTheAlbedoAgreesOn) {
   EXPECT_GT(kept.emissionRelError, 0.6);
   std::printf("LdrFit saturated lights: emission error %.3f (init's scale kept %.3f), albedo MAE %.4f (%.4f)\n",
               scaled.emissionRelError, kept.emissionRelError, scaled.albedoMae, kept.albedoMae);
+}
+
+// The lounge bracketed at -1.5/0/+1.5 EV in 8 bits: its windows (radiance 5-9) clip in every
+// frame, so their pixels show a floor, the darkest bracket's clip, 3.8x a bright room's median.
+// Taken as values they are reflectors (short of the 4x contrast) and the fit has no light at all;
+// taken as floors they are the lights at the first decision.
+TEST(LdrFit, LightsStoredAtTheDarkestClipAreJudgedByTheirFloor) {
+  SynthCaptureOptions so = smallRoom("bracket=-1.5,0,1.5;ldr=8");
+  so.kind = SynthSceneKind::Lounge;
+  const fs::path dir = preparedCapture("ldr_fit_lounge_floor", so, 256);
+  FitConfig c = smallConfig(FrameGainMode::None);
+  c.albedoPasses = 4, c.materialIterations = 0, c.lightRedecide = false;
+  const auto lightsAfterEmission = [&](bool floor) {
+    c.lightSaturatedFloor = floor;
+    runFit(dir / "work", c, false);
+    const Json decisions = readJson(dir / "work" / "result" / "lights.json")["decisions"];
+    std::set<std::string> lights;
+    for (const Json& o : decisions[0]["objects"])
+      if (o["decision"] == "light") lights.insert(o["name"].get<std::string>());
+    return lights;
+  };
+  // The pendant lamp is in none of these 16 frames: it is no candidate.
+  const std::set<std::string> inView = {"window_a", "window_b"};
+  EXPECT_EQ(lightsAfterEmission(true), inView);
+  EXPECT_TRUE(lightsAfterEmission(false).empty());
 }
 
 // Exposure drifting by exp(N(0, 0.3)) and white balance by 3% per channel, recorded nowhere: the

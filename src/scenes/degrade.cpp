@@ -93,7 +93,7 @@ DegradeSummary writeDegraded(const DegradeOptions& o, const Capture& source, con
     if (radiance.read.bits)
       fail("{}: a {}-bit frame is clipped and quantised already; degrade needs linear float frames (EXR)",
            source.frames[i].image.string(), radiance.read.bits);
-    // Masked (non-finite) pixels have no radiance to expose; the sensor sees black there.
+    // Masked pixels (non-finite in the file) have no radiance to expose; the sensor sees black there.
     for (float& v : radiance.image.rgb)
       if (v < 0) v = 0, ++summary.maskedPixels;
     written.push_back(writeFlawedFrame(o.spec, plan[i], o.seed, o.out / "images" / fmt::format("frame_{:04d}.exr", i),
@@ -106,7 +106,7 @@ DegradeSummary writeDegraded(const DegradeOptions& o, const Capture& source, con
   summary.heldOutCopied = copyHeldOut(o.capture, o.out);
   writeJson(o.out / "gt" / "imperfections.json", imperfectionsJson(o.spec, o.seed, plan, largestVertexOffset));
   if (summary.maskedPixels)
-    spdlog::warn("{}: {} non-finite pixel channels of the source written as 0", o.capture.string(),
+    spdlog::warn("{}: {} masked (non-finite) pixel channels of the source written as 0", o.capture.string(),
                  summary.maskedPixels);
   return summary;
 }

@@ -21,7 +21,7 @@ struct DegradeOptions {
 
 struct DegradeSummary {
   int framesWritten = 0, framesLeftOut = 0, heldOutCopied = 0;
-  size_t maskedPixels = 0;  // non-finite source pixels, written as 0
+  size_t maskedPixels = 0;  // masked (non-finite) source pixel channels, written as 0
 };
 
 // Writes mesh.ply, objects.json (kept segmentation), images/, transforms.json, the source's

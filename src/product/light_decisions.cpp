@@ -137,7 +137,7 @@ bool LightDecisions::decide(const TexelSpace& space, const std::string& after, b
       gatherLightEvidence(*w_.scene, w_.mesh, a_, lights, batch.rays, batch.object, path_, stream, &cameras);
   const LightTestSettings test{c_.lightMinUnexplained, c_.lightSignificance, c_.pruneFraction, c_.lightMinContrast,
                                c_.lightSaturatedFloor};
-  const std::vector<LightDecision> decisions = decideLights(evidence, candidate, test);
+  const std::vector<LightDecision> decisions = decideLights(evidence, candidate, test, r_.emitter);
   // Under-lit surfaces are reported at the last decision only: before the albedo is fitted, the
   // init darkens the light every surface receives (the White Room: 12 under-lit reflectors after
   // the emission stage, none after the first albedo stage).

@@ -169,23 +169,27 @@ const char* lightVerdictName(LightVerdict v) {
 }
 
 std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& evidence,
-                                        const std::vector<uint8_t>& candidate, const LightTestSettings& s) {
+                                        const std::vector<uint8_t>& candidate, const LightTestSettings& s,
+                                        const std::vector<uint8_t>& emitting) {
   CHECK_EQ(evidence.size(), candidate.size());
+  CHECK(emitting.empty() || emitting.size() == evidence.size());
   std::vector<LightDecision> out(evidence.size());
   std::vector<double> power(evidence.size(), 0.0);
   double totalPower = 0;
   // The room's radiance: the median over the candidates that no excess singles out (all of them
   // when every one passes, as when no light is in view).
   const auto floorOnly = [&](const LightEvidence& e) { return s.saturatedFloor && e.seenOnlySaturated(); };
-  auto passesExcess = [&](const LightEvidence& e) {
-    if (floorOnly(e)) return e.meanExcess() + s.significance * e.excessError() >= 0;
-    return e.meanExcess() - s.significance * e.excessError() > 0 && e.unexplainedShare() >= s.minUnexplained;
+  const auto emits = [&](size_t o) { return !emitting.empty() && emitting[o]; };
+  const auto passesExcess = [&](const LightEvidence& e, size_t o) {
+    const bool noReflector = e.meanExcess() - s.significance * e.excessError() > 0;
+    if (floorOnly(e)) return noReflector || emits(o);
+    return noReflector && e.unexplainedShare() >= s.minUnexplained;
   };
   std::vector<double> room, all;
   for (size_t o = 0; o < evidence.size(); ++o)
     if (candidate[o] && evidence[o].rays > 0) {
       all.push_back(evidence[o].meanObserved());
-      if (!passesExcess(evidence[o])) room.push_back(evidence[o].meanObserved());
+      if (!passesExcess(evidence[o], o)) room.push_back(evidence[o].meanObserved());
     }
   std::vector<double>& radiances = room.empty() ? all : room;
   double median = 0;
@@ -206,15 +210,15 @@ std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& eviden
       continue;
     }
     const double x = e.meanExcess(), se = e.excessError(), share = e.unexplainedShare();
-    if (!passesExcess(e) && floorOnly(e)) {
+    if (!passesExcess(e, o) && floorOnly(e)) {
       d.verdict = LightVerdict::Reflector;
       d.why = fmt::format(
-          "seen only saturated, at least {:.3g}; a reflector with albedo <= 1 returns {:.3g}, more than {:.0f} sigma "
-          "above",
-          e.meanObserved(), e.meanReflector(), s.significance);
+          "seen only saturated, at least {:.3g}; a reflector with albedo <= 1 returns up to {:.3g}: the floor does "
+          "not tell them apart, and it does not emit now",
+          e.meanObserved(), e.meanReflector());
       continue;
     }
-    if (!passesExcess(e)) {
+    if (!passesExcess(e, o)) {
       d.verdict = LightVerdict::Reflector;
       d.why = fmt::format(
           "looks {:.3g}; a reflector with albedo <= 1 returns {:.3g} (unexplained {:.0f}% +- {:.0f}%, needs {:.0f}% "
@@ -251,8 +255,11 @@ std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& eviden
     out[o].powerShare = totalPower > 0 ? power[o] / totalPower : 0.0;
     const std::string excess =
         floorOnly(e)
-            ? fmt::format("seen only saturated, at least {:.3g}; a reflector returns at most {:.3g}", e.meanObserved(),
-                          e.meanReflector())
+            ? fmt::format("seen only saturated, at least {:.3g}; a reflector returns up to {:.3g}{}", e.meanObserved(),
+                          e.meanReflector(),
+                          e.meanExcess() - s.significance * e.excessError() > 0
+                              ? ""
+                              : ": the floor does not tell them apart, and it emits now")
             : fmt::format("looks {:.3g}; a reflector returns at most {:.3g} (unexplained {:.0f}%, {:.1f} sigma)",
                           e.meanObserved(), e.meanReflector(), 100 * e.unexplainedShare(),
                           e.meanExcess() / std::max(1e-30, e.excessError()));

@@ -118,10 +118,10 @@ struct LightTestSettings {
   // reported under-lit). 0 = off.
   double minContrast = 4.0;
   // A candidate seen only saturated (kOnlySaturatedShare of its rays clip) shows a floor of its
-  // radiance, not its value, so its unexplained share is unknown: it passes when its floor is not
-  // significantly below what a reflector returns (mean excess + z se >= 0), its power is its area
-  // times that floor, and the contrast condition does not apply (the frames cannot record it).
-  // false: its floor is taken as its value (the ablation).
+  // radiance, not its value. A floor can rule a reflector out (mean excess - z se > 0), never a
+  // light: when it rules out neither, the object keeps the role it has (emitting or not). Its power
+  // is its area times its floor, and the contrast condition does not apply (the frames cannot
+  // record a contrast beyond their range). false: the floor is taken as the value (the ablation).
   bool saturatedFloor = true;
 };
 
@@ -144,9 +144,12 @@ struct LightDecision {
   std::string why;        // one line, for the log and the report
 };
 
-// One decision per object; objects with candidate[o] == 0 are NotACandidate.
+// One decision per object; objects with candidate[o] == 0 are NotACandidate. `emitting[o]` (empty:
+// none) says which objects emit now: an object seen only saturated whose floor neither rules a
+// reflector out nor falls below one keeps that role.
 std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& evidence,
-                                        const std::vector<uint8_t>& candidate, const LightTestSettings& settings);
+                                        const std::vector<uint8_t>& candidate, const LightTestSettings& settings,
+                                        const std::vector<uint8_t>& emitting = {});
 
 // The evidence and decisions as the report shows them: one entry per object with rays (with
 // `under_lit` for the reflectors that are, when `withUnderLit`).

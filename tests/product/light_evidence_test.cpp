@@ -258,8 +258,9 @@ TEST(LightDecisions, SignificanceShareAndPowerEachDecide) {
 }
 
 // A candidate whose every ray clips shows a floor, not a value: a window at 14 stored at the
-// darkest bracket's 2.83 looks no brighter than a white blind beside it can be. It is a light when
-// the floor is not significantly below what a reflector returns; its power counts the floor.
+// darkest bracket's 2.83 looks no brighter than a white blind beside it can be. A floor can rule a
+// reflector out, never a light: when it rules out neither, the object keeps the role it has. Its
+// power counts the floor, and no contrast is asked of it.
 TEST(LightDecisions, ACandidateSeenOnlySaturatedIsJudgedByItsFloor) {
   auto evidence = [](double observed, double reflector, double spread, double area, bool saturated) {
     LightEvidence e;
@@ -282,11 +283,24 @@ TEST(LightDecisions, ACandidateSeenOnlySaturatedIsJudgedByItsFloor) {
   };
   for (int k = 0; k < 5; ++k) ev.push_back(evidence(0.74, 0.9, 0.05, 1.0, false));  // the room
   const std::vector<uint8_t> candidate(ev.size(), 1);
-  const auto d = decideLights(ev, candidate, LightTestSettings{});
+  std::vector<uint8_t> emitting(ev.size(), 0);
+  emitting[0] = emitting[1] = 1;
+  const auto d = decideLights(ev, candidate, LightTestSettings{}, emitting);
   EXPECT_EQ(d[0].verdict, LightVerdict::Light) << d[0].why;
+  EXPECT_NE(d[0].why.find("emits now"), std::string::npos) << d[0].why;
   EXPECT_EQ(d[1].verdict, LightVerdict::Reflector) << d[1].why;
   EXPECT_EQ(d[2].verdict, LightVerdict::Reflector) << d[2].why;
-  EXPECT_NE(d[2].why.find("seen only saturated"), std::string::npos) << d[2].why;
+  EXPECT_NE(d[2].why.find("does not emit now"), std::string::npos) << d[2].why;
+  // The same floors under the roles reversed: the window that does not emit stays a reflector, the
+  // object far below its bound that emits stays a light. The sliver and the lounge's window rule
+  // a reflector out whatever their role.
+  std::vector<uint8_t> reversed(ev.size(), 0);
+  reversed[2] = 1;
+  const auto r = decideLights(ev, candidate, LightTestSettings{}, reversed);
+  EXPECT_EQ(r[0].verdict, LightVerdict::Reflector) << r[0].why;
+  EXPECT_EQ(r[2].verdict, LightVerdict::Light) << r[2].why;
+  EXPECT_EQ(r[3].verdict, LightVerdict::Weak) << r[3].why;
+  EXPECT_EQ(r[5].verdict, LightVerdict::Light) << r[5].why;
   EXPECT_EQ(d[3].verdict, LightVerdict::Weak) << d[3].why;
   EXPECT_EQ(d[4].verdict, LightVerdict::Light) << d[4].why;
   EXPECT_EQ(d[5].verdict, LightVerdict::Light) << d[5].why;
@@ -296,11 +310,11 @@ TEST(LightDecisions, ACandidateSeenOnlySaturatedIsJudgedByItsFloor) {
   // does not outshine the room 4x.
   LightTestSettings values;
   values.saturatedFloor = false;
-  const auto v = decideLights(ev, candidate, values);
+  const auto v = decideLights(ev, candidate, values, emitting);
   EXPECT_EQ(v[0].verdict, LightVerdict::Reflector);
   EXPECT_EQ(v[5].verdict, LightVerdict::Reflector) << v[5].why;
   EXPECT_NE(v[5].why.find("median"), std::string::npos) << v[5].why;
   // 94% clipped is not "only saturated".
   ev[0].saturatedRays = 94;
-  EXPECT_EQ(decideLights(ev, candidate, LightTestSettings{})[0].verdict, LightVerdict::Reflector);
+  EXPECT_EQ(decideLights(ev, candidate, LightTestSettings{}, emitting)[0].verdict, LightVerdict::Reflector);
 }

@@ -49,10 +49,10 @@ void forEachMirrorDirection(const SurfaceHit& hit, const Vec3& dir, Fn&& fn) {
   }
 }
 
-// Sums over one object's rays; means and errors derived below.
 // The share of an object's rays that must clip for it to count as seen only saturated.
 inline constexpr double kOnlySaturatedShare = 0.95;
 
+// Sums over one object's rays; means and errors derived below.
 struct LightEvidence {
   uint64_t rays = 0;
   uint64_t saturatedRays = 0;  // whose reference is saturated in some channel: I is only a lower bound
@@ -145,8 +145,8 @@ struct LightDecision {
 };
 
 // One decision per object; objects with candidate[o] == 0 are NotACandidate. `emitting[o]` (empty:
-// none) says which objects emit now: an object seen only saturated whose floor neither rules a
-// reflector out nor falls below one keeps that role.
+// none) says which objects emit now: an object seen only saturated whose floor does not rule a
+// reflector out keeps that role.
 std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& evidence,
                                         const std::vector<uint8_t>& candidate, const LightTestSettings& settings,
                                         const std::vector<uint8_t>& emitting = {});

@@ -3,8 +3,9 @@
 # The built-in room (synth's defaults: 24 frames of 256x192 at 16 spp; 4 held-out views at 32 spp)
 # is synthesised clean and with each flaw (`relume synth --imperfect`), prepared and fitted with
 # the demo's schedule; each remedy is also switched off (`_values`: 8-bit codes taken as exact;
-# `_no_gains`: no frame gains; `_rgb`: rgb frame gains asked for, not left to `auto`; `_kept`: no scale for lights seen only saturated). One row per fit: albedo
-# MAE, held-out PSNR against the clean references, emitters, emission error, and the frame gains
+# `_no_gains`: no frame gains; `_rgb`: rgb frame gains asked for, not left to `auto`; `_kept`: no
+# scale for lights seen only saturated). One row per fit: albedo MAE, held-out PSNR against the
+# clean references, emitters, emission error, and the frame gains
 # against the truth (gt/imperfections.json, in the fit's gauge). A benchmark, not a test.
 # With SOURCE, any clean capture with float frames (e.g. scripts/cycles_capture.sh's OUT/capture)
 # takes the room's place: its variants are made by `relume degrade`, scored against TRUTH

@@ -304,7 +304,7 @@ std::vector<int> saturatedLights(const Workspace& w, const TexelSpace& space,
       clipped += saturated(r);
       bound += luminance(r.reference / r.gain);
     }
-    if (rays == 0 || static_cast<double>(clipped) < kOnlySaturatedShare * static_cast<double>(rays)) continue;
+    if (!onlySaturated(clipped, rays)) continue;
     lights.push_back(o);
     if (bounds) bounds->push_back(bound / static_cast<double>(rays) / luminance(a.emission[o]));
   }

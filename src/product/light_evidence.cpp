@@ -180,10 +180,12 @@ std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& eviden
   // when every one passes, as when no light is in view).
   const auto floorOnly = [&](const LightEvidence& e) { return s.saturatedFloor && e.seenOnlySaturated(); };
   const auto emits = [&](size_t o) { return !emitting.empty() && emitting[o]; };
+  const auto noReflector = [&](const LightEvidence& e) {
+    return e.meanExcess() - s.significance * e.excessError() > 0;
+  };
   const auto passesExcess = [&](const LightEvidence& e, size_t o) {
-    const bool noReflector = e.meanExcess() - s.significance * e.excessError() > 0;
-    if (floorOnly(e)) return noReflector || emits(o);
-    return noReflector && e.unexplainedShare() >= s.minUnexplained;
+    if (floorOnly(e)) return noReflector(e) || emits(o);
+    return noReflector(e) && e.unexplainedShare() >= s.minUnexplained;
   };
   std::vector<double> room, all;
   for (size_t o = 0; o < evidence.size(); ++o)
@@ -257,9 +259,7 @@ std::vector<LightDecision> decideLights(const std::vector<LightEvidence>& eviden
         floorOnly(e)
             ? fmt::format("seen only saturated, at least {:.3g}; a reflector returns up to {:.3g}{}", e.meanObserved(),
                           e.meanReflector(),
-                          e.meanExcess() - s.significance * e.excessError() > 0
-                              ? ""
-                              : ": the floor does not tell them apart, and it emits now")
+                          noReflector(e) ? "" : ": the floor does not tell them apart, and it emits now")
             : fmt::format("looks {:.3g}; a reflector returns at most {:.3g} (unexplained {:.0f}%, {:.1f} sigma)",
                           e.meanObserved(), e.meanReflector(), 100 * e.unexplainedShare(),
                           e.meanExcess() / std::max(1e-30, e.excessError()));

@@ -51,6 +51,9 @@ void forEachMirrorDirection(const SurfaceHit& hit, const Vec3& dir, Fn&& fn) {
 
 // The share of an object's rays that must clip for it to count as seen only saturated.
 inline constexpr double kOnlySaturatedShare = 0.95;
+inline bool onlySaturated(uint64_t saturated, uint64_t rays) {
+  return rays > 0 && static_cast<double>(saturated) >= kOnlySaturatedShare * static_cast<double>(rays);
+}
 
 // Sums over one object's rays; means and errors derived below.
 struct LightEvidence {
@@ -71,9 +74,7 @@ struct LightEvidence {
   Eigen::Vector3d deficitPoint = Eigen::Vector3d::Zero(), deficitNormal = Eigen::Vector3d::Zero();
 
   double meanObserved() const { return rays ? observed / rays : 0.0; }
-  bool seenOnlySaturated() const {
-    return rays > 0 && static_cast<double>(saturatedRays) >= kOnlySaturatedShare * static_cast<double>(rays);
-  }
+  bool seenOnlySaturated() const { return onlySaturated(saturatedRays, rays); }
   Color meanObservedColor() const { return rays ? Color(observedColor / static_cast<float>(rays)) : Color::Zero(); }
   double meanReflector() const { return rays ? reflector / rays : 0.0; }
   double meanExcess() const { return rays ? excess / rays : 0.0; }

@@ -12,13 +12,14 @@ BUILD="$ROOT/build-fuzz"
 SECONDS_EACH="${1:-60}"
 shift || true
 READERS=("$@")
-((${#READERS[@]})) || READERS=(checkpoint colmap-binary colmap-text frames image imperfections obj objects ply response-table scene transforms visibility)
 if ! command -v clang++ > /dev/null; then
   [[ $(id -u) -eq 0 ]] || { echo "fuzz.sh: needs clang (apt-get install clang)" >&2; exit 1; }
   DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends clang
 fi
 CXX=clang++ cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRELUME_FUZZ=ON > /dev/null
 cmake --build "$BUILD" -j "${JOBS:-$(nproc)}" --target fuzzers
+# By default every harness fuzz/CMakeLists.txt builds.
+((${#READERS[@]})) || for h in "$BUILD"/fuzz/fuzz_*; do READERS+=("${h##*/fuzz_}"); done
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=0"
 export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
 export LSAN_OPTIONS="suppressions=$ROOT/scripts/lsan.supp"

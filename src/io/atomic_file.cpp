@@ -9,6 +9,7 @@
 #include <string>
 
 #include "core/error.h"
+#include "core/kill_point.h"
 #include "io/file_system.h"
 
 namespace relume {
@@ -21,6 +22,7 @@ void writeAtomically(const std::filesystem::path& path,
       path.parent_path() / fmt::format(".{}.tmp{}{}", path.stem().string(), getpid(), path.extension().string());
   try {
     write(tmp);
+    killPoint("atomic-write");
     renamePath(tmp, path);
   } catch (...) {
     std::error_code ec;

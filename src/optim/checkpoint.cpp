@@ -4,6 +4,7 @@
 #include <limits>
 
 #include "core/error.h"
+#include "core/kill_point.h"
 #include "io/atomic_file.h"
 #include "io/input_file.h"
 
@@ -38,7 +39,14 @@ void Checkpoint::write(const std::filesystem::path& path) const {
     out.write(kMagic, sizeof(kMagic));
     out.write(reinterpret_cast<const char*>(&length), sizeof(length));
     out.write(text.data(), static_cast<std::streamsize>(text.size()));
-    for (const auto& [name, data] : arrays_) out.write(data.data(), static_cast<std::streamsize>(data.size()));
+    size_t written = 0;
+    for (const auto& [name, data] : arrays_) {
+      if (written++ == arrays_.size() / 2) {
+        out.flush();
+        killPoint("checkpoint-half");
+      }
+      out.write(data.data(), static_cast<std::streamsize>(data.size()));
+    }
     if (!out) fail("{}: could not write the checkpoint", path.string());
   });
 }

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "core/kill_point.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
 #include "io/file_system.h"
@@ -47,11 +48,13 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
       {"objects", materials},         {"albedo_resolution", space.resolution}, {"iterations", progress.iterations},
       {"final_loss", progress.loss},  {"sampler", progress.sampler.toJson()},  {"config", c.toJson()},
       {"peak_rss_mib", peakRssMiB()}, {"memory_bytes", progress.peakMemory}};
+  killPoint("result-half");
   writeJson(staging / "materials.json", summary);
   writeJson(staging / "lights.json",
             {{"light_test", enumName(c.lightTest)}, {"hint", c.lights}, {"decisions", roles.lightDecisions}});
   writeJson(staging / "frames.json", gains.toJson(w.frames));
   removeAll(result);
+  killPoint("result-staged");
   renamePath(staging, result);
   spdlog::info("fit: result in {}", result.string());
   return result;

@@ -139,7 +139,10 @@ int runProfileCommand(const ProfileRequest& a) {
     fmt::print("visibility index  scan-like room, {} triangles, 1024^2 texels in 32^2 tiles\n", mesh.triangles.size());
     for (int n : {2000, 10000}) {
       std::vector<Frame> frames;
-      for (const Camera& c : synthCameraPath(SynthSceneKind::Scan, n, 320, 240, 0.0)) frames.push_back({c, {}});
+      for (const Camera& c : synthCameraPath(SynthSceneKind::Scan, n, 320, 240, 0.0)) {
+        frames.emplace_back();
+        frames.back().camera = c;
+      }
       std::vector<size_t> use(frames.size());
       std::iota(use.begin(), use.end(), size_t{0});
       Timer t;

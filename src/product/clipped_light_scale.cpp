@@ -287,6 +287,33 @@ std::vector<ScaleTexel> texelSums(const Batch& batch, const std::vector<size_t>&
   return perTexel;
 }
 
+// Per object and channel, what the frames show of its drawn texels over what the fit renders of
+// them (their albedo in `a` times the traced terms' sum): 1 for objects with fewer than
+// kMinRatioRays rays, and within [1/8, 8].
+std::vector<Color> shownOverRendered(const Batch& batch, const std::vector<size_t>& rayOf,
+                                     const std::vector<std::vector<Color>>& traced, const Appearance& a,
+                                     const TexelSpace& space, const TriangleMesh& mesh, int objectCount) {
+  constexpr size_t kMinRatioRays = 64;
+  std::vector<Eigen::Array3d> seen(objectCount, Eigen::Array3d::Zero()), sent(objectCount, Eigen::Array3d::Zero());
+  std::vector<size_t> count(objectCount, 0);
+  for (size_t i = 0; i < rayOf.size(); ++i) {
+    const size_t j = rayOf[i];
+    const uint32_t t = batch.texel[batch.slot[j]];
+    const int o = space.objectOf(t, mesh);
+    Eigen::Array3d sum = Eigen::Array3d::Zero();
+    for (const std::vector<Color>& term : traced) sum += term[i].cast<double>();
+    const Eigen::Array3d albedo(a.albedo.rgb[3 * t], a.albedo.rgb[3 * t + 1], a.albedo.rgb[3 * t + 2]);
+    seen[o] += (batch.rays[j].reference / batch.rays[j].gain).cast<double>();
+    sent[o] += albedo * sum;
+    ++count[o];
+  }
+  std::vector<Color> ratio(objectCount, Color::Ones());
+  for (int o = 0; o < objectCount; ++o)
+    if (count[o] >= kMinRatioRays && (sent[o] > 0).all() && (seen[o] > 0).all())
+      ratio[o] = (seen[o] / sent[o]).min(8.0).max(0.125).cast<float>();
+  return ratio;
+}
+
 // lightsSeenOnlySaturated on texels already grouped by object.
 std::vector<int> saturatedLights(const Workspace& w, const TexelSpace& space,
                                  const std::vector<std::vector<uint32_t>>& texels, const Appearance& a,
@@ -368,6 +395,13 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
   Appearance none = a, notClipped = a;
   for (int o = 0; o < objectCount; ++o) none.emission[o] = Color::Zero();
   for (int o : out.lights) notClipped.emission[o] = Color::Zero();
+  // R is the light the surfaces in view send the texels: what the frames show of them, which a
+  // change of scale leaves as it is. Traced, it is their albedo times the light they receive, which
+  // falls short of what the frames show wherever the albedo sits at its ceiling of 1 because the
+  // clipped lights are still too dark (the surfaces they light most): that would hold the scale near
+  // where it is. So R is traced again with the albedo at the vertex after the texel (x1) scaled, per
+  // object and with no ceiling, by what the frames show of the object over what the fit renders of
+  // it. Only there: scaled at every vertex, the light would grow without bound in a closed room.
   const LightSampler lights(*w.scene, a);
   std::vector<std::vector<Color>> traced(K + 1);
   for (size_t c = 0; c < K; ++c) {
@@ -377,9 +411,20 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
       return hashTuple({stream, 1 + c, j});
     });
   }
-  traced[K] = traceRays(*w.scene, lights, {&a, &white, &a, &notClipped, &a}, rays, path, [&](size_t j) {
-    return hashTuple({stream, 0, j});
-  });
+  AppearanceScope rest{&a, &white, &a, &notClipped, &a};
+  auto traceRest = [&] {
+    traced[K] = traceRays(*w.scene, lights, rest, rays, path, [&](size_t j) { return hashTuple({stream, 0, j}); });
+  };
+  traceRest();
+  Appearance shown = a;
+  if (settings.shownRadiance) {
+    const std::vector<Color> ratio = shownOverRendered(batch, rayOf, traced, a, space, w.mesh, objectCount);
+    for (size_t t = 0; t < space.map.texelCount(); ++t)
+      if (space.map.valid(t))
+        for (int band = 0; band < 3; ++band) shown.albedo.rgb[3 * t + band] *= ratio[space.objectOf(t, w.mesh)][band];
+    rest.bsdfSecond = &shown;
+    traceRest();
+  }
 
   // Per texel and band (red, green, blue, luminance): the means over its paths, their covariance.
   std::array<std::vector<ScaleTexel>, 4> bands;

@@ -63,6 +63,9 @@ struct ClippedLightSettings {
   // Applied only when the scale is known to ~20%: the init's white point (the brightest surfaces
   // taken for albedo 0.8, when they may be 0.6 or 0.9) is not known better.
   double maxLogError = 0.2;
+  // R with each object's albedo at the next vertex scaled to what the frames show of it (the .cpp
+  // says why); false: the fit's albedo as it is.
+  bool shownRadiance = true;
 };
 
 struct ClippedLightScale {

@@ -64,6 +64,7 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("light_evidence_texels", ConfigField(&c.lightEvidenceTexels));
   fn("light_redecide", ConfigField(&c.lightRedecide));
   fn("clipped_light_scale", ConfigField(&c.clippedLightScale));
+  fn("clipped_scale_shown_radiance", ConfigField(&c.clippedScaleShownRadiance));
   fn("emission_refit_iterations", ConfigField(&c.emissionRefitIterations));
   fn("lights", ConfigField(&c.lights));
   fn("light_albedo_zero", ConfigField(&c.lightAlbedoZero));

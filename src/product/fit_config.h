@@ -114,6 +114,9 @@ struct FitConfig {
   // Lights whose pixels all clip: after the first albedo stage their emission is scaled to make each
   // object's albedo most uniform (product/clipped_light_scale.h); false = keep the init's scale.
   bool clippedLightScale = true;
+  // Its light from the surfaces in view taken at what the frames show of them, not at the fit's
+  // albedo, which sits at 1 where the lights are still too dark (clipped_light_scale.cpp).
+  bool clippedScaleShownRadiance = true;
   // A light source's radiance is all emission (albedo 0, not fitted): from any view a Lambertian
   // emission and a diffuse reflection look the same, and windows and shades transmit their light.
   bool lightAlbedoZero = true;

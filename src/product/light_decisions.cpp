@@ -189,7 +189,9 @@ bool LightDecisions::decide(const TexelSpace& space, const std::string& after, b
 
 namespace {
 ClippedLightSettings clippedLightSettings(const FitConfig& c) {
-  return {.texelsPerObject = 4 * c.lightEvidenceTexels, .framesPerTexel = c.framesPerTexel};
+  return {.texelsPerObject = 4 * c.lightEvidenceTexels,
+          .framesPerTexel = c.framesPerTexel,
+          .shownRadiance = c.clippedScaleShownRadiance};
 }
 }  // namespace
 

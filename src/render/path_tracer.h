@@ -35,11 +35,14 @@ struct PathSettings {
 struct AppearanceScope {
   const Appearance* sampling;
   const Appearance* bsdfFirst;      // BSDF at the first vertex x0
-  const Appearance* bsdfDeep;       // BSDF at x1, x2, ...
+  const Appearance* bsdfDeep;       // BSDF at x1 (unless bsdfSecond is set), x2, ...
   const Appearance* emissionFirst;  // emission seen directly, or reached from x0 (NEE or BSDF)
   const Appearance* emissionDeep;   // emission reached from x1, x2, ...
+  const Appearance* bsdfSecond = nullptr;  // BSDF at x1 when set (else bsdfDeep's)
   static AppearanceScope uniform(const Appearance& a) { return {&a, &a, &a, &a, &a}; }
-  const Appearance& bsdf(int depth) const { return depth == 0 ? *bsdfFirst : *bsdfDeep; }
+  const Appearance& bsdf(int depth) const {
+    return depth == 0 ? *bsdfFirst : depth == 1 && bsdfSecond ? *bsdfSecond : *bsdfDeep;
+  }
   const Appearance& emission(int fromVertex) const { return fromVertex <= 0 ? *emissionFirst : *emissionDeep; }
 };
 

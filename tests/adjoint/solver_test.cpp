@@ -2,7 +2,9 @@
 #include <tbb/task_arena.h>
 
 #include "adjoint/solver.h"
+#include "core/rng.h"
 #include "lab/experiment.h"
+#include "scenes/synth.h"
 
 using namespace relume;
 
@@ -256,4 +258,46 @@ TEST(GradientSums, SubBatchesShrinkWithTheSplattingVerticesAndSumTheSame) {
   const auto [deep, deepBytes] = accumulated(8);
   EXPECT_TRUE(shallow == deep);
   EXPECT_LT(deepBytes, shallowBytes / 4) << shallowBytes << " vs " << deepBytes;
+}
+
+// AppearanceScope::bsdfSecond applies at x1 and nowhere else: with x1's BSDF black the paths end
+// there (as with a maximum depth of 1), and with x1's as it is and x2's black they end at x2 (a
+// maximum depth of 2), ray for ray.
+TEST(TraceRays, TheSecondVertexBsdfAppliesThereAlone) {
+  const SynthScene room = makeSynthScene(SynthSceneKind::Room, 64);
+  const Scene scene(room.scene.mesh);
+  const Appearance& a = room.scene.appearance;
+  Appearance black = a;
+  std::fill(black.albedoConstant.begin(), black.albedoConstant.end(), Color::Zero());
+  std::fill(black.albedoFromTexture.begin(), black.albedoFromTexture.end(), 0);
+  std::fill(black.specular.begin(), black.specular.end(), 0.0f);
+  std::vector<BatchRay> rays;
+  for (const Camera& cam : synthCameraPath(SynthSceneKind::Room, 2, 16, 12, 0.0))
+    for (int y = 0; y < 12; ++y)
+      for (int x = 0; x < 16; ++x)
+        if (const auto dir = cam.rayDirection(Vec2(x + 0.5f, y + 0.5f))) {
+          BatchRay r;
+          r.origin = cam.position, r.dir = *dir, r.reference = Color::Zero();
+          rays.push_back(r);
+        }
+  const LightSampler lights(scene, a);
+  const auto trace = [&](const AppearanceScope& scope, int maxDepth) {
+    PathSettings path;
+    path.maxDepth = maxDepth;
+    return traceRays(scene, lights, scope, rays, path, [](size_t j) { return hashTuple({j, 0x5eU}); });
+  };
+  AppearanceScope secondBlack = AppearanceScope::uniform(a);
+  secondBlack.bsdfSecond = &black;
+  AppearanceScope onlySecondKept{&a, &a, &black, &a, &a};
+  onlySecondKept.bsdfSecond = &a;
+  const std::vector<Color> one = trace(AppearanceScope::uniform(a), 1), two = trace(AppearanceScope::uniform(a), 2);
+  const std::vector<Color> endAtX1 = trace(secondBlack, 5), endAtX2 = trace(onlySecondKept, 5);
+  ASSERT_EQ(one.size(), rays.size());
+  size_t differs = 0;
+  for (size_t j = 0; j < rays.size(); ++j) {
+    EXPECT_TRUE((endAtX1[j] == one[j]).all()) << "ray " << j << ": " << endAtX1[j].transpose() << " vs " << one[j].transpose();
+    EXPECT_TRUE((endAtX2[j] == two[j]).all()) << "ray " << j << ": " << endAtX2[j].transpose() << " vs " << two[j].transpose();
+    differs += (one[j] != two[j]).any();
+  }
+  EXPECT_GT(differs, rays.size() / 2) << "the second bounce must light most of these pixels";
 }

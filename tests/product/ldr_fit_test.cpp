@@ -63,7 +63,9 @@ TEST(LdrFit, SaturatedLightsAreBoundsNotValues) {
   const TruthComparison exact = fitAndScore(dir / "work_values", dir / "capture", c);
   const Json fitted = readJson(dir / "work" / "result" / "materials.json");
   for (const Json& o : fitted["objects"])
-    if (o["is_emitter"].get<bool>()) EXPECT_GT(o["emission"][1].get<double>(), 2.0) << o["name"];
+    if (o["is_emitter"].get<bool>()) {
+      EXPECT_GT(o["emission"][1].get<double>(), 2.0) << o["name"];
+    }
   EXPECT_EQ(bounds.emittersCorrect, bounds.emittersTrue);
   EXPECT_LT(bounds.emissionRelError, exact.emissionRelError - 0.1);
   EXPECT_LT(bounds.albedoMae, exact.albedoMae - 0.03);
@@ -74,12 +76,18 @@ TEST(LdrFit, SaturatedLightsAreBoundsNotValues) {
 // The same capture: with every pixel of the panels at 255, the frames do not show their emission;
 // taken from the light they cast, it trades against the albedo, and the init's white point decides
 // the split. Scaled until each object's albedo is most uniform where the panels reach it directly
-// and where they do not, the emission comes out nearer the truth, and the albedo with it.
+// and where they do not, the emission comes out nearer the truth, and the albedo with it. The
+// light the surfaces pass on is taken at what the frames show of them: traced at the fit's albedo,
+// which sits at 1 on the surfaces the too-dark panels light most, it falls short, and so does the
+// scale (clipped_scale_shown_radiance: false).
 TEST(LdrFit, LightsSeenOnlySaturatedTakeTheScaleTheAlbedoAgreesOn) {
   const fs::path dir = preparedCapture("ldr_fit_clip_scale", smallRoom("ldr=8"), 256);
   FitConfig off = smallConfig(FrameGainMode::None);
   off.clippedLightScale = false;
   const TruthComparison kept = fitAndScore(dir / "work", dir / "capture", off);
+  FitConfig traced = smallConfig(FrameGainMode::None);
+  traced.clippedScaleShownRadiance = false;
+  const TruthComparison tracedRest = fitAndScore(dir / "work", dir / "capture", traced);
   const TruthComparison scaled = fitAndScore(dir / "work", dir / "capture", smallConfig(FrameGainMode::None));
   const Json decisions = readJson(dir / "work" / "result" / "lights.json")["decisions"];
   const auto scale =
@@ -88,13 +96,18 @@ TEST(LdrFit, LightsSeenOnlySaturatedTakeTheScaleTheAlbedoAgreesOn) {
   EXPECT_TRUE((*scale)["clipped_light_scale"]["applied"].get<bool>()) << scale->dump();
   EXPECT_EQ((*scale)["clipped_light_scale"]["lights"].size(), 2u);
   EXPECT_EQ(scaled.emittersCorrect, scaled.emittersTrue);
-  // Measured: emission error 0.281 and albedo MAE 0.198, from 0.767 and 0.352 (the clean
-  // capture's fit: 0.047); the scale converges short of the truth on these 64x48 frames.
-  EXPECT_LT(scaled.emissionRelError, 0.35);
-  EXPECT_LT(scaled.albedoMae, 0.25);
+  // Measured: emission error 0.243 and albedo MAE 0.174 (traced: 0.281 and 0.198; kept: 0.767 and
+  // 0.352; the clean capture's fit: 0.047); the scale converges short of the truth on these 64x48
+  // frames.
+  EXPECT_LT(scaled.emissionRelError, 0.27);
+  EXPECT_LT(scaled.albedoMae, 0.19);
+  EXPECT_LT(scaled.emissionRelError, tracedRest.emissionRelError - 0.02);
   EXPECT_GT(kept.emissionRelError, 0.6);
-  std::printf("LdrFit saturated lights: emission error %.3f (init's scale kept %.3f), albedo MAE %.4f (%.4f)\n",
-              scaled.emissionRelError, kept.emissionRelError, scaled.albedoMae, kept.albedoMae);
+  std::printf(
+      "LdrFit saturated lights: emission error %.3f (rest as traced %.3f, init's scale kept %.3f), albedo MAE "
+      "%.4f (%.4f, %.4f)\n",
+      scaled.emissionRelError, tracedRest.emissionRelError, kept.emissionRelError, scaled.albedoMae,
+      tracedRest.albedoMae, kept.albedoMae);
 }
 
 // The lounge bracketed at -1.5/0/+1.5 EV in 8 bits: its windows (radiance 5-9) clip in every

@@ -32,7 +32,7 @@ Observed observe(const Scene& scene, const Appearance& truth, int width, int hei
         const auto hit = scene.intersect(cam.position, *dir);
         if (!hit) continue;
         BatchRay r;
-        r.origin = cam.position, r.dir = *dir;
+        r.origin = cam.position, r.dir = *dir, r.reference = Color::Zero();
         o.rays.push_back(r);
         o.objects.push_back(hit->object);
       }
@@ -213,8 +213,9 @@ TEST_F(LightEvidenceTest, ALightNoFrameShowsLeavesItsSurfacesUnderLitFromItsDire
   std::vector<LightEvidence> lit;
   decide(lounge_->scene, *scene_, lounge_->scene.appearance, *observed_, &lit);
   for (size_t k = 0; k < lit.size(); ++k)
-    if (!kLights.count(lounge_->scene.appearance.names[k]))
+    if (!kLights.count(lounge_->scene.appearance.names[k])) {
       EXPECT_FALSE(underLit(lit[k], LightTestSettings{}).underLit) << k;
+    }
 }
 
 TEST(LightDecisions, SignificanceShareAndPowerEachDecide) {

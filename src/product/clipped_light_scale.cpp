@@ -215,7 +215,9 @@ Json ClippedLightScale::toJson(const Appearance& a) const {
                         {"name", a.names[lights[k]]},
                         {"scale", fit.scale[k]},
                         {"log_error", std::isfinite(fit.logError[k]) ? Json(fit.logError[k]) : Json(nullptr)},
-                        {"lower_bound", lowerBound[k]}});
+                        {"lower_bound", floors[k].lowerBound},
+                        {"darkest_clip", floors[k].darkestClip},
+                        {"darker_frame_ev", darkerFrameEv[k]}});
   for (const auto& [o, scale] : fit.perObject)
     perObject.push_back(
         {{"id", o}, {"name", a.names[o]}, {"scale", std::isfinite(scale) ? Json(scale) : Json(nullptr)}});
@@ -314,26 +316,46 @@ std::vector<Color> shownOverRendered(const Batch& batch, const std::vector<size_
   return ratio;
 }
 
+// Fills out.darkerFrameEv from the lights' emission in `a` and says what it means (for `why`).
+// The margin above the emission: two of its errors (0.5 in log where the scale is not resolved)
+// and one EV, as the scale has fallen short of the truth by up to 30% with errors of 5-16%
+// (docs/notes/2026-11-26-shown-radiance-and-kill-points.md).
+std::string adviseDarkerFrames(ClippedLightScale& out, const Appearance& a) {
+  out.darkerFrameEv.clear();
+  double most = 0;
+  for (size_t k = 0; k < out.lights.size(); ++k) {
+    const double error = std::min(out.fit.logError[k], 0.5);
+    const double stops = std::log2(luminance(a.emission[out.lights[k]]) / out.floors[k].darkestClip);
+    const double ev = std::isfinite(stops) ? std::ceil(2 * (stops + 1 + 2 * error / std::log(2.0))) / 2 : 0;
+    out.darkerFrameEv.push_back(ev);
+    most = std::max(most, ev);
+  }
+  return fmt::format(
+      "; a frame {:.1f} EV darker than the darkest that sees them would show them unclipped and measure them", most);
+}
+
 // lightsSeenOnlySaturated on texels already grouped by object.
 std::vector<int> saturatedLights(const Workspace& w, const TexelSpace& space,
                                  const std::vector<std::vector<uint32_t>>& texels, const Appearance& a,
                                  const std::vector<uint8_t>& emitter, const FrameGains& gains,
-                                 const ClippedLightSettings& settings, uint64_t stream, std::vector<double>* bounds) {
+                                 const ClippedLightSettings& settings, uint64_t stream,
+                                 std::vector<SaturatedFloor>* floors) {
   std::vector<int> lights;
-  if (bounds) bounds->clear();
+  if (floors) floors->clear();
   for (int o = 0; o < a.objectCount(); ++o) {
     if (!emitter[o] || !a.isEmissive(o) || texels[o].empty()) continue;
     size_t rays = 0, clipped = 0;
-    double bound = 0;
+    double bound = 0, darkest = 0;
     for (const BatchRay& r : drawTexels(w, space, texels[o], o, gains, settings, stream).rays) {
       if (!r.reference.allFinite() || r.reference.minCoeff() < 0) continue;
       ++rays;
-      clipped += saturated(r);
-      bound += luminance(r.reference / r.gain);
+      const double radiance = luminance(r.reference / r.gain);
+      bound += radiance;
+      if (saturated(r)) ++clipped, darkest = std::max(darkest, radiance);
     }
     if (!onlySaturated(clipped, rays)) continue;
     lights.push_back(o);
-    if (bounds) bounds->push_back(bound / static_cast<double>(rays) / luminance(a.emission[o]));
+    if (floors) floors->push_back({bound / static_cast<double>(rays) / luminance(a.emission[o]), darkest});
   }
   return lights;
 }
@@ -342,10 +364,9 @@ std::vector<int> saturatedLights(const Workspace& w, const TexelSpace& space,
 
 std::vector<int> lightsSeenOnlySaturated(const Workspace& w, const TexelSpace& space, const Appearance& a,
                                          const std::vector<uint8_t>& emitter, const FrameGains& gains,
-                                         const ClippedLightSettings& settings, uint64_t seed,
-                                         std::vector<double>* bounds) {
+                                         const ClippedLightSettings& settings, uint64_t seed) {
   return saturatedLights(w, space, texelsByObject(w, space, a.objectCount()), a, emitter, gains, settings,
-                         hashTuple({seed, streamTag(RandomStream::ClippedLightScale)}), bounds);
+                         hashTuple({seed, streamTag(RandomStream::ClippedLightScale)}), nullptr);
 }
 
 ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space, Appearance& a,
@@ -357,7 +378,7 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
   const std::vector<std::vector<uint32_t>> texels = texelsByObject(w, space, objectCount);
   const uint64_t stream = hashTuple({seed, streamTag(RandomStream::ClippedLightScale)});
   ClippedLightScale out;
-  out.lights = saturatedLights(w, space, texels, a, emitter, gains, settings, stream, &out.lowerBound);
+  out.lights = saturatedLights(w, space, texels, a, emitter, gains, settings, stream, &out.floors);
   if (out.lights.empty()) return out;
   const size_t K = out.lights.size();
 
@@ -437,8 +458,8 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
   if (!(worst <= settings.maxLogError)) {
     out.why = fmt::format(
         "lights {} are seen only saturated and the surfaces they light do not tell their emission apart from the "
-        "albedo (scale {:.3g}, log error {:.3g} over {} objects): both keep the scale init_white_point gave them",
-        names, out.fit.scale.front(), worst, out.fit.objects);
+        "albedo (scale {:.3g}, log error {:.3g} over {} objects): both keep the scale init_white_point gave them{}",
+        names, out.fit.scale.front(), worst, out.fit.objects, adviseDarkerFrames(out, a));
     return out;
   }
   // The colour as well when each channel's own fit is resolved (a warm light's pixels clip white,
@@ -458,7 +479,7 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
       for (int band = 0; band < 3; ++band) scale[c][band] = static_cast<float>(channel[band].scale[c]);
     // Never below what the light's pixels bound it by.
     const Color raised = a.emission[out.lights[c]] * scale[c];
-    const double atLeast = out.lowerBound[c] * luminance(a.emission[out.lights[c]]);
+    const double atLeast = out.floors[c].lowerBound * luminance(a.emission[out.lights[c]]);
     if (luminance(raised) < atLeast) scale[c] *= static_cast<float>(atLeast / luminance(raised));
   }
   out.applied = true;
@@ -473,9 +494,10 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
   }
   out.why = fmt::format(
       "lights {} are seen only saturated; the albedo is most uniform within each object at emission {} ({}, {}; "
-      "{} objects, {} texels)",
+      "{} objects, {} texels){}",
       names, scales, out.fit.common ? "one scale for all" : "each its own",
-      coloured ? "colour from each channel" : "colour kept", out.fit.objects, out.fit.texels);
+      coloured ? "colour from each channel" : "colour kept", out.fit.objects, out.fit.texels,
+      adviseDarkerFrames(out, a));
   // Each reflector's albedo by its texels' mean ratio a(s) / a(1), per channel (the next stages
   // refit it).
   std::vector<Eigen::Array3d> logRatio(objectCount, Eigen::Array3d::Zero());

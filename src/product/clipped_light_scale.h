@@ -68,10 +68,19 @@ struct ClippedLightSettings {
   bool shownRadiance = true;
 };
 
+// What the clipped pixels of a light seen only saturated say.
+struct SaturatedFloor {
+  double lowerBound = 0;   // the smallest scale of its emission that keeps it at their mean radiance
+  double darkestClip = 0;  // the highest radiance (luminance) at which one of them clips: the darkest frame's
+};
+
 struct ClippedLightScale {
   std::vector<int> lights;  // the lights seen only saturated
   ScaleFit fit;
-  std::vector<double> lowerBound;  // per light: the smallest s that keeps it at its pixels' bound
+  std::vector<SaturatedFloor> floors;  // per light
+  // Per light: how much darker than the darkest frame that sees it, in EV (to 0.5), a frame must
+  // be to show it unclipped: at its emission after the scale, one EV and two errors above it.
+  std::vector<double> darkerFrameEv;
   bool applied = false;
   bool coloured = false;  // each channel scaled by its own fit (else all by the luminance's)
   std::string why;        // one line: what was decided and why
@@ -79,12 +88,10 @@ struct ClippedLightScale {
 };
 
 // The lights among `emitter` seen only saturated: at least 95% of the rays drawn on their own
-// texels clip. With `bounds`, per such light the smallest scale of its emission that keeps it at
-// what its pixels bound it by (the mean of their radiance over its emission).
+// texels clip.
 std::vector<int> lightsSeenOnlySaturated(const Workspace& w, const TexelSpace& space, const Appearance& a,
                                          const std::vector<uint8_t>& emitter, const FrameGains& gains,
-                                         const ClippedLightSettings& settings, uint64_t seed,
-                                         std::vector<double>* bounds = nullptr);
+                                         const ClippedLightSettings& settings, uint64_t seed);
 
 // Finds the lights among `emitter` seen only saturated and, when there are any, fits their scale
 // in luminance and in each channel, and applies it: their emission x s (per channel when every

@@ -103,6 +103,17 @@ TEST(LdrFit, LightsSeenOnlySaturatedTakeTheScaleTheAlbedoAgreesOn) {
   EXPECT_LT(scaled.albedoMae, 0.19);
   EXPECT_LT(scaled.emissionRelError, tracedRest.emissionRelError - 0.02);
   EXPECT_GT(kept.emissionRelError, 0.6);
+  // The last probe's advice: a frame that many EV darker than the darkest shows each panel
+  // unclipped (its true radiance below that frame's clip), and it asks no more than 1.5 EV beyond that.
+  const auto last = std::find_if(decisions.rbegin(), decisions.rend(),
+                                 [](const Json& d) { return d.contains("clipped_light_scale"); });
+  const Appearance truth = loadSceneFile(dir / "capture" / "gt" / "scene.json").appearance;
+  for (const Json& light : (*last)["clipped_light_scale"]["lights"]) {
+    const int o = light["id"].get<int>();
+    const double needed = std::log2(luminance(truth.emission[o]) / light["darkest_clip"].get<double>());
+    EXPECT_GE(light["darker_frame_ev"].get<double>(), needed) << light.dump();
+    EXPECT_LE(light["darker_frame_ev"].get<double>(), needed + 1.5) << light.dump();
+  }
   std::printf(
       "LdrFit saturated lights: emission error %.3f (rest as traced %.3f, init's scale kept %.3f), albedo MAE "
       "%.4f (%.4f, %.4f)\n",

@@ -37,6 +37,8 @@ add ldr8_kept "ldr=8" "" fit_kept.json
 add ldr8_bracket "bracket=-1.5,0,1.5;ldr=8" "" fit.json
 add ldr8_bracket_kept "bracket=-1.5,0,1.5;ldr=8" "" fit_kept.json
 add ldr8_bracket_values "bracket=-1.5,0,1.5;ldr=8" "--no-encoding-clips" fit.json
+# A bracket with a frame dark enough to show the lights unclipped (what lights.json's darker_frame_ev asks).
+add ldr8_bracket_dark "bracket=-6,-1.5,0,1.5;ldr=8" "" fit.json
 add ldr8_drift "exposure-drift=0.3;wb=0.03;ldr=8" "" fit.json
 add ldr8_bracket_wb "bracket=-1.5,0,1.5;wb=0.03;ldr=8" "" fit.json
 add ldr8_bracket_wb_rgb "bracket=-1.5,0,1.5;wb=0.03;ldr=8" "" fit_rgb.json
@@ -45,7 +47,7 @@ add drift "exposure-drift=0.3;wb=0.03" "" fit_rgb.json
 add drift_no_gains "exposure-drift=0.3;wb=0.03" "" fit_no_gains.json
 add noise "noise=1000,0.002" "" fit.json
 add handheld "pose=1cm,0.3deg;bracket=-1.5,0,1.5;wb=0.03;noise=1000,0.002;ldr=8;mesh=5mm;segmentation=none" "" fit.json
-ORDER="${VARIANTS:-clean ldr8 ldr8_kept ldr8_values ldr8_bracket ldr8_bracket_kept ldr8_bracket_values ldr8_bracket_rgb ldr8_drift ldr8_bracket_wb ldr8_bracket_wb_rgb drift drift_no_gains noise handheld}"
+ORDER="${VARIANTS:-clean ldr8 ldr8_kept ldr8_values ldr8_bracket ldr8_bracket_kept ldr8_bracket_values ldr8_bracket_dark ldr8_bracket_rgb ldr8_drift ldr8_bracket_wb ldr8_bracket_wb_rgb drift drift_no_gains noise handheld}"
 
 for name in $ORDER; do
   cap="$OUT/capture_${SPEC[$name]//[^a-z0-9]/_}"

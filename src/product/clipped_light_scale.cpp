@@ -227,12 +227,6 @@ Json ClippedLightScale::toJson(const Appearance& a) const {
 
 namespace {
 
-std::vector<std::vector<uint32_t>> texelsByObject(const Workspace& w, const TexelSpace& space, int objectCount) {
-  std::vector<std::vector<uint32_t>> texels(objectCount);
-  for (uint32_t t : space.sampleable) texels[space.objectOf(t, w.mesh)].push_back(t);
-  return texels;
-}
-
 // `settings.texelsPerObject` of object o's texels, `framesPerTexel` rays each, with the frames' gains.
 Batch drawTexels(const Workspace& w, const TexelSpace& space, const std::vector<uint32_t>& texels, int o,
                  const FrameGains& gains, const ClippedLightSettings& settings, uint64_t stream) {
@@ -365,7 +359,7 @@ std::vector<int> saturatedLights(const Workspace& w, const TexelSpace& space,
 std::vector<int> lightsSeenOnlySaturated(const Workspace& w, const TexelSpace& space, const Appearance& a,
                                          const std::vector<uint8_t>& emitter, const FrameGains& gains,
                                          const ClippedLightSettings& settings, uint64_t seed) {
-  return saturatedLights(w, space, texelsByObject(w, space, a.objectCount()), a, emitter, gains, settings,
+  return saturatedLights(w, space, space.sampleableByObject(w.mesh, a.objectCount()), a, emitter, gains, settings,
                          hashTuple({seed, streamTag(RandomStream::ClippedLightScale)}), nullptr);
 }
 
@@ -375,7 +369,7 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
                                      const ClippedLightSettings& settings, uint64_t seed) {
   CHECK(a.emissionTextures.empty());  // runs before the emission textures exist
   const int objectCount = a.objectCount();
-  const std::vector<std::vector<uint32_t>> texels = texelsByObject(w, space, objectCount);
+  const std::vector<std::vector<uint32_t>> texels = space.sampleableByObject(w.mesh, objectCount);
   const uint64_t stream = hashTuple({seed, streamTag(RandomStream::ClippedLightScale)});
   ClippedLightScale out;
   out.lights = saturatedLights(w, space, texels, a, emitter, gains, settings, stream, &out.floors);
@@ -437,8 +431,8 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
     traced[K] = traceRays(*w.scene, lights, rest, rays, path, [&](size_t j) { return hashTuple({stream, 0, j}); });
   };
   traceRest();
-  Appearance shown = a;
   if (settings.shownRadiance) {
+    Appearance shown = a;
     const std::vector<Color> ratio = shownOverRendered(batch, rayOf, traced, a, space, w.mesh, objectCount);
     for (size_t t = 0; t < space.map.texelCount(); ++t)
       if (space.map.valid(t))

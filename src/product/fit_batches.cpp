@@ -59,8 +59,7 @@ BatchFocus FitBatches::materialFocus(const TexelSpace& space, const std::vector<
 BatchFocus FitBatches::emissionFocus(const TexelSpace& space, const std::vector<uint8_t>& emitter) const {
   BatchFocus f;
   if (c_.emissionBatchTexels == 0) return f;
-  std::vector<std::vector<uint32_t>> texels(emitter.size());
-  for (uint32_t t : space.sampleable) texels[space.objectOf(t, w_.mesh)].push_back(t);
+  std::vector<std::vector<uint32_t>> texels = space.sampleableByObject(w_.mesh, static_cast<int>(emitter.size()));
   for (size_t o = 0; o < emitter.size(); ++o)
     if (emitter[o] && !texels[o].empty()) f.candidates.push_back(std::move(texels[o]));
   return f;

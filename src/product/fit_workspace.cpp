@@ -91,6 +91,12 @@ TexelSpace::TexelSpace(const Workspace& w, int res, const std::vector<uint8_t>& 
   if (sampleable.empty()) fail("{}: no texel of the mesh was observed by any kept frame", w.dir.string());
 }
 
+std::vector<std::vector<uint32_t>> TexelSpace::sampleableByObject(const TriangleMesh& mesh, int objectCount) const {
+  std::vector<std::vector<uint32_t>> texels(objectCount);
+  for (uint32_t t : sampleable) texels[objectOf(t, mesh)].push_back(t);
+  return texels;
+}
+
 std::vector<Color> Workspace::consistencyGains() const {
   std::vector<Color> gains(frames.size(), Color::Ones());
   const fs::path file = dir / "frame_gains.json";

@@ -55,6 +55,8 @@ struct TexelSpace {
   // Texels of `excluded` objects (out of the model: light_evidence.h) are neither sampled nor updated.
   TexelSpace(const Workspace& w, int res, const std::vector<uint8_t>& excluded = {});
   int objectOf(size_t texel, const TriangleMesh& mesh) const { return mesh.faceObject[map.triangle(texel)]; }
+  // The sampleable texels of each of `objectCount` objects.
+  std::vector<std::vector<uint32_t>> sampleableByObject(const TriangleMesh& mesh, int objectCount) const;
 };
 
 }  // namespace relume

@@ -105,8 +105,7 @@ bool LightDecisions::decide(const TexelSpace& space, const std::string& after, b
     return false;
   }
   const int objects = a_.objectCount();
-  std::vector<std::vector<uint32_t>> texels(objects);
-  for (uint32_t t : space.sampleable) texels[space.objectOf(t, w_.mesh)].push_back(t);
+  const std::vector<std::vector<uint32_t>> texels = space.sampleableByObject(w_.mesh, objects);
   std::vector<uint8_t> candidate(objects, 0);
   for (int o = 0; o < objects; ++o)
     candidate[o] = !texels[o].empty() && !r_.outOfModel[o] && (first ? r_.emitter[o] != 0 : true);

@@ -1,7 +1,9 @@
 // Every reader rejects hostile input with a one-line error naming the file; valid variants load.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <fstream>
+#include <thread>
 
 #include "core/error.h"
 #include "io/image.h"
@@ -191,6 +193,24 @@ TEST(Images, PngIsSrgbDecodedExrIsLinear) {
   writePng(tmpDir() / "srgb.png", img);
   EXPECT_FLOAT_EQ(readImage(tmpDir() / "lin.exr").at(0, 0)[0], 0.5f);
   EXPECT_NEAR(readImage(tmpDir() / "srgb.png").at(1, 0)[0], 0.2f, 0.004f);  // 8-bit quantisation
+}
+
+// Equal pixels are equal bytes whenever they are written: resume, the prepare cache and the
+// form-equivalence tests compare files. (OIIO's default stamps each EXR with the second it was written.)
+TEST(Images, EqualPixelsWrittenASecondApartAreEqualBytes) {
+  Image img(2, 1);
+  img.set(0, 0, Color(0.1f, 0.2f, 0.3f));
+  const auto bytes = [](const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  writeExr(tmpDir() / "first.exr", img);
+  writePng(tmpDir() / "first.png", img);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+  writeExr(tmpDir() / "second.exr", img);
+  writePng(tmpDir() / "second.png", img);
+  EXPECT_EQ(bytes(tmpDir() / "first.exr"), bytes(tmpDir() / "second.exr"));
+  EXPECT_EQ(bytes(tmpDir() / "first.png"), bytes(tmpDir() / "second.png"));
 }
 
 TEST(SceneFile, RejectsBadFields) {

@@ -68,6 +68,7 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("emission_refit_iterations", ConfigField(&c.emissionRefitIterations));
   fn("lights", ConfigField(&c.lights));
   fn("light_albedo_zero", ConfigField(&c.lightAlbedoZero));
+  fn("light_unclipped_emission", ConfigField(&c.lightUnclippedEmission));
   fn("prune_fraction", ConfigField(&c.pruneFraction));
   fn("emitter_radiance_fraction", ConfigField(&c.emitterRadianceFraction));
   fn("highlight_min_pairs", ConfigField(&c.highlightMinPairs));

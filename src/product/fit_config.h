@@ -120,6 +120,10 @@ struct FitConfig {
   // A light source's radiance is all emission (albedo 0, not fitted): from any view a Lambertian
   // emission and a diffuse reflection look the same, and windows and shades transmit their light.
   bool lightAlbedoZero = true;
+  // That emission from a light's unclipped pixels where it also has clipped ones (seen unclipped
+  // only in a bracket's darker frames): each clipped value raised to the unclipped mean. false =
+  // clipped values taken as they are, the emission fitted from the light it casts kept when brighter.
+  bool lightUnclippedEmission = true;
   float pruneFraction = 0.02f;            // light sources below this fraction of the total power go to 0
   float emitterRadianceFraction = 0.75f;  // light_test radiance_fraction's threshold
   // Roughness and specular are fitted only where the frames show a highlight: texels seen both

@@ -18,6 +18,9 @@
 namespace relume {
 namespace {
 constexpr uint64_t kHighlightProbeBatches = 16;
+// Unclipped rays a channel needs for their mean to stand for a light's emission (of the 256 or so
+// interior rays drawn per object).
+constexpr uint64_t kMinUnclippedRays = 16;
 }  // namespace
 
 ObjectRoles::ObjectRoles(int objects)
@@ -164,13 +167,15 @@ bool LightDecisions::decide(const TexelSpace& space, const std::string& after, b
     } else {
       // A light's emission is set when it becomes one (and, with light_albedo_zero, at the
       // first decision, where its albedo goes to 0); a re-decision that agrees changes nothing.
-      // Where its pixels are saturated their mean is only a lower bound: the emission fitted from
-      // the light it casts is kept when it is brighter.
+      // It is what its pixels show; where they show only a lower bound (clipped above what its
+      // unclipped pixels measure, or too few of those), the emission fitted from the light it
+      // casts is kept when it is brighter.
       const bool wasEmitting = a_.isEmissive(o);
-      if (c_.lightAlbedoZero && (first || !wasEmitting))
-        a_.emission[o] = evidence[o].saturatedRays > 0 ? Color(evidence[o].meanObservedColor().max(a_.emission[o]))
-                                                       : evidence[o].meanObservedColor();
-      else if (!wasEmitting)
+      if (c_.lightAlbedoZero && (first || !wasEmitting)) {
+        const LightEvidence::PixelEmission shown =
+            evidence[o].pixelEmission(kMinUnclippedRays, c_.lightUnclippedEmission);
+        a_.emission[o] = shown.lowerBound ? Color(shown.emission.max(a_.emission[o])) : shown.emission;
+      } else if (!wasEmitting)
         a_.emission[o] = evidence[o].emissionEstimate();
       changed |= !first && !wasEmitting;
     }

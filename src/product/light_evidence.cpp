@@ -21,6 +21,32 @@ double LightEvidence::excessError() const {
 
 double LightEvidence::unexplainedShare() const { return observed > 0 ? excess / observed : 0.0; }
 
+void LightEvidence::addObserved(const Color& radiance, const Eigen::Array<bool, 3, 1>& clipped) {
+  const double I = luminance(radiance);
+  saturatedRays += clipped.any();
+  observed += I, observedSquares += I * I, observedColor += radiance;
+  for (int c = 0; c < 3; ++c)
+    if (!clipped[c]) unclippedColor[c] += radiance[c], ++unclippedRays[c];
+  if (clipped.any()) clippedRays.push_back({radiance, clipped});
+}
+
+LightEvidence::PixelEmission LightEvidence::pixelEmission(uint64_t minUnclipped, bool raiseClipped) const {
+  PixelEmission out;
+  if (rays == 0) return out;
+  for (int c = 0; c < 3; ++c) {
+    const bool measured = raiseClipped && unclippedRays[c] >= std::max<uint64_t>(1, minUnclipped);
+    const float unclippedMean = measured ? unclippedColor[c] / static_cast<float>(unclippedRays[c]) : 0.0f;
+    double sum = unclippedColor[c];
+    for (const ClippedRay& r : clippedRays) {
+      if (!r.clipped[c]) continue;
+      sum += std::max(r.radiance[c], unclippedMean);
+      out.lowerBound |= r.radiance[c] > unclippedMean;
+    }
+    out.emission[c] = static_cast<float>(sum / static_cast<double>(rays));
+  }
+  return out;
+}
+
 Color LightEvidence::emissionEstimate() const {
   return rays ? Color((excessColor / static_cast<float>(rays)).max(0.0f)) : Color::Zero();
 }
@@ -126,8 +152,7 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
     const double I = luminance(radiance), B = luminance(reflectorColor) + mirrorBound[j];
     const double P = luminance(mirrored[j]);
     ++e.rays;
-    e.saturatedRays += (rays[j].reference >= rays[j].clip.high).any();
-    e.observed += I, e.observedSquares += I * I, e.observedColor += radiance;
+    e.addObserved(radiance, rays[j].reference >= rays[j].clip.high);
     e.reflector += B;
     e.reflectorColor += reflectorColor + Color::Constant(mirrorBound[j]);
     e.excess += I - B, e.excessSquares += (I - B) * (I - B);

@@ -73,6 +73,19 @@ struct LightEvidence {
   double deficit = 0;
   Eigen::Vector3d deficitPoint = Eigen::Vector3d::Zero(), deficitNormal = Eigen::Vector3d::Zero();
 
+  // Each channel's unclipped radiance (sum, rays), and every ray with a clipped channel: what the
+  // frames show of the emission where they measure it, and where they bound it.
+  Color unclippedColor = Color::Zero();
+  Eigen::Array<uint64_t, 3, 1> unclippedRays = Eigen::Array<uint64_t, 3, 1>::Zero();
+  struct ClippedRay {
+    Color radiance;
+    Eigen::Array<bool, 3, 1> clipped;
+  };
+  std::vector<ClippedRay> clippedRays;
+
+  // Adds one ray's pixel, as radiance, with the channels its frame clips (I is its luminance).
+  void addObserved(const Color& radiance, const Eigen::Array<bool, 3, 1>& clipped);
+
   double meanObserved() const { return rays ? observed / rays : 0.0; }
   bool seenOnlySaturated() const { return onlySaturated(saturatedRays, rays); }
   Color meanObservedColor() const { return rays ? Color(observedColor / static_cast<float>(rays)) : Color::Zero(); }
@@ -80,6 +93,17 @@ struct LightEvidence {
   double meanExcess() const { return rays ? excess / rays : 0.0; }
   double excessError() const;       // standard error of the mean excess
   double unexplainedShare() const;  // mean excess / mean observed
+  // The emission its own pixels show, per channel: their mean radiance with each clipped value,
+  // which shows only that the truth is at least that, raised to the mean of the channel's
+  // unclipped values where that is higher (a light seen unclipped in the darker frames of a
+  // bracket and clipped in the brighter ones). `lowerBound`: some clipped value stays above that
+  // mean, or fewer than `minUnclipped` rays of a channel are unclipped, so the emission is at
+  // least this. Without clipped rays it is meanObservedColor(), exact.
+  struct PixelEmission {
+    Color emission = Color::Zero();
+    bool lowerBound = false;
+  };
+  PixelEmission pixelEmission(uint64_t minUnclipped, bool raiseClipped = true) const;
   // The emission the excess implies (per channel, clamped at 0): the refit's starting point.
   Color emissionEstimate() const;
   // The albedo that makes a reflector return what it shows (per channel, in [0, 1]).

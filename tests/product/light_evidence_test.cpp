@@ -109,6 +109,52 @@ TEST_F(LightEvidenceTest, UnderTheTrueAppearanceExactlyTheLightsAreLights) {
   EXPECT_GT(window.emissionEstimate()[2], 0.8 * 9.0);
 }
 
+// A bracket seen from the lounge: two frames in three store window_a at their encoding's top (a
+// bright frame's clip, 2 here) and one shows it unclipped. The pixels' mean is a lower bound well
+// short of the truth; with each clipped value raised to what the unclipped pixels measure, it is
+// the window's emission. Where clipped pixels stay above that (a hotspot that clips in every
+// frame) or too few pixels are unclipped, the estimate is said to be only a bound.
+TEST_F(LightEvidenceTest, ALightSeenUnclippedInSomeFramesShowsItsEmission) {
+  const Appearance& truth = lounge_->scene.appearance;
+  const int window = objectNamed(truth, "window_a");
+  const LightSampler lights(*scene_, truth);
+  const auto gather = [&](float clipHigh, int unclippedEvery) {
+    Observed o = *observed_;
+    int seen = 0;
+    for (size_t j = 0; j < o.rays.size(); ++j) {
+      if (o.objects[j] != window || seen++ % unclippedEvery == 0) continue;
+      o.rays[j].clip.high = clipHigh;
+      o.rays[j].reference = Color::Constant(clipHigh);  // stored at the clip
+    }
+    return gatherLightEvidence(*scene_, lounge_->scene.mesh, truth, lights, o.rays, o.objects, PathSettings{},
+                               5)[window];
+  };
+  const Color emission = truth.emission[window];
+  const LightEvidence bracket = gather(2.0f, 3);
+  ASSERT_GT(bracket.unclippedRays.minCoeff(), 16u);
+  const LightEvidence::PixelEmission shown = bracket.pixelEmission(16);
+  EXPECT_FALSE(shown.lowerBound);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_NEAR(shown.emission[c], emission[c], 0.03 * emission[c]) << c;
+    EXPECT_LT(bracket.meanObservedColor()[c], 0.7 * emission[c]) << c;  // the clipped values taken as they are
+  }
+  const LightEvidence::PixelEmission asValues = bracket.pixelEmission(16, false);
+  EXPECT_TRUE(asValues.lowerBound);
+  EXPECT_TRUE(asValues.emission.isApprox(bracket.meanObservedColor(), 1e-5f));
+  // Too few unclipped rays for their mean to stand for the light: a bound.
+  EXPECT_TRUE(bracket.pixelEmission(bracket.unclippedRays.maxCoeff() + 1).lowerBound);
+  // Clipped above what the unclipped pixels show: the clipped values stay, a bound above the truth's mean.
+  const float hot = 1.5f * emission.maxCoeff();
+  const LightEvidence::PixelEmission hotspot = gather(hot, 3).pixelEmission(16);
+  EXPECT_TRUE(hotspot.lowerBound);
+  EXPECT_GT(hotspot.emission.minCoeff(), emission.maxCoeff());
+  // Nothing clipped: the mean, exact.
+  const LightEvidence all = gather(2.0f, 1);
+  EXPECT_EQ(all.saturatedRays, 0u);
+  EXPECT_FALSE(all.pixelEmission(16).lowerBound);
+  EXPECT_TRUE(all.pixelEmission(16).emission.isApprox(all.meanObservedColor(), 1e-5f));
+}
+
 TEST_F(LightEvidenceTest, AFalseLightsOwnAlbedoAndEmissionDoNotDecideIt) {
   // As after an albedo stage in which the white sofa and cabinet were kept as lights: their
   // albedo collapsed (0.05) and a weak emission of their own makes up their radiance. The bound

@@ -83,7 +83,7 @@ void writeOiioTo(const std::filesystem::path& file, int w, int h, OIIO::TypeDesc
   if (memory) out->set_ioproxy(&proxy.emplace(*memory));
   OIIO::ImageSpec spec(w, h, 3, storage);
   // OIIO stamps EXRs with the wall-clock time (capDate) unless told one: an empty one keeps equal
-  // pixels in equal bytes, which resume, the prepare cache and the tests compare.
+  // pixels in equal bytes, whenever they are written.
   spec.attribute("DateTime", "");
   if (storage == OIIO::TypeDesc::FLOAT) spec.attribute("compression", "zip");
   if (!out->open(file.string(), spec) || !out->write_image(memoryType, pixels) || !out->close())

@@ -73,6 +73,7 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("emitter_radiance_fraction", ConfigField(&c.emitterRadianceFraction));
   fn("highlight_min_pairs", ConfigField(&c.highlightMinPairs));
   fn("highlight_min_contrast", ConfigField(&c.highlightMinContrast));
+  fn("highlight_absence", ConfigField(&c.highlightAbsence));
   fn("emitter_parameterisation", ConfigField(&c.emitterParameterisation));
   fn("median_init", ConfigField(&c.medianInit));
   fn("init_white_point", ConfigField(&c.initWhitePoint));

@@ -131,6 +131,10 @@ struct FitConfig {
   // brighter with it by at least `highlightMinContrast` (mean minus two standard errors).
   int highlightMinPairs = 8;
   float highlightMinContrast = 0.1f;
+  // On objects seen both ways without such a highlight, the roughnesses that would have shown one
+  // are ruled out and the roughness takes the middle of the rest (light_decisions.h); false = kept
+  // at the init.
+  bool highlightAbsence = true;
   bool emitterParameterisation = true, medianInit = true, coarseToFine = true, emissionTextures = true;
   float initWhitePoint = 0.8f;  // the median init's 95th-percentile texel becomes this albedo; 0 = off
   // Photometry (product/frame_gains.h): per-frame gains estimated with the reconstruction.

@@ -42,6 +42,8 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
                          {"highlight_observed", roles.highlight[o] != 0},
                          {"highlight_texels", roles.highlightPairs[o]},
                          {"highlight_contrast", roles.highlightContrast[o]},
+                         {"roughness_at_least",
+                          roles.roughnessAtLeast[o] >= 0 ? Json(roles.roughnessAtLeast[o]) : Json(nullptr)},
                          {"observed_texel_fraction", total[o] ? double(observed[o]) / total[o] : 0.0}});
   }
   Json summary = {

@@ -10,8 +10,11 @@
 #include "core/error.h"
 #include "core/random_streams.h"
 #include "core/rng.h"
+#include "core/system.h"
 #include "product/clipped_light_scale.h"
+#include "render/bsdf.h"
 #include "render/lights.h"
+#include "render/path_tracer.h"
 #include "sampling/highlight_evidence.h"
 #include "sampling/samplers.h"
 
@@ -29,6 +32,7 @@ ObjectRoles::ObjectRoles(int objects)
       highlight(objects, 0),
       highlightPairs(objects, 0),
       highlightContrast(objects, 0.0),
+      roughnessAtLeast(objects, -1.0f),
       observedSum(objects, 0.0),
       observedCount(objects, 0) {}
 
@@ -42,6 +46,7 @@ void ObjectRoles::serialise(CheckpointIo& io) {
   io.array("highlight", highlight);
   io.array("highlight_pairs", highlightPairs);
   io.array("highlight_contrast", highlightContrast);
+  io.array("roughness_at_least", roughnessAtLeast);
   io.array("observed.sum", observedSum);
   io.array("observed.count", observedCount);
 }
@@ -313,9 +318,82 @@ void LightDecisions::prune() {
   }
 }
 
+namespace {
+// The roughnesses the absence of a highlight is tested at (roughnessFromAbsence), and the lobe
+// samples each connection draws at every one of them.
+constexpr std::array<float, 10> kAbsenceRoughness = {0.1f, 0.2f, 0.3f, 0.4f, 0.5f, 0.6f, 0.7f, 0.8f, 0.9f, 1.0f};
+constexpr int kAbsenceLobeSamples = 16;
+
+// The light a connection's first surface reflects straight from the light sources through its
+// specular lobe alone, at roughness `roughness` and the fit's specular: the lobe's own samples
+// (f cos / pdf stays near the Fresnel factor at any roughness), each counting the emission it
+// reaches. It is what a highlight adds to the texel's radiance; its diffuse radiance, the same
+// from every view, cancels in the contrast.
+float directSpecular(const Scene& scene, const Appearance& a, const BatchRay& ray, float roughness, uint64_t stream) {
+  const auto hit = scene.intersect(ray.origin, ray.dir);
+  if (!hit) return 0;
+  const ShadingFrame frame(hit->ng.dot(ray.dir) < 0.0f ? hit->ns : Vec3(-hit->ns));
+  const VertexBsdf lobe({Color::Zero(), roughness, a.specular[hit->object], a.model}, frame.toLocal(-ray.dir));
+  Pcg32 rng(stream);
+  Color sum = Color::Zero();
+  for (int k = 0; k < kAbsenceLobeSamples; ++k) {
+    const float uLobe = rng.next1D();
+    const auto bs = lobe.sample(uLobe, rng.next2D());
+    if (!bs) continue;
+    const Vec3 d = frame.toWorld(bs->wi);
+    if (const auto light = scene.intersect(Scene::offsetOrigin(*hit, d), d))
+      sum += bs->weight * emittedRadiance(a, *light, d);
+  }
+  return luminance(sum) / kAbsenceLobeSamples;
+}
+
+// Per connection of `batch` on a texel seen both with a light reflected and without, at each
+// roughness of kAbsenceRoughness: the frames' mean radiance over the texel's connections without
+// a light reflected, plus what the highlight adds (directSpecular). Their contrast is then what
+// the fit's highlight would add over what the frames show, (S with - S without) / (shown without
+// + S without), on the same connections as the frames' contrast. The same random numbers at every
+// roughness. The other connections are marked -1 in `counted`.
+std::vector<std::array<float, kAbsenceRoughness.size()>> renderAtEachRoughness(const Scene& scene, const Appearance& a,
+                                                                              const Batch& batch,
+                                                                              const std::vector<int8_t>& sawLight,
+                                                                              const std::vector<float>& observed,
+                                                                              std::vector<int8_t>& counted,
+                                                                              uint64_t stream) {
+  constexpr size_t K = kAbsenceRoughness.size();
+  const size_t n = batch.rays.size();
+  counted = sawLight;
+  std::vector<float> shownWithout(n, 0.0f);
+  for (size_t begin = 0, end = 0; begin < n; begin = end) {
+    double shown = 0;
+    int count[2] = {0, 0};
+    for (end = begin; end < n && batch.slot[end] == batch.slot[begin]; ++end)
+      if (sawLight[end] >= 0) {
+        ++count[sawLight[end]];
+        if (sawLight[end] == 0) shown += observed[end];
+      }
+    if (count[0] && count[1])
+      std::fill(shownWithout.begin() + begin, shownWithout.begin() + end, static_cast<float>(shown / count[0]));
+    else
+      std::fill(counted.begin() + begin, counted.begin() + end, int8_t{-1});
+  }
+  std::vector<std::array<float, K>> lum(n);
+  tbb::parallel_for(size_t{0}, n, [&](size_t j) {
+    if (counted[j] < 0) return;
+    const uint64_t rayStream = hashTuple({stream, static_cast<uint64_t>(j)});
+    for (size_t k = 0; k < K; ++k)
+      lum[j][k] = shownWithout[j] + directSpecular(scene, a, batch.rays[j], kAbsenceRoughness[k], rayStream);
+  });
+  return lum;
+}
+}  // namespace
+
 void LightDecisions::decideHighlights(const TexelSpace& space, const FitBatches& batches) {
+  const Timer timer;
   const int objects = a_.objectCount();
   HighlightEvidence evidence(objects);
+  // What the fit renders on the same connections at each tested roughness (highlight_absence).
+  std::vector<HighlightEvidence> rendered;
+  if (c_.highlightAbsence) rendered.assign(kAbsenceRoughness.size(), HighlightEvidence(objects));
   for (uint64_t probe = 0; probe < kHighlightProbeBatches; ++probe) {
     Batch batch = batches.sample(space, (uint64_t{1} << 40) + probe, c_.rayFootprint);
     gains_.apply(batch.rays, batch.frame);
@@ -326,17 +404,53 @@ void LightDecisions::decideHighlights(const TexelSpace& space, const FitBatches&
       if (sawLight[j] >= 0) lum[j] = luminance(batch.rays[j].reference / batch.rays[j].gain);
     });
     evidence.addBatch(batch.slot, batch.object, lum, sawLight);
+    if (!c_.highlightAbsence) continue;
+    std::vector<int8_t> counted;
+    const uint64_t stream = hashTuple({c_.seed, streamTag(RandomStream::HighlightAbsence), probe});
+    const auto atEach = renderAtEachRoughness(*w_.scene, a_, batch, sawLight, lum, counted, stream);
+    std::vector<float> atRoughness(lum.size());
+    for (size_t k = 0; k < kAbsenceRoughness.size(); ++k) {
+      for (size_t j = 0; j < lum.size(); ++j) atRoughness[j] = atEach[j][k];
+      rendered[k].addBatch(batch.slot, batch.object, atRoughness, counted);
+    }
   }
   for (int o = 0; o < objects; ++o) {
     r_.highlightPairs[o] = evidence.texels(o), r_.highlightContrast[o] = evidence.contrast(o);
     r_.highlight[o] = !r_.emitter[o] && evidence.observed(o, c_.highlightMinPairs, c_.highlightMinContrast);
+    std::string outcome = r_.highlight[o] ? "roughness/specular fitted" : "roughness/specular unconstrained (kept at init)";
+    r_.roughnessAtLeast[o] = -1;
+    if (c_.highlightAbsence && !r_.highlight[o] && !r_.emitter[o] && !r_.outOfModel[o] &&
+        evidence.texels(o) >= static_cast<uint64_t>(c_.highlightMinPairs)) {
+      std::array<double, kAbsenceRoughness.size()> contrast{}, error{};
+      for (size_t k = 0; k < kAbsenceRoughness.size(); ++k)
+        contrast[k] = rendered[k].contrast(o), error[k] = rendered[k].standardError(o);
+      const RoughnessFromAbsence r =
+          roughnessFromAbsence(evidence.contrast(o), evidence.standardError(o), kAbsenceRoughness, contrast, error);
+      std::string curve;
+      for (size_t k = 0; k < kAbsenceRoughness.size(); ++k)
+        curve += fmt::format(" {:.1f}: {:+.1f}% +- {:.1f}%;", kAbsenceRoughness[k], 100 * contrast[k], 100 * error[k]);
+      spdlog::debug("fit: object {} ({}) rendered at each roughness:{}", o, a_.names[o], curve);
+      r_.roughnessAtLeast[o] = r.atLeast;
+      a_.roughness[o] = r.chosen;
+      outcome = r.roughestRuledOut
+                    ? fmt::format("roughness 1: even the roughest renders {:+.1f}% at specular {:.2f}",
+                                  100 * contrast.back(), a_.specular[o])
+                    : fmt::format("roughness {:.2f}: a smoother lobe would have shown a highlight, ruled out below "
+                                  "{:.1f} at specular {:.2f} (rendered {:+.1f}% there, {:+.1f}% at {:.1f})",
+                                  r.chosen, r.atLeast, a_.specular[o],
+                                  100 * contrast[std::find(kAbsenceRoughness.begin(), kAbsenceRoughness.end(),
+                                                           r.atLeast) - kAbsenceRoughness.begin()],
+                                  100 * contrast.front(), kAbsenceRoughness.front());
+    }
     spdlog::info(
         "fit: object {} ({}): {} texels seen with and without a light reflected, {:+.1f}% +- {:.1f}% brighter with it "
-        "-> "
-        "roughness/specular {}",
-        o, a_.names[o], evidence.texels(o), 100 * evidence.contrast(o), 100 * evidence.standardError(o),
-        r_.highlight[o] ? "fitted" : "unconstrained (kept at init)");
+        "-> {}",
+        o, a_.names[o], evidence.texels(o), 100 * evidence.contrast(o), 100 * evidence.standardError(o), outcome);
   }
+  spdlog::info("fit: highlight test: {} objects fitted, {} bounded by the absence of one, in {:.1f} s",
+               std::count(r_.highlight.begin(), r_.highlight.end(), 1),
+               std::count_if(r_.roughnessAtLeast.begin(), r_.roughnessAtLeast.end(), [](float r) { return r >= 0; }),
+               timer.seconds());
 }
 
 }  // namespace relume

@@ -29,6 +29,7 @@ struct ObjectRoles {
   Json lightDecisions = Json::array();    // each decision's evidence (result/lights.json)
   std::vector<uint64_t> highlightPairs;   // texels compared with and without a light reflected
   std::vector<double> highlightContrast;  // their mean contrast
+  std::vector<float> roughnessAtLeast;    // what the absence of a highlight bounds it by (-1: not tested)
   std::vector<double> observedSum;        // luminance of the references seen in the emission stage
   std::vector<uint64_t> observedCount;
 
@@ -65,8 +66,10 @@ class LightDecisions {
   // radiance seeing a light / mean radiance not - 1 (the same texel from other frames, so albedo
   // and irradiance cancel). Roughness and specular are fitted on objects whose mean contrast,
   // less two standard errors, reaches highlight_min_contrast over at least highlight_min_pairs
-  // texels; elsewhere nothing in the data constrains them (a rough wall reflecting a lamp at a
-  // grazing angle is no brighter for it), so they keep their init and are reported unconstrained.
+  // texels. On the other objects seen both ways often enough (highlight_absence), the absence of
+  // a highlight bounds the roughness from below (roughnessFromAbsence: the roughnesses the fit
+  // would render a brighter contrast at than the frames show are ruled out), and the roughness
+  // takes the middle of what is left; elsewhere they keep their init and are reported unconstrained.
   void decideHighlights(const TexelSpace& space, const FitBatches& batches);
 
   // The emission stage's references, per object (the radiance-fraction test compares with them).

@@ -274,6 +274,14 @@ std::string texturesSection(const fs::path& work, const fs::path& out, const Sce
   return s;
 }
 
+// Whether the frames show a highlight on the object, and if not, what that rules out.
+std::string highlightCell(const Json& o) {
+  if (o.at("highlight_observed").get<bool>()) return "yes: roughness and specular fitted";
+  const Json bound = o.value("roughness_at_least", Json(nullptr));
+  return bound.is_number() ? fmt::format("no: roughness at least {:.1f}", bound.get<double>())
+                           : std::string("no: roughness and specular not constrained");
+}
+
 std::string materialsSection(const Json& materials, const SceneDescription* truth) {
   std::string s =
       "<table><tr><th>id</th><th>name</th><th>roughness</th><th>specular</th><th>emission</th><th>light</th>"
@@ -293,7 +301,7 @@ std::string materialsSection(const Json& materials, const SceneDescription* trut
         o.at("is_emitter").get<bool>()   ? "yes"
         : o.value("out_of_model", false) ? "out of model"
                                          : "",
-        o.at("highlight_observed").get<bool>() ? "yes" : "no", 100 * o.at("observed_texel_fraction").get<double>());
+        highlightCell(o), 100 * o.at("observed_texel_fraction").get<double>());
     if (truth && id < truth->appearance.objectCount()) {
       const Appearance& t = truth->appearance;
       const Color e = t.meanEmission(id);

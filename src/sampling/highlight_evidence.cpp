@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/check.h"
 #include "core/error.h"
 
 namespace relume {
@@ -40,6 +41,29 @@ double HighlightEvidence::standardError(int o) const {
 bool HighlightEvidence::observed(int o, int minTexels, double minContrast) const {
   return texels_[o] >= static_cast<uint64_t>(std::max(minTexels, 1)) &&
          contrast(o) - 2 * standardError(o) >= minContrast;
+}
+
+RoughnessFromAbsence roughnessFromAbsence(double observed, double observedError, std::span<const float> grid,
+                                          std::span<const double> rendered, std::span<const double> renderedError) {
+  CHECK(!grid.empty() && grid.back() == 1.0f && rendered.size() == grid.size() && renderedError.size() == grid.size());
+  CHECK(std::is_sorted(grid.begin(), grid.end()));
+  // A highlight only adds light: a texel darker with a light reflected (occlusion the mesh lacks,
+  // noise) says nothing about the lobe, and counted as it is it would rule out what the frames
+  // cannot.
+  const double shown = std::max(observed, 0.0);
+  const auto allowed = [&](size_t k) {
+    return rendered[k] - shown <= 2 * std::sqrt(observedError * observedError + renderedError[k] * renderedError[k]);
+  };
+  RoughnessFromAbsence r;
+  if (!allowed(grid.size() - 1)) {
+    r.roughestRuledOut = true;
+    return r;
+  }
+  size_t lowest = grid.size() - 1;
+  while (lowest > 0 && allowed(lowest - 1)) --lowest;
+  r.atLeast = grid[lowest];
+  r.chosen = 0.5f * (r.atLeast + 1.0f);
+  return r;
 }
 
 }  // namespace relume

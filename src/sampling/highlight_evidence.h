@@ -30,4 +30,21 @@ class HighlightEvidence {
   std::vector<double> sum_, sumSquares_;
 };
 
+// What the absence of a highlight says about an object's roughness (its specular as it is). The
+// frames' contrast on its texels (`observed` +- `observedError`) is set against the contrast the
+// model renders on the same connections with the object at each roughness of `grid` (ascending,
+// ending at the roughest, 1): a roughness is ruled out where its rendered contrast exceeds the
+// observed one by more than two standard errors of their difference (a highlight the frames would
+// have shown; a negative contrast counts as 0). Lower roughness only sharpens a lobe, so what is left is an interval [atLeast, 1];
+// nothing in the frames prefers one roughness in it to another, and its middle is the choice whose
+// worst error over it is smallest. When even the roughest is ruled out (a contrast the model
+// cannot make as small as the frames' at this specular), the roughest is taken.
+struct RoughnessFromAbsence {
+  float atLeast = 1;
+  float chosen = 1;
+  bool roughestRuledOut = false;
+};
+RoughnessFromAbsence roughnessFromAbsence(double observed, double observedError, std::span<const float> grid,
+                                          std::span<const double> rendered, std::span<const double> renderedError);
+
 }  // namespace relume

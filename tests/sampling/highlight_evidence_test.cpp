@@ -63,3 +63,39 @@ TEST(HighlightEvidence, OnlyTexelsSeenBothWaysCountAndBadRaysAreSkipped) {
   EXPECT_DOUBLE_EQ(e.contrast(0), 2.0);  // 3 / 1 - 1
   EXPECT_THROW(e.addBatch(slot, object, lum, std::vector<int8_t>(3, 0)), Error);
 }
+
+// A rough wall: +0.5% +- 0.3% brighter with a light reflected. Rendered, a lobe of roughness 0.1
+// to 0.5 would have made it 40% to 4% brighter; from 0.6 on the difference is within two standard
+// errors: roughness at least 0.6, taken as 0.8.
+TEST(RoughnessFromAbsence, RulesOutTheRoughnessesThatWouldHaveShownAHighlight) {
+  const std::vector<float> grid = {0.1f, 0.2f, 0.3f, 0.4f, 0.5f, 0.6f, 0.7f, 0.8f, 0.9f, 1.0f};
+  const std::vector<double> rendered = {0.40, 0.25, 0.12, 0.07, 0.04, 0.012, 0.008, 0.006, 0.005, 0.004};
+  const std::vector<double> error(grid.size(), 0.002);
+  const RoughnessFromAbsence r = roughnessFromAbsence(0.005, 0.003, grid, rendered, error);
+  EXPECT_FLOAT_EQ(r.atLeast, 0.6f);
+  EXPECT_FLOAT_EQ(r.chosen, 0.8f);
+  EXPECT_FALSE(r.roughestRuledOut);
+  // Noisier frames (+-2%) no longer rule out 0.5: 0.04 - 0.005 is within 2 x 0.0201.
+  const RoughnessFromAbsence noisy = roughnessFromAbsence(0.005, 0.02, grid, rendered, error);
+  EXPECT_FLOAT_EQ(noisy.atLeast, 0.5f);
+  // Nothing seen at all would be consistent with any roughness: the middle of the whole range.
+  const RoughnessFromAbsence blind = roughnessFromAbsence(0.005, 1.0, grid, rendered, error);
+  EXPECT_FLOAT_EQ(blind.atLeast, 0.1f);
+  EXPECT_FLOAT_EQ(blind.chosen, 0.55f);
+}
+
+// A roughness allowed below one that is ruled out does not count: the interval reaches 1.
+TEST(RoughnessFromAbsence, KeepsOnlyTheIntervalThatReachesTheRoughest) {
+  const std::vector<float> grid = {0.25f, 0.5f, 0.75f, 1.0f};
+  const std::vector<double> rendered = {0.0, 0.3, 0.0, 0.0};  // 0.25 allowed by noise, 0.5 not
+  const std::vector<double> error(grid.size(), 0.01);
+  EXPECT_FLOAT_EQ(roughnessFromAbsence(0.0, 0.01, grid, rendered, error).atLeast, 0.75f);
+  // Even the roughest renders more than the frames show: taken as the roughest.
+  const std::vector<double> bright(grid.size(), 0.5);
+  const RoughnessFromAbsence r = roughnessFromAbsence(0.0, 0.01, grid, bright, error);
+  EXPECT_TRUE(r.roughestRuledOut);
+  EXPECT_FLOAT_EQ(r.chosen, 1.0f);
+  // A texel darker with a light reflected is no evidence against a lobe: -30% counts as 0.
+  const std::vector<double> faint = {0.2, 0.02, 0.01, 0.0};
+  EXPECT_FLOAT_EQ(roughnessFromAbsence(-0.3, 0.01, grid, faint, error).atLeast, 0.5f);
+}

@@ -35,9 +35,11 @@ class HighlightEvidence {
 // model renders on the same connections with the object at each roughness of `grid` (ascending,
 // ending at the roughest, 1): a roughness is ruled out where its rendered contrast exceeds the
 // observed one by more than two standard errors of their difference (a highlight the frames would
-// have shown; a negative contrast counts as 0). Lower roughness only sharpens a lobe, so what is left is an interval [atLeast, 1];
-// nothing in the frames prefers one roughness in it to another, and its middle is the choice whose
-// worst error over it is smallest. When even the roughest is ruled out (a contrast the model
+// have shown; a negative contrast counts as 0). What is kept is the run of allowed roughnesses
+// that reaches the roughest, [atLeast, 1] (a smoother lobe allowed below a ruled-out one points
+// its highlight away from the lights the frames show, which a rougher one would not). Nothing in
+// the frames prefers one roughness in it to another, and its middle is the choice whose worst
+// error over it is smallest. When even the roughest is ruled out (a contrast the model
 // cannot make as small as the frames' at this specular), the roughest is taken.
 struct RoughnessFromAbsence {
   float atLeast = 1;

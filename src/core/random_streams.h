@@ -16,7 +16,7 @@ enum class RandomStream : uint64_t {
   HighlightProbe = 0x70726f,        // product/fit_batches.cpp: which texels see a light reflected
   MaterialBatch = 0x6d6174,         // product/fit_batches.cpp: the fitted objects' extra texels
   HighlightBatch = 0x686c74,        // product/fit_batches.cpp: their highlight texels
-  HighlightAbsence = 0x686162,      // product/light_decisions.cpp: the paths rendered at each roughness
+  HighlightAbsence = 0x686162,      // product/light_decisions.cpp: the lobe samples at each roughness
   EmissionBatch = 0x656d69,         // product/fit_batches.cpp: each light-source candidate's texels
   LightDecision = 0x6c69676874,     // product/light_decisions.cpp: each decision's evidence rays
   ReflectorBound = 0x7265666c,      // product/light_evidence.cpp: the albedo-1 bound's paths

@@ -325,26 +325,32 @@ constexpr std::array<float, 10> kAbsenceRoughness = {0.1f, 0.2f, 0.3f, 0.4f, 0.5
 constexpr int kAbsenceLobeSamples = 16;
 
 // The light a connection's first surface reflects straight from the light sources through its
-// specular lobe alone, at roughness `roughness` and the fit's specular: the lobe's own samples
-// (f cos / pdf stays near the Fresnel factor at any roughness), each counting the emission it
-// reaches. It is what a highlight adds to the texel's radiance; its diffuse radiance, the same
-// from every view, cancels in the contrast.
-float directSpecular(const Scene& scene, const Appearance& a, const BatchRay& ray, float roughness, uint64_t stream) {
+// specular lobe alone, at each roughness of kAbsenceRoughness and the fit's specular: the lobe's
+// own samples (f cos / pdf stays near the Fresnel factor at any roughness), each counting the
+// emission it reaches, the same random numbers at every roughness. It is what a highlight adds to
+// the texel's radiance; its diffuse radiance, the same from every view, cancels in the contrast.
+std::array<float, kAbsenceRoughness.size()> directSpecular(const Scene& scene, const Appearance& a,
+                                                           const BatchRay& ray, uint64_t stream) {
+  std::array<float, kAbsenceRoughness.size()> out{};
   const auto hit = scene.intersect(ray.origin, ray.dir);
-  if (!hit) return 0;
+  if (!hit) return out;
   const ShadingFrame frame(hit->ng.dot(ray.dir) < 0.0f ? hit->ns : Vec3(-hit->ns));
-  const VertexBsdf lobe({Color::Zero(), roughness, a.specular[hit->object], a.model}, frame.toLocal(-ray.dir));
-  Pcg32 rng(stream);
-  Color sum = Color::Zero();
-  for (int k = 0; k < kAbsenceLobeSamples; ++k) {
-    const float uLobe = rng.next1D();
-    const auto bs = lobe.sample(uLobe, rng.next2D());
-    if (!bs) continue;
-    const Vec3 d = frame.toWorld(bs->wi);
-    if (const auto light = scene.intersect(Scene::offsetOrigin(*hit, d), d))
-      sum += bs->weight * emittedRadiance(a, *light, d);
+  const Vec3 wo = frame.toLocal(-ray.dir);
+  for (size_t r = 0; r < kAbsenceRoughness.size(); ++r) {
+    const VertexBsdf lobe({Color::Zero(), kAbsenceRoughness[r], a.specular[hit->object], a.model}, wo);
+    Pcg32 rng(stream);
+    Color sum = Color::Zero();
+    for (int k = 0; k < kAbsenceLobeSamples; ++k) {
+      const float uLobe = rng.next1D();
+      const auto bs = lobe.sample(uLobe, rng.next2D());
+      if (!bs) continue;
+      const Vec3 d = frame.toWorld(bs->wi);
+      if (const auto light = scene.intersect(Scene::offsetOrigin(*hit, d), d))
+        sum += bs->weight * emittedRadiance(a, *light, d);
+    }
+    out[r] = luminance(sum) / kAbsenceLobeSamples;
   }
-  return luminance(sum) / kAbsenceLobeSamples;
+  return out;
 }
 
 // Per connection of `batch` on a texel seen both with a light reflected and without, at each
@@ -379,9 +385,8 @@ std::vector<std::array<float, kAbsenceRoughness.size()>> renderAtEachRoughness(c
   std::vector<std::array<float, K>> lum(n);
   tbb::parallel_for(size_t{0}, n, [&](size_t j) {
     if (counted[j] < 0) return;
-    const uint64_t rayStream = hashTuple({stream, static_cast<uint64_t>(j)});
-    for (size_t k = 0; k < K; ++k)
-      lum[j][k] = shownWithout[j] + directSpecular(scene, a, batch.rays[j], kAbsenceRoughness[k], rayStream);
+    lum[j] = directSpecular(scene, a, batch.rays[j], hashTuple({stream, static_cast<uint64_t>(j)}));
+    for (float& v : lum[j]) v += shownWithout[j];
   });
   return lum;
 }

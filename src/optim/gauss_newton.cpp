@@ -16,12 +16,24 @@ bool GaussNewtonState::stepEntry(size_t i, std::span<float> x, std::span<const f
   if (!std::isfinite(g[i]) || !std::isfinite(h[i]) || h[i] < 0.0f) return false;
   if (steps[i] < 65535) ++steps[i];
   const float weight = std::max(s.damping, 1.0f / static_cast<float>(steps[i]));
-  numerator[i] += weight * (x[i] * h[i] - g[i] - numerator[i]);
+  const float visit = x[i] * h[i] - g[i];
+  if (tracksSpread()) {
+    // The visit's residual about the current value x: (x h - g) - x h = -g.
+    const float w = residualSquare[i] < 0.0f ? 1.0f : weight;
+    residualSquare[i] += w * (g[i] * g[i] - residualSquare[i]);
+    weightSquare[i] = (1.0f - weight) * (1.0f - weight) * weightSquare[i] + weight * weight;
+  }
+  numerator[i] += weight * (visit - numerator[i]);
   curvature[i] += weight * (h[i] - curvature[i]);
   if (!(curvature[i] > 0.0f)) return false;  // no sensitivity seen yet (a gradient from a deeper vertex only)
   const float target = numerator[i] / curvature[i];
   x[i] = std::clamp(std::clamp(target, x[i] - s.maxStep, x[i] + s.maxStep), lo, hi);
   return true;
+}
+
+float GaussNewtonState::standardError(size_t i) const {
+  if (!tracksSpread() || residualSquare[i] < 0.0f || !(curvature[i] > 0.0f)) return -1.0f;
+  return std::sqrt(residualSquare[i] * weightSquare[i]) / curvature[i];
 }
 
 size_t GaussNewtonState::step(std::span<float> x, std::span<const float> g, std::span<const float> h, float lo,

@@ -10,6 +10,12 @@
 // the neighbours still move). Entries with no gradient this iteration are left alone, as in
 // masked Adam. Adam's step is about lr whatever the residual, so a texel 0.3 too dark needs
 // ~0.3 / lr visits at full signal and many more at the 1-spp noise level.
+// With `trackSpread`, the state also estimates each entry's standard error: x = sum_k c_k n_k /
+// sum_k c_k h_k (c_k the visits' weights, summing to 1; n_k = x h_k - g_k), so x - x* is
+// sum_k c_k (n_k - x* h_k) / H and its variance sum_k c_k^2 Var(n_k - x* h_k) / H^2. The state
+// keeps sum_k c_k^2 and a running average, with the same weights, of the squared residual of each
+// visit about the value it was taken at, n_k - x h_k = -g_k (once x has settled near x*, its
+// variance; before, larger, so the error errs high).
 #pragma once
 #include <cstdint>
 #include <span>
@@ -25,8 +31,16 @@ struct GaussNewtonSettings {
 class GaussNewtonState {
  public:
   GaussNewtonState() = default;
-  explicit GaussNewtonState(size_t entries) : numerator(entries, 0.0f), curvature(entries, 0.0f), steps(entries, 0) {}
+  explicit GaussNewtonState(size_t entries, bool trackSpread = false)
+      : numerator(entries, 0.0f),
+        curvature(entries, 0.0f),
+        steps(entries, 0),
+        residualSquare(trackSpread ? entries : 0, -1.0f),
+        weightSquare(trackSpread ? entries : 0, 0.0f) {}
   size_t size() const { return curvature.size(); }
+  bool tracksSpread() const { return !weightSquare.empty(); }
+  // Entry i's standard error; negative when unknown (no spread tracked, or no visit yet).
+  float standardError(size_t i) const;
   // One step on x with gradient g and curvature sample h, then projection onto [lo, hi].
   // Returns the entries updated. (The fit steps through stepTexels; this is its reference.)
   size_t step(std::span<float> x, std::span<const float> g, std::span<const float> h, float lo, float hi,
@@ -40,6 +54,8 @@ class GaussNewtonState {
   std::vector<float> numerator;  // running average of x h - g
   std::vector<float> curvature;  // running average of h
   std::vector<uint16_t> steps;   // visits, saturating
+  std::vector<float> residualSquare;  // with trackSpread: running average of g^2; < 0: no visit yet
+  std::vector<float> weightSquare;    // with trackSpread: sum of the squared weights of the visits in the fit
 
  private:
   bool stepEntry(size_t i, std::span<float> x, std::span<const float> g, std::span<const float> h, float lo, float hi,

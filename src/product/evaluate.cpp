@@ -130,13 +130,16 @@ ViewComparison compareViews(const SceneDescription& desc, const std::filesystem:
 }
 
 Json TruthComparison::toJson() const {
-  return {{"albedo_texels", albedoTexels},       {"albedo_mae", albedoMae},
+  Json j = {{"albedo_texels", albedoTexels},       {"albedo_mae", albedoMae},
           {"albedo_psnr", albedoPsnr},           {"roughness_mae", roughnessMae},
           {"specular_mae", specularMae},         {"material_objects", materialObjects},
           {"emitters_true", emittersTrue},       {"emitters_found", emittersFound},
           {"emitters_correct", emittersCorrect}, {"emission_rel_error", emissionRelError},
           {"albedo_psnr_8bit", albedoPsnr8},     {"roughness_psnr_8bit", roughnessPsnr8},
           {"emission_iou", emissionIou},         {"objects", perObject}};
+  if (albedoStandardErrorRms >= 0)
+    j["albedo_stderr_rms"] = albedoStandardErrorRms, j["albedo_within_2_stderr"] = albedoWithinTwoStandardErrors;
+  return j;
 }
 
 TruthOptions truthOptionsFor(const std::filesystem::path& sceneFile) {
@@ -148,6 +151,8 @@ TruthOptions truthOptionsFor(const std::filesystem::path& sceneFile) {
     for (const Json& obj : m.at("objects")) o.highlightObserved.push_back(obj.at("highlight_observed").get<bool>());
     return 0;
   });
+  if (const std::filesystem::path e = sceneFile.parent_path() / "albedo_stderr.exr"; pathExists(e))
+    o.albedoStandardError = readImage(e);
   return o;
 }
 
@@ -179,8 +184,11 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
   const int res = fa.albedo.width;
   const TexelMap map(fm, res);
   if (truthAlbedo) *truthAlbedo = Image(res, res);
-  double abs = 0, sq = 0, sq8 = 0, roughSq8 = 0;
-  size_t emitBoth = 0, emitEither = 0;
+  double abs = 0, sq = 0, sq8 = 0, roughSq8 = 0, seSq = 0;
+  size_t emitBoth = 0, emitEither = 0, withinTwo = 0;
+  const Image* se = o.albedoStandardError ? &*o.albedoStandardError : nullptr;
+  if (se && (se->width != res || se->height != res))
+    fail("eval: albedo_stderr.exr is {}x{}, the albedo {}^2", se->width, se->height, res);
   struct ObjectError {
     double abs = 0, signedSum = 0;
     size_t texels = 0;
@@ -205,6 +213,11 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
     const Color fitted = fa.albedo.texel(static_cast<uint32_t>(t));
     const Color d = fitted - truth;
     abs += d.abs().sum() / 3, sq += d.square().sum() / 3;
+    if (se) {
+      const Color e = se->at(static_cast<int>(t % res), static_cast<int>(t / res));
+      seSq += e.square().sum() / 3;
+      for (int k = 0; k < 3; ++k) withinTwo += std::abs(d[k]) <= 2 * e[k];
+    }
     for (int k = 0; k < 3; ++k) sq8 += std::pow((srgb8(fitted[k]) - srgb8(truth[k])) / 255.0, 2) / 3;
     roughSq8 += std::pow((unit8(fa.roughness[fObj]) - unit8(ta.roughness[tObj])) / 255.0, 2);
     ++c.albedoTexels;
@@ -214,6 +227,9 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
   if (c.albedoTexels) {
     c.albedoMae = abs / c.albedoTexels, c.albedoPsnr = psnrOf(sq, c.albedoTexels);
     c.albedoPsnr8 = psnrOf(sq8, c.albedoTexels), c.roughnessPsnr8 = psnrOf(roughSq8, c.albedoTexels);
+    if (se)
+      c.albedoStandardErrorRms = std::sqrt(seSq / c.albedoTexels),
+      c.albedoWithinTwoStandardErrors = static_cast<double>(withinTwo) / (3 * c.albedoTexels);
   }
   c.emissionIou = emitEither ? static_cast<double>(emitBoth) / emitEither : 1.0;
   // Per object.
@@ -275,6 +291,9 @@ void runEvaluation(const EvalOptions& o) {
         "peers' measures: albedo PSNR {:.2f} dB (8-bit sRGB maps), roughness PSNR {:.2f} dB (8-bit maps), emission IoU "
         "{:.3f}\n",
         t->albedoPsnr8, t->roughnessPsnr8, t->emissionIou);
+    if (t->albedoStandardErrorRms >= 0)
+      fmt::print("albedo standard errors: RMS {:.4f} against an error RMS of {:.4f}; {:.1f}% of errors within two\n",
+                 t->albedoStandardErrorRms, std::pow(10.0, -t->albedoPsnr / 20), 100 * t->albedoWithinTwoStandardErrors);
     for (const Json& object : t->perObject) fmt::print("  {}\n", object.dump());
   }
 }

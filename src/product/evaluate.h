@@ -4,6 +4,7 @@
 // roughness/specular error where highlights were observed, emitter set and emission error.
 #pragma once
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -67,14 +68,20 @@ ViewComparison compareViews(const SceneDescription& scene, const std::filesystem
 struct TruthOptions {
   int minObservations = 5;                 // albedo texels observed at least this often count
   std::vector<uint8_t> highlightObserved;  // per object: roughness/specular count (empty: all)
+  std::optional<Image> albedoStandardError;  // the fit's, per texel of its albedo: scored for calibration
 };
 // The options a fit's result asks for: roughness/specular scored on the objects its materials.json
-// (beside scene.json) says the frames showed a highlight on; every object when there is none.
+// (beside scene.json) says the frames showed a highlight on; every object when there is none; the
+// albedo's standard errors scored when albedo_stderr.exr is beside it.
 TruthOptions truthOptionsFor(const std::filesystem::path& sceneFile);
 
 struct TruthComparison {
   size_t albedoTexels = 0;
   double albedoMae = 0, albedoPsnr = 0;
+  // With the fit's standard errors, over the same texels and channels: their RMS (against the
+  // error's, from albedoPsnr) and the fraction of errors within two of them (0.95 if honest and
+  // unbiased; bias the errors do not count lowers it).
+  double albedoStandardErrorRms = -1, albedoWithinTwoStandardErrors = -1;
   // Peers' measures, over the same texels: PSNR of 8-bit sRGB albedo maps and of 8-bit roughness
   // maps (each texel its object's roughness), and the IoU of emitting texels (every covered texel).
   double albedoPsnr8 = 0, roughnessPsnr8 = 0, emissionIou = 0;

@@ -12,6 +12,7 @@
 #include "io/file_system.h"
 #include "io/image.h"
 #include "optim/checkpoint.h"
+#include "optim/texel_smoothing.h"
 #include "optim/upsample.h"
 #include "product/fit_batches.h"
 #include "product/fit_checkpoint.h"
@@ -61,6 +62,8 @@ class Fit {
   std::unique_ptr<TexelSpace> start(const Stage& first);
   std::unique_ptr<TexelSpace> resume(const Checkpoint& ck, size_t stageCount, FitPosition& at);
   void initialiseAlbedo(const TexelSpace& space);
+  std::vector<float> medianRadiance(const TexelSpace& space) const;
+  void settleAlbedoError(const TexelSpace& space);
   void upsampleAlbedo(const TexelSpace& from, const TexelSpace& to);
   void runStage(const Stage& st, size_t stageIndex, int firstIteration, const TexelSpace& space);
   void finishStage(const Stage& st, size_t stageIndex, const TexelSpace& space);
@@ -81,7 +84,7 @@ class Fit {
   void writeCheckpoint(size_t stage, int iteration, const TexelSpace& space);
   fs::path writeResult(const TexelSpace& space) const {
     return writeFitResult(w_, appearance_, space, roles_, c_, gains_,
-                          {globalIteration_, lastLoss_, stats_, peakMemory_});
+                          {globalIteration_, lastLoss_, stats_, peakMemory_}, albedoError_);
   }
 
   FitConfig c_;
@@ -98,6 +101,7 @@ class Fit {
   FrameGains gains_;
   LightDecisions decisions_;
   SamplerStats stats_;
+  std::vector<float> albedoError_;      // the settled albedo's standard error per entry (empty: none)
   std::optional<LightSampler> lights_;  // by the current emission; each iteration's shares the last's tables
   size_t lightSamplerBytesPeak_ = 0;    // the most lights_->bytes() has been
   float radianceScale_ = 1e-6f;
@@ -230,15 +234,19 @@ std::unique_ptr<TexelSpace> Fit::resume(const Checkpoint& ck, size_t stageCount,
   return space;
 }
 
-void Fit::initialiseAlbedo(const TexelSpace& space) {
-  if (!c_.medianInit) return;  // ablation: mid-grey everywhere
+// Prepare's median radiance per texel (albedo_init.exr), at `space`'s resolution.
+std::vector<float> Fit::medianRadiance(const TexelSpace& space) const {
   const Image init = readImage(w_.dir / "albedo_init.exr");
   if (init.width != w_.initResolution) fail("{}: albedo_init.exr has the wrong size", w_.dir.string());
   std::vector<float> v(init.rgb.begin(), init.rgb.end());
-  if (space.resolution != w_.initResolution) {
-    const TexelMap initMap(w_.mesh, w_.initResolution);
-    v = upsampleTexels(v, initMap, space.map, w_.mesh, 3);
-  }
+  if (space.resolution == w_.initResolution) return v;
+  const TexelMap initMap(w_.mesh, w_.initResolution);
+  return upsampleTexels(v, initMap, space.map, w_.mesh, 3);
+}
+
+void Fit::initialiseAlbedo(const TexelSpace& space) {
+  if (!c_.medianInit) return;  // ablation: mid-grey everywhere
+  std::vector<float> v = medianRadiance(space);
   // The median is radiance, darker than albedo by the irradiance factor (~0.4 in a lit room): a
   // lit wall would then need an emission of its own to look right, and the emission stage would
   // find light sources everywhere. White-patch normalisation: the 95th-percentile observed texel
@@ -394,6 +402,7 @@ void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const
 void Fit::finishStage(const Stage& st, size_t stageIndex, const TexelSpace& space) {
   std::vector<ParamGroup> groups = paramGroups(appearance_);
   optimiser_.settle(groups, st);
+  if (st.settles.active(ParamKind::Albedo)) settleAlbedoError(space);
   if (st.fillUnobservedAfter) decisions_.fillUnobservedAlbedo(space);
   if (st.pruneAfter || st.redecideAfter) {
     if (decisions_.decide(space, st.name, st.pruneAfter)) optimiser_.restartAfterLightChange();
@@ -402,6 +411,36 @@ void Fit::finishStage(const Stage& st, size_t stageIndex, const TexelSpace& spac
   if (st.pruneAfter && c_.emitterParameterisation && c_.clippedLightScale) decisions_.findClippedLights(space);
   if (st.scaleClippedLightsAfter && decisions_.scaleClippedLights(space, st.name)) optimiser_.restartAfterLightChange();
   if (hooks_.writeFiles) writeCheckpoint(stageIndex + 1, 0, space);
+}
+
+// The settled albedo's standard errors, and with albedo_smoothing the albedo smoothed by them
+// (optim/texel_smoothing.h) on the texels whose albedo is fitted.
+void Fit::settleAlbedoError(const TexelSpace& space) {
+  albedoError_ = optimiser_.albedoStandardError();
+  if (albedoError_.empty() || c_.albedoSmoothing == AlbedoSmoothing::None) return;
+  const std::vector<uint8_t> held = decisions_.albedoHeld();
+  std::vector<uint8_t> eligible(space.map.texelCount(), 0);
+  for (size_t t = 0; t < eligible.size(); ++t)
+    eligible[t] = space.updatable[t] && space.map.covered(t) && !held[space.objectOf(t, w_.mesh)];
+  const std::vector<float> guide =
+      c_.albedoSmoothing == AlbedoSmoothing::Ratio ? medianRadiance(space) : std::vector<float>{};
+  TexelSmoothingSettings settings;
+  settings.radius = c_.albedoSmoothingRadius;
+  SmoothedTexels s = smoothTexels(space.map, w_.mesh, appearance_.albedo.rgb, albedoError_, eligible, guide, settings);
+  const ParamGroup albedo = paramGroups(appearance_).front();
+  CHECK(albedo.kind == ParamKind::Albedo);
+  for (float& v : s.values) v = std::clamp(v, albedo.lo, albedo.hi);
+  auto median = [](std::vector<float> e) {
+    std::erase_if(e, [](float x) { return x < 0; });
+    if (e.empty()) return 0.0f;
+    std::nth_element(e.begin(), e.begin() + e.size() / 2, e.end());
+    return e[e.size() / 2];
+  };
+  spdlog::info("fit: albedo smoothed ({}, radius {}) on {} texels; median standard error {:.4f} -> {:.4f}",
+               enumName(c_.albedoSmoothing), c_.albedoSmoothingRadius, s.smoothed, median(albedoError_),
+               median(s.standardError));
+  appearance_.albedo.rgb = std::move(s.values);
+  albedoError_ = std::move(s.standardError);
 }
 
 void Fit::appendMetrics(const Json& j) const {
@@ -415,6 +454,10 @@ void Fit::serialiseState(CheckpointIo& io) {
   std::vector<ParamGroup> groups = paramGroups(appearance_);
   for (ParamGroup& g : groups) io.array(g.name() + ".values", g.values);
   optimiser_.serialise(io, groups, appearance_.albedo.rgb.size());
+  if (io.optional("albedo.standard_error", !albedoError_.empty())) {
+    if (!io.writing()) albedoError_.resize(appearance_.albedo.rgb.size());
+    io.array("albedo.standard_error", albedoError_);
+  }
   roles_.serialise(io);
   gains_.serialise(io);
 }

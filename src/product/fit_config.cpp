@@ -13,7 +13,8 @@ namespace relume {
 namespace {
 
 using ConfigField = std::variant<int*, float*, bool*, uint64_t*, std::vector<std::string>*, SamplerKind*, AlbedoStep*,
-                                 LightTest*, RayFootprint*, GradientMode*, EmitterGradients*, Pairing*, FrameGainMode*>;
+                                 LightTest*, RayFootprint*, GradientMode*, EmitterGradients*, Pairing*, FrameGainMode*,
+                                 AlbedoSmoothing*>;
 
 // The keys, in the order the reference lists them.
 template <typename Fn>
@@ -37,6 +38,9 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("roulette_depth", ConfigField(&c.rouletteDepth));
   fn("albedo_step", ConfigField(&c.albedoStep));
   fn("albedo_damping", ConfigField(&c.albedoDamping));
+  fn("albedo_standard_error", ConfigField(&c.albedoStandardError));
+  fn("albedo_smoothing", ConfigField(&c.albedoSmoothing));
+  fn("albedo_smoothing_radius", ConfigField(&c.albedoSmoothingRadius));
   fn("lr_albedo", ConfigField(&c.lrAlbedo));
   fn("lr_roughness", ConfigField(&c.lrRoughness));
   fn("lr_specular", ConfigField(&c.lrSpecular));
@@ -118,6 +122,9 @@ void FitConfig::validate(const std::string& where) const {
   // hold (docs/design/fit.md).
   need(c.albedoStep != AlbedoStep::GaussNewton || c.gradients == GradientMode::Direct,
        "gradients full needs albedo_step adam");
+  need(c.albedoSmoothing == AlbedoSmoothing::None || c.albedoStandardError,
+       "albedo_smoothing needs albedo_standard_error (or set it to none)");
+  need(c.albedoSmoothingRadius >= 1 && c.albedoSmoothingRadius <= 8, "albedo_smoothing_radius must be in [1, 8]");
   need(std::isfinite(c.albedoDamping) && c.albedoDamping > 0 && c.albedoDamping <= 1,
        "albedo_damping must be in (0, 1]");
   need(c.lrFinalFraction > 0 && c.lrFinalFraction <= 1, "lr_final_fraction must be in (0, 1]");

@@ -21,6 +21,9 @@ namespace relume {
 enum class SamplerKind { Texture, Image };    // texture space (the paper's) or image space (the ablation's baseline)
 enum class AlbedoStep { GaussNewton, Adam };  // damped diagonal Gauss-Newton (optim/gauss_newton.h) or the paper's Adam
 enum class LightTest { Reflector, RadianceFraction };  // how light sources are told from lit surfaces
+// The settled albedo smoothed by its standard errors (optim/texel_smoothing.h): not at all, as it
+// is, or as its ratio to the median init (whose edges the frames show).
+enum class AlbedoSmoothing { None, Albedo, Ratio };
 
 template <>
 struct EnumNames<SamplerKind> {
@@ -31,6 +34,11 @@ template <>
 struct EnumNames<AlbedoStep> {
   static constexpr std::array<std::pair<AlbedoStep, std::string_view>, 2> values{
       {{AlbedoStep::GaussNewton, "gauss-newton"}, {AlbedoStep::Adam, "adam"}}};
+};
+template <>
+struct EnumNames<AlbedoSmoothing> {
+  static constexpr std::array<std::pair<AlbedoSmoothing, std::string_view>, 3> values{
+      {{AlbedoSmoothing::None, "none"}, {AlbedoSmoothing::Albedo, "albedo"}, {AlbedoSmoothing::Ratio, "ratio"}}};
 };
 template <>
 struct EnumNames<LightTest> {
@@ -75,6 +83,11 @@ struct FitConfig {
   // Gauss-Newton: fraction of the Newton step taken once a texel has had 1/damping visits
   // (1/visit before): the estimate averages its last ~1/damping visits, which sets its noise.
   float albedoDamping = 0.005f;
+  // Gauss-Newton: each texel's standard error, from the spread of its visits (8 more bytes per
+  // albedo entry); written as result/albedo_stderr.exr and used by the smoothing.
+  bool albedoStandardError = true;
+  AlbedoSmoothing albedoSmoothing = AlbedoSmoothing::Ratio;
+  int albedoSmoothingRadius = 2;  // texels; the spatial kernel's sigma is half of it
   float lrEmission = 0.2f;  // relative: a step is lr * max(E, emissionFloor * brightest observation)
   float emissionFloor = 0.02f;
   // Relative, per texel: every light sample splats onto some emitter texel, so each is touched

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "core/check.h"
 #include "core/kill_point.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
@@ -13,7 +14,7 @@ namespace fs = std::filesystem;
 
 fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const TexelSpace& space,
                         const ObjectRoles& roles, const FitConfig& c, const FrameGains& gains,
-                        const FitProgress& progress) {
+                        const FitProgress& progress, std::span<const float> albedoError) {
   const fs::path result = w.dir / "result", staging = w.dir / "result.partial";
   removeAll(staging);
   createDirectories(staging);
@@ -22,6 +23,15 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
   Image albedo(space.resolution, space.resolution);
   albedo.rgb = appearance.albedo.rgb;
   writePng(staging / "albedo.png", albedo);
+  if (!albedoError.empty()) {
+    CHECK(albedoError.size() == albedo.rgb.size());
+    Image error(space.resolution, space.resolution);
+    for (size_t t = 0; t < space.map.texelCount(); ++t)
+      for (size_t c = 3 * t; c < 3 * t + 3; ++c)
+        error.rgb[c] = !space.map.covered(t) ? 0.0f : albedoError[c] < 0 ? 1.0f : albedoError[c];
+    writeExr(staging / "albedo_stderr.exr", error);
+    writePng(staging / "albedo_stderr.png", error, 10.0f);
+  }
   Json materials = Json::array();
   std::vector<size_t> observed(appearance.objectCount(), 0), total(appearance.objectCount(), 0);
   for (size_t t = 0; t < space.map.texelCount(); ++t)

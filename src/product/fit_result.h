@@ -2,6 +2,7 @@
 // textures, materials.json, lights.json, frames.json), and the bytes it holds by part.
 #pragma once
 #include <filesystem>
+#include <span>
 
 #include "adjoint/solver.h"
 #include "io/json.h"
@@ -22,10 +23,12 @@ struct FitProgress {
 };
 
 // Writes WORK/result/ atomically (WORK/result.partial/, then renamed); returns its path.
-// frames.json holds the frame gains (FrameGains::toJson).
+// frames.json holds the frame gains (FrameGains::toJson); albedo_stderr.exr (and a .png preview,
+// white at 0.1) the albedo's standard error per texel when `albedoError` is not empty: 1, the
+// albedo's whole range, where it is unknown (texels no frame saw), 0 off the surface.
 std::filesystem::path writeFitResult(const Workspace& w, const Appearance& appearance, const TexelSpace& space,
                                      const ObjectRoles& roles, const FitConfig& c, const FrameGains& gains,
-                                     const FitProgress& progress);
+                                     const FitProgress& progress, std::span<const float> albedoError);
 
 // Bytes the fit holds, by part, once a stage's buffers are allocated; "total" leaves out the
 // frame cache, a mapping of frames.bin of which only the pages the sampler touches are resident.

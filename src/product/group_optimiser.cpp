@@ -65,7 +65,7 @@ bool GroupOptimiser::step(ParamGroup& g, std::span<const float> albedoCurvature,
     // No gradient clamp: the step is bounded by maxStep, and a bright outlier in the adjoint
     // sample inflates the curvature as much as the gradient.
     CHECK(albedoCurvature.size() == g.values.size());  // the stage allocated the curvature
-    if (newton_.size() != g.values.size()) newton_ = GaussNewtonState(g.values.size());
+    if (newton_.size() != g.values.size()) newton_ = GaussNewtonState(g.values.size(), c_.albedoStandardError);
     GaussNewtonSettings gn;
     gn.damping = c_.albedoDamping * lrScale;
     newton_.stepTexels(g.values, g.grads, albedoCurvature, g.lo, g.hi, gn, splattedAlbedo);
@@ -114,6 +114,12 @@ void GroupOptimiser::upsampleAlbedo(const TexelSpace& from, const TexelSpace& to
     for (float& n : up.numerator) n /= f2;
     for (float& h : up.curvature) h /= f2;
     up.steps = upsampleSteps(newton_.steps, from, to, mesh);
+    // The child's fit is its parent's, with its weights; its spread is measured again at the
+    // finer resolution, where a texel's visits see less of the surface.
+    if (newton_.tracksSpread()) {
+      up.weightSquare = upsampleTexels(newton_.weightSquare, from.map, to.map, mesh, 3);
+      up.residualSquare.assign(up.weightSquare.size(), -1.0f);
+    }
     newton_ = std::move(up);
   }
   if (auto it = adam_.find("albedo"); it != adam_.end()) {
@@ -127,6 +133,13 @@ void GroupOptimiser::upsampleAlbedo(const TexelSpace& from, const TexelSpace& to
     s = std::move(up);
   }
   polyak_.erase("albedo");
+}
+
+std::vector<float> GroupOptimiser::albedoStandardError() const {
+  if (!newton_.tracksSpread()) return {};
+  std::vector<float> e(newton_.size());
+  for (size_t i = 0; i < e.size(); ++i) e[i] = newton_.standardError(i);
+  return e;
 }
 
 void GroupOptimiser::restartAfterLightChange() {
@@ -158,6 +171,11 @@ void GroupOptimiser::serialise(CheckpointIo& io, std::span<ParamGroup> groups, s
     io.array("albedo.numerator", newton_.numerator);
     io.array("albedo.curvature", newton_.curvature);
     io.array("albedo.curvature_steps", newton_.steps);
+    if (io.optional("albedo.residual_square", newton_.tracksSpread())) {
+      if (!io.writing()) newton_.residualSquare.resize(albedoEntries), newton_.weightSquare.resize(albedoEntries);
+      io.array("albedo.residual_square", newton_.residualSquare);
+      io.array("albedo.weight_square", newton_.weightSquare);
+    }
   }
 }
 
@@ -165,7 +183,10 @@ double GroupOptimiser::stateBytes() const {
   double bytes = 0;
   for (const auto& [name, a] : adam_)
     bytes += (a.m.size() + a.v.size()) * sizeof(float) + a.steps.size() * sizeof(uint16_t);
-  return bytes + (newton_.numerator.size() + newton_.curvature.size()) * sizeof(float) +
+  return bytes +
+         (newton_.numerator.size() + newton_.curvature.size() + newton_.residualSquare.size() +
+          newton_.weightSquare.size()) *
+             sizeof(float) +
          newton_.steps.size() * sizeof(uint16_t);
 }
 

@@ -251,9 +251,16 @@ std::string texturesSection(const fs::path& work, const fs::path& out, const Sce
   albedo.rgb = fit.appearance.albedo.rgb;
   writeSrgbPng(out / "albedo.png", albedo, 8);
   s += figure("albedo.png", "albedo (fit)");
+  const fs::path standardError = work / "result" / "albedo_stderr.png";
+  if (pathExists(standardError)) {
+    copyFileOver(standardError, out / "albedo_stderr.png");
+    s += figure("albedo_stderr.png", "albedo standard error (black 0, white 0.1 or more: where the frames left it uncertain)");
+  }
   if (truth) {
     Image truthAlbedo;
-    *scores = compareWithTruth(fit, *truth, readImage(work / "coverage.exr"), {}, &truthAlbedo);
+    TruthOptions options;
+    if (const fs::path e = work / "result" / "albedo_stderr.exr"; pathExists(e)) options.albedoStandardError = readImage(e);
+    *scores = compareWithTruth(fit, *truth, readImage(work / "coverage.exr"), options, &truthAlbedo);
     if (!truthAlbedo.rgb.empty()) {
       writeSrgbPng(out / "albedo_truth.png", truthAlbedo, 8);
       s += figure("albedo_truth.png", "albedo (truth, in the fit's atlas)");
@@ -489,6 +496,11 @@ img.tex{width:256px;height:256px} figure{display:inline-block;margin:4px} figcap
         scores.albedoMae, scores.albedoPsnr, scores.albedoTexels, scores.roughnessMae, scores.specularMae,
         scores.emittersCorrect, scores.emittersTrue, 100 * scores.emissionRelError, scores.albedoPsnr8,
         scores.roughnessPsnr8, scores.emissionIou);
+  if (truth && scores.albedoStandardErrorRms >= 0)
+    page += fmt::format(
+        "<p>The albedo's own standard errors over the same texels: RMS {:.4f} against an error RMS of {:.4f}; "
+        "{:.1f}% of the errors are within two of them (95% if they are honest and the albedo unbiased).</p>",
+        scores.albedoStandardErrorRms, std::pow(10.0, -scores.albedoPsnr / 20), 100 * scores.albedoWithinTwoStandardErrors);
   page += "<h2>Views</h2>";
   try {
     page += viewsSection(out, fit, truthScene ? &*truthScene : nullptr, prepare, frameGainsOf(gains),

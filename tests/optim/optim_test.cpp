@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <fstream>
 
 #include "core/error.h"
@@ -153,6 +154,57 @@ TEST(GaussNewton, IsTheLeastSquaresFitOfEveryVisit) {
     num += (I - C) * adjoint[k], den += primal[k] * adjoint[k];
   }
   EXPECT_NEAR(x[0], num / den, 1e-5);
+}
+
+// The standard error each entry reports is the spread of its own estimate: many independent
+// entries, each fitted to noisy visits of the pixel model I = a X + C (the primal's X and the
+// adjoint's X' noisy and independent), from a start 0.3 off, first as a plain average, then
+// damped; over the entries, the reported errors must match the estimates' scatter about the truth
+// (within 10%; the visits taken far from the fit may only make it err high).
+TEST(GaussNewton, StandardErrorIsTheSpreadOfTheEstimate) {
+  const size_t entries = 4000;
+  const float a = 0.6f, C = 0.05f, X = 1.0f, I = a * X + C;
+  for (int visits : {40, 150}) {  // 1/damping = 40: plain average, then damped over the last ~40
+    GaussNewtonState s(entries, true);
+    GaussNewtonSettings settings;
+    settings.damping = 0.025f;
+    settings.maxStep = 1.0f;
+    std::vector<float> x(entries, 0.3f);
+    uint64_t state = 12345;
+    auto normal = [&] {  // Box-Muller on a 64-bit LCG
+      auto u = [&] {
+        state = state * 6364136223846793005ull + 1442695040888963407ull;
+        return (static_cast<double>(state >> 11) + 0.5) / 9007199254740992.0;
+      };
+      return static_cast<float>(std::sqrt(-2 * std::log(u())) * std::cos(6.283185307179586 * u()));
+    };
+    for (int k = 0; k < visits; ++k) {
+      std::vector<float> g(entries), h(entries);
+      for (size_t i = 0; i < entries; ++i) {
+        const float primal = X * (1 + 0.5f * normal()), adjoint = X * (1 + 0.5f * normal());
+        g[i] = (x[i] * primal + C - I) * adjoint, h[i] = primal * adjoint;
+      }
+      s.step(x, g, h, -10.0f, 10.0f, settings);
+    }
+    double scatter = 0, reported = 0;
+    for (size_t i = 0; i < entries; ++i) {
+      ASSERT_GE(s.standardError(i), 0.0f) << i;
+      scatter += (x[i] - a) * (x[i] - a), reported += s.standardError(i) * s.standardError(i);
+    }
+    const double ratio = std::sqrt(reported / scatter);
+    EXPECT_GT(ratio, 0.9);
+    EXPECT_LT(ratio, visits > 40 ? 1.1 : 1.25) << visits << " visits: reported RMS " << std::sqrt(reported / entries)
+                                 << ", scatter " << std::sqrt(scatter / entries);
+  }
+  // Unknown before the first visit; never without tracking.
+  GaussNewtonState one(1, true), untracked(1);
+  EXPECT_LT(one.standardError(0), 0.0f);
+  std::vector<float> x = {0.5f};
+  const std::vector<float> g = {0.1f}, h = {1.0f};
+  one.step(x, g, h, 0.0f, 1.0f, GaussNewtonSettings{});
+  untracked.step(x, g, h, 0.0f, 1.0f, GaussNewtonSettings{});
+  EXPECT_GE(one.standardError(0), 0.0f);
+  EXPECT_LT(untracked.standardError(0), 0.0f);
 }
 
 // A texture-sized state is stepped by both cores in chunks: every entry must come out as if it

@@ -1,0 +1,116 @@
+#include "optim/texel_smoothing.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "core/check.h"
+
+namespace relume {
+
+namespace {
+
+// World length of one texel on each triangle: sqrt(3D area / uv area) / resolution (0 when the
+// triangle has no uv area).
+std::vector<float> texelLengths(const TriangleMesh& mesh, int resolution) {
+  std::vector<float> len(mesh.triangles.size(), 0.0f);
+  for (size_t f = 0; f < mesh.triangles.size(); ++f) {
+    const auto& tri = mesh.triangles[f];
+    const Vec3 a = mesh.positions[tri[0]], b = mesh.positions[tri[1]], c = mesh.positions[tri[2]];
+    const Vec2 u = mesh.uvs[tri[0]], v = mesh.uvs[tri[1]], w = mesh.uvs[tri[2]];
+    const double area3 = 0.5 * (b - a).cross(c - a).norm();
+    const double areaUv = 0.5 * std::abs((v - u).x() * (w - u).y() - (v - u).y() * (w - u).x());
+    if (areaUv > 0) len[f] = static_cast<float>(std::sqrt(area3 / areaUv) / resolution);
+  }
+  return len;
+}
+
+}  // namespace
+
+SmoothedTexels smoothTexels(const TexelMap& map, const TriangleMesh& mesh, std::span<const float> values,
+                            std::span<const float> standardError, std::span<const uint8_t> eligible,
+                            std::span<const float> guide, const TexelSmoothingSettings& s) {
+  const size_t n = map.texelCount();
+  CHECK(values.size() == 3 * n && standardError.size() == 3 * n && eligible.size() == n);
+  CHECK(guide.empty() || guide.size() == 3 * n);
+  CHECK(mesh.hasUv() && s.radius >= 1);
+  const int res = map.resolution();
+  const std::vector<float> lengths = texelLengths(mesh, res);
+  // Per texel, whether it takes part: eligible, a known error, a usable guide and texel length.
+  std::vector<uint8_t> used(n, 0);
+  std::vector<Vec3> points(n);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1 << 12), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t t = r.begin(); t < r.end(); ++t) {
+      if (!eligible[t] || !map.covered(t) || lengths[map.triangle(t)] <= 0) continue;
+      bool ok = true;
+      for (int c = 0; c < 3; ++c)
+        ok &= standardError[3 * t + c] >= 0 && std::isfinite(values[3 * t + c]) &&
+              (guide.empty() || guide[3 * t + c] >= s.minGuide);
+      if (!ok) continue;
+      used[t] = 1;
+      points[t] = map.point(mesh, t);
+    }
+  });
+  SmoothedTexels out{std::vector<float>(values.begin(), values.end()),
+                     std::vector<float>(standardError.begin(), standardError.end()), 0};
+  const auto ratio = [&](size_t t, int c) { return guide.empty() ? 1.0f : 1.0f / guide[3 * t + c]; };
+  const float sigma = 0.5f * static_cast<float>(s.radius), reach = static_cast<float>(s.radius) + 0.5f;
+  std::atomic<size_t> smoothed{0};
+  tbb::parallel_for(tbb::blocked_range<int>(0, res, 8), [&](const tbb::blocked_range<int>& rows) {
+    size_t local = 0;
+    for (int y = rows.begin(); y < rows.end(); ++y)
+      for (int x = 0; x < res; ++x) {
+        const size_t i = static_cast<size_t>(y) * res + x;
+        if (!used[i]) continue;
+        const uint32_t tri = map.triangle(i);
+        const int object = mesh.faceObject[tri];
+        const float len = lengths[tri];
+        float qi[3], vi[3];
+        for (int c = 0; c < 3; ++c) {
+          qi[c] = values[3 * i + c] * ratio(i, c);
+          const float e = standardError[3 * i + c] * ratio(i, c);
+          vi[c] = e * e;
+        }
+        double wsum = 0, q[3] = {0, 0, 0}, var[3] = {0, 0, 0};
+        int neighbours = 0;
+        for (int dy = -s.radius; dy <= s.radius; ++dy)
+          for (int dx = -s.radius; dx <= s.radius; ++dx) {
+            const int xx = x + dx, yy = y + dy;
+            if (xx < 0 || yy < 0 || xx >= res || yy >= res) continue;
+            const size_t j = static_cast<size_t>(yy) * res + xx;
+            if (!used[j] || mesh.faceObject[map.triangle(j)] != object) continue;
+            const float d = (points[j] - points[i]).norm() / len;
+            if (d > reach) continue;
+            float qj[3], vj[3], z2 = 0, vmean = 0;
+            for (int c = 0; c < 3; ++c) {
+              qj[c] = values[3 * j + c] * ratio(j, c);
+              const float e = standardError[3 * j + c] * ratio(j, c);
+              vj[c] = e * e;
+              const float diff = qj[c] - qi[c];
+              z2 += diff * diff / std::max(vi[c] + vj[c], 1e-12f) / 3.0f;
+              vmean += vj[c] / 3.0f;
+            }
+            const double w = std::exp(-0.5 * d * d / (sigma * sigma)) / std::max(vmean, 1e-10f) *
+                             std::exp(-0.5 * z2 / (s.significance * s.significance));
+            if (!(w > 0)) continue;
+            wsum += w;
+            for (int c = 0; c < 3; ++c) q[c] += w * qj[c], var[c] += w * w * vj[c];
+            neighbours += j != i;
+          }
+        CHECK(wsum > 0);  // the texel itself is always in
+        for (int c = 0; c < 3; ++c) {
+          out.values[3 * i + c] = static_cast<float>(q[c] / wsum / ratio(i, c));
+          out.standardError[3 * i + c] = static_cast<float>(std::sqrt(var[c]) / wsum / ratio(i, c));
+        }
+        local += neighbours > 0;
+      }
+    smoothed += local;
+  });
+  out.smoothed = smoothed;
+  return out;
+}
+
+}  // namespace relume

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <limits>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -26,6 +27,39 @@ std::vector<float> texelLengths(const TriangleMesh& mesh, int resolution) {
     if (areaUv > 0) len[f] = static_cast<float>(std::sqrt(area3 / areaUv) / resolution);
   }
   return len;
+}
+
+float logLuminance(std::span<const float> rgb, size_t t) {
+  return std::log(0.2126f * rgb[3 * t] + 0.7152f * rgb[3 * t + 1] + 0.0722f * rgb[3 * t + 2]);
+}
+
+// Per object, the noise of the guide's log luminance at one texel: adjacent texels (right, below,
+// on the same object and next to each other on the surface) differ by noise except at the few
+// edges, so the median absolute difference, scaled to a normal's sigma and divided by sqrt(2).
+// Objects with fewer than 16 such pairs get infinity (their guide tells nothing apart).
+std::vector<float> guideNoise(const TexelMap& map, const TriangleMesh& mesh, std::span<const float> guide,
+                              const std::vector<uint8_t>& used, const std::vector<Vec3>& points,
+                              const std::vector<float>& lengths) {
+  const int res = map.resolution();
+  std::vector<std::vector<float>> diffs(mesh.objectCount);
+  for (size_t i = 0; i < used.size(); ++i) {
+    if (!used[i]) continue;
+    const int object = mesh.faceObject[map.triangle(i)];
+    for (const size_t j : {i + 1, i + static_cast<size_t>(res)}) {
+      if (j >= used.size() || !used[j] || (j == i + 1 && j % res == 0)) continue;
+      if (mesh.faceObject[map.triangle(j)] != object) continue;
+      if ((points[j] - points[i]).norm() > 1.5f * lengths[map.triangle(i)]) continue;
+      diffs[object].push_back(std::abs(logLuminance(guide, j) - logLuminance(guide, i)));
+    }
+  }
+  std::vector<float> noise(mesh.objectCount, std::numeric_limits<float>::infinity());
+  for (int o = 0; o < mesh.objectCount; ++o) {
+    std::vector<float>& d = diffs[o];
+    if (d.size() < 16) continue;
+    std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+    noise[o] = std::max(1.4826f * d[d.size() / 2] / std::sqrt(2.0f), 1e-6f);
+  }
+  return noise;
 }
 
 }  // namespace
@@ -56,7 +90,11 @@ SmoothedTexels smoothTexels(const TexelMap& map, const TriangleMesh& mesh, std::
   });
   SmoothedTexels out{std::vector<float>(values.begin(), values.end()),
                      std::vector<float>(standardError.begin(), standardError.end()), 0};
-  const auto ratio = [&](size_t t, int c) { return guide.empty() ? 1.0f : 1.0f / guide[3 * t + c]; };
+  const bool byRatio = !guide.empty() && s.guideUse == GuideUse::Ratio;
+  const bool byEdges = !guide.empty() && s.guideUse == GuideUse::Edges;
+  const std::vector<float> noise =
+      byEdges ? guideNoise(map, mesh, guide, used, points, lengths) : std::vector<float>{};
+  const auto ratio = [&](size_t t, int c) { return byRatio ? 1.0f / guide[3 * t + c] : 1.0f; };
   const float sigma = 0.5f * static_cast<float>(s.radius), reach = static_cast<float>(s.radius) + 0.5f;
   std::atomic<size_t> smoothed{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, res, 8), [&](const tbb::blocked_range<int>& rows) {
@@ -92,6 +130,10 @@ SmoothedTexels smoothTexels(const TexelMap& map, const TriangleMesh& mesh, std::
               const float diff = qj[c] - qi[c];
               z2 += diff * diff / std::max(vi[c] + vj[c], 1e-12f) / 3.0f;
               vmean += vj[c] / 3.0f;
+            }
+            if (byEdges) {  // the guide's difference in its own standard errors (of a difference: sqrt(2))
+              const float dg = (logLuminance(guide, j) - logLuminance(guide, i)) / noise[object];
+              z2 += 0.5f * dg * dg;
             }
             const double w = std::exp(-0.5 * d * d / (sigma * sigma)) / std::max(vmean, 1e-10f) *
                              std::exp(-0.5 * z2 / (s.significance * s.significance));

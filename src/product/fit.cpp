@@ -423,8 +423,9 @@ void Fit::settleAlbedoError(const TexelSpace& space) {
   for (size_t t = 0; t < eligible.size(); ++t)
     eligible[t] = space.updatable[t] && space.map.covered(t) && !held[space.objectOf(t, w_.mesh)];
   const std::vector<float> guide =
-      c_.albedoSmoothing == AlbedoSmoothing::Ratio ? medianRadiance(space) : std::vector<float>{};
+      c_.albedoSmoothing == AlbedoSmoothing::Albedo ? std::vector<float>{} : medianRadiance(space);
   TexelSmoothingSettings settings;
+  settings.guideUse = c_.albedoSmoothing == AlbedoSmoothing::GuideRatio ? GuideUse::Ratio : GuideUse::Edges;
   settings.radius = c_.albedoSmoothingRadius;
   SmoothedTexels s = smoothTexels(space.map, w_.mesh, appearance_.albedo.rgb, albedoError_, eligible, guide, settings);
   const ParamGroup albedo = paramGroups(appearance_).front();

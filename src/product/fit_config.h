@@ -21,9 +21,10 @@ namespace relume {
 enum class SamplerKind { Texture, Image };    // texture space (the paper's) or image space (the ablation's baseline)
 enum class AlbedoStep { GaussNewton, Adam };  // damped diagonal Gauss-Newton (optim/gauss_newton.h) or the paper's Adam
 enum class LightTest { Reflector, RadianceFraction };  // how light sources are told from lit surfaces
-// The settled albedo smoothed by its standard errors (optim/texel_smoothing.h): not at all, as it
-// is, or as its ratio to the median init (whose edges the frames show).
-enum class AlbedoSmoothing { None, Albedo, Ratio };
+// The settled albedo smoothed by its standard errors (optim/texel_smoothing.h): not at all, by
+// them alone, also kept from crossing the median init's edges (the frames'), or as its ratio to
+// the median init.
+enum class AlbedoSmoothing { None, Albedo, GuideEdges, GuideRatio };
 
 template <>
 struct EnumNames<SamplerKind> {
@@ -37,8 +38,11 @@ struct EnumNames<AlbedoStep> {
 };
 template <>
 struct EnumNames<AlbedoSmoothing> {
-  static constexpr std::array<std::pair<AlbedoSmoothing, std::string_view>, 3> values{
-      {{AlbedoSmoothing::None, "none"}, {AlbedoSmoothing::Albedo, "albedo"}, {AlbedoSmoothing::Ratio, "ratio"}}};
+  static constexpr std::array<std::pair<AlbedoSmoothing, std::string_view>, 4> values{
+      {{AlbedoSmoothing::None, "none"},
+       {AlbedoSmoothing::Albedo, "albedo"},
+       {AlbedoSmoothing::GuideEdges, "guide_edges"},
+       {AlbedoSmoothing::GuideRatio, "guide_ratio"}}};
 };
 template <>
 struct EnumNames<LightTest> {
@@ -86,7 +90,7 @@ struct FitConfig {
   // Gauss-Newton: each texel's standard error, from the spread of its visits (8 more bytes per
   // albedo entry); written as result/albedo_stderr.exr and used by the smoothing.
   bool albedoStandardError = true;
-  AlbedoSmoothing albedoSmoothing = AlbedoSmoothing::Ratio;
+  AlbedoSmoothing albedoSmoothing = AlbedoSmoothing::GuideEdges;
   int albedoSmoothingRadius = 2;  // texels; the spatial kernel's sigma is half of it
   float lrEmission = 0.2f;  // relative: a step is lr * max(E, emissionFloor * brightest observation)
   float emissionFloor = 0.02f;

@@ -65,9 +65,13 @@ TEST(TexelSmoothing, RemovesNoiseAndReportsWhatIsLeft) {
   std::normal_distribution<float> noise(0.0f, 0.05f);
   std::vector<float> noisy = q.truth, error(q.truth.size(), 0.05f);
   for (float& v : noisy) v += noise(rng);
-  for (const bool withGuide : {true, false}) {
+  for (const int use : {0, 1, 2}) {  // no guide, its edges, its ratio
+    const bool withGuide = use > 0;
+    TexelSmoothingSettings settings;
+    settings.guideUse = use == 2 ? GuideUse::Ratio : GuideUse::Edges;
     const SmoothedTexels s = smoothTexels(q.map, q.mesh, noisy, error, q.eligible,
-                                          withGuide ? std::span<const float>(q.guide) : std::span<const float>{}, {});
+                                          withGuide ? std::span<const float>(q.guide) : std::span<const float>{},
+                                          settings);
     const double before = rms(noisy, q.truth, q), after = rms(s.values, q.truth, q);
     EXPECT_LT(after, before / 2.5) << "guide " << withGuide << ": RMS " << before << " -> " << after;
     double reported = 0;
@@ -82,8 +86,8 @@ TEST(TexelSmoothing, RemovesNoiseAndReportsWhatIsLeft) {
   }
 }
 
-// Without noise: with the guide its ratio is flat across the albedo edge, so the edge stays
-// exactly; without it, the edge is resolved by the errors and stays too, and texels away from it
+// Without noise: with the guide (its edges or its ratio, flat across the albedo edge) the edge
+// stays exactly; without it, the edge is resolved by the errors and stays too, and texels away from it
 // stay exactly, so quad B (0.9, next to A's 0.8 in
 // the atlas but 10 m away on the surface) never mixes in. Texels that are not eligible, or whose
 // error is unknown, keep what they had.
@@ -100,9 +104,13 @@ TEST(TexelSmoothing, KeepsTheGuidesEdgesAndTheSurfacesNeighbourhood) {
   EXPECT_GT(unknown, 0u);
   std::vector<float> values = q.truth;
   for (size_t t = 0; t < q.map.texelCount(); t += 17) values[3 * t] = 0.0f;  // not eligible: left as it is
-  for (const bool withGuide : {true, false}) {
+  for (const int use : {0, 1, 2}) {  // no guide, its edges, its ratio
+    const bool withGuide = use > 0;
+    TexelSmoothingSettings settings;
+    settings.guideUse = use == 2 ? GuideUse::Ratio : GuideUse::Edges;
     const SmoothedTexels s = smoothTexels(q.map, q.mesh, values, error, q.eligible,
-                                          withGuide ? std::span<const float>(q.guide) : std::span<const float>{}, {});
+                                          withGuide ? std::span<const float>(q.guide) : std::span<const float>{},
+                                          settings);
     size_t nextToB = 0;
     for (size_t t = 0; t < q.map.texelCount(); ++t) {
       if (!q.map.covered(t)) continue;
@@ -118,4 +126,50 @@ TEST(TexelSmoothing, KeepsTheGuidesEdgesAndTheSurfacesNeighbourhood) {
     }
     EXPECT_GT(nextToB, 50u);
   }
+}
+
+// An albedo step smaller than the estimate's noise (0.08 against 0.05 per texel) cannot be told
+// from it texel by texel, and smoothing by the errors alone spreads it; a guide that shows it
+// (the frames' radiance, 2% noise) keeps it, and its own noise stays out of the result unless its
+// ratio is taken.
+TEST(TexelSmoothing, EdgesTheGuideShowsAreKeptBelowTheNoise) {
+  TwoQuads q;
+  std::mt19937 rng(11);
+  std::normal_distribution<float> noise(0.0f, 1.0f);
+  for (size_t t = 0; t < q.map.texelCount(); ++t) {
+    if (!q.map.covered(t)) continue;
+    const float a = q.column[t] < 0 ? 0.9f : q.column[t] < 26 ? 0.5f : 0.58f;
+    for (int c = 0; c < 3; ++c) q.truth[3 * t + c] = a;
+    const float g = 0.5f * a * (1 + 0.02f * noise(rng));
+    for (int c = 0; c < 3; ++c) q.guide[3 * t + c] = g;
+  }
+  std::vector<float> noisy = q.truth, error(q.truth.size(), 0.05f);
+  for (float& v : noisy) v += 0.05f * noise(rng);
+  // The mean signed error of the columns on either side of the step (over ~100 rows each), and
+  // the RMS error in the interior.
+  auto measure = [&](const std::vector<float>& v, double& stepBias, double& interior) {
+    double sum[2] = {0, 0};
+    size_t n[2] = {0, 0};
+    for (size_t t = 0; t < q.map.texelCount(); ++t)
+      if (q.column[t] == 25 || q.column[t] == 26) {
+        const int side = q.column[t] == 26;
+        for (int c = 0; c < 3; ++c) sum[side] += v[3 * t + c] - q.truth[3 * t + c], ++n[side];
+      }
+    stepBias = std::max(std::abs(sum[0] / n[0]), std::abs(sum[1] / n[1]));
+    interior = rms(v, q.truth, q);
+  };
+  double bias[3], interior[3];
+  for (const int use : {0, 1, 2}) {
+    TexelSmoothingSettings settings;
+    settings.guideUse = use == 2 ? GuideUse::Ratio : GuideUse::Edges;
+    const SmoothedTexels s = smoothTexels(q.map, q.mesh, noisy, error, q.eligible,
+                                          use > 0 ? std::span<const float>(q.guide) : std::span<const float>{},
+                                          settings);
+    measure(s.values, bias[use], interior[use]);
+  }
+  EXPECT_GT(bias[0], 0.01) << "no guide: the step is spread";
+  EXPECT_LT(bias[1], 0.005) << "the guide's edges: the step kept";
+  EXPECT_LT(bias[2], 0.005) << "the guide's ratio: the step kept";
+  EXPECT_LT(interior[1], 0.025);
+  EXPECT_GT(interior[2], interior[1] * 1.1) << "the ratio carries the guide's noise";
 }

@@ -1,0 +1,51 @@
+// Known answer: the built-in room fitted on a short schedule, so that each texel's albedo carries
+// the noise of a few visits. The standard errors the fit writes account for that noise, and the
+// albedo smoothed by them is nearer the truth than the one left as fitted.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "io/image.h"
+#include "product/evaluate.h"
+#include "product/fit.h"
+#include "support/prepared_capture.h"
+#include "support/small_fit_config.h"
+
+using namespace relume;
+namespace fs = std::filesystem;
+
+TEST(AlbedoSmoothing, StandardErrorsAreTheFitsNoiseAndSmoothingLowersTheError) {
+  SynthCaptureOptions so;
+  so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 8, so.testSpp = 8;
+  so.atlasResolution = 256;
+  const fs::path dir = preparedCapture("albedo_smoothing", so, 256);
+  const SceneDescription truth = loadSceneFile(dir / "capture" / "gt" / "scene.json");
+  const Image coverage = readImage(dir / "work" / "coverage.exr");
+  FitConfig c = smallFitConfig();
+  c.checkpointEvery = 1000;
+  c.emissionIterations = 40, c.albedoPasses = 12, c.materialIterations = 0;
+  const auto fitted = [&](AlbedoSmoothing smoothing) {
+    c.albedoSmoothing = smoothing;
+    runFit(dir / "work", c, false);
+    const fs::path scene = dir / "work" / "result" / "scene.json";
+    EXPECT_TRUE(fs::exists(dir / "work" / "result" / "albedo_stderr.exr"));
+    return compareWithTruth(loadSceneFile(scene), truth, coverage, truthOptionsFor(scene));
+  };
+  const TruthComparison raw = fitted(AlbedoSmoothing::None);
+  const TruthComparison smoothed = fitted(FitConfig{}.albedoSmoothing);
+  const double rawRms = std::pow(10.0, -raw.albedoPsnr / 20), smoothedRms = std::pow(10.0, -smoothed.albedoPsnr / 20);
+  std::printf("AlbedoSmoothing: as fitted MAE %.4f, RMS %.4f, standard errors RMS %.4f, %.1f%% within two\n",
+              raw.albedoMae, rawRms, raw.albedoStandardErrorRms, 100 * raw.albedoWithinTwoStandardErrors);
+  std::printf("AlbedoSmoothing: smoothed MAE %.4f, RMS %.4f, standard errors RMS %.4f, %.1f%% within two\n",
+              smoothed.albedoMae, smoothedRms, smoothed.albedoStandardErrorRms,
+              100 * smoothed.albedoWithinTwoStandardErrors);
+  // As fitted, the error is mostly the visits' noise: the standard errors account for most of it
+  // and bound most errors (not all: the shared biases of a short fit are not in them).
+  EXPECT_GT(raw.albedoStandardErrorRms, 0.6 * rawRms);
+  EXPECT_LT(raw.albedoStandardErrorRms, 1.2 * rawRms);
+  EXPECT_GT(raw.albedoWithinTwoStandardErrors, 0.7);
+  // Smoothed: nearer the truth, and the errors it reports fell with it.
+  EXPECT_LT(smoothed.albedoMae, 0.8 * raw.albedoMae);
+  EXPECT_LT(smoothed.albedoStandardErrorRms, 0.6 * raw.albedoStandardErrorRms);
+}

@@ -29,7 +29,7 @@ const std::vector<BenchSweep>& benchSweeps() {
       {"pairing", "pairing", {"decorrelated", "crossfit", "reuse"}},
       {"resolution", "max_resolution", {512, 1024}},
       {"sampler", "sampler", {"texture", "image"}},
-      {"smoothing", "albedo_smoothing", {"none", "albedo", "guide_edges", "guide_ratio"}},
+      {"smoothing", "albedo_smoothing", {"none", "albedo", "guide_edges"}},
   };
   return sweeps;
 }

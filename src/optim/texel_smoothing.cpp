@@ -81,7 +81,8 @@ SmoothedTexels smoothTexels(const TexelMap& map, const TriangleMesh& mesh, std::
       if (!eligible[t] || !map.covered(t) || lengths[map.triangle(t)] <= 0) continue;
       bool ok = true;
       for (int c = 0; c < 3; ++c)
-        ok &= standardError[3 * t + c] >= 0 && std::isfinite(values[3 * t + c]) &&
+        ok &= standardError[3 * t + c] >= 0 && std::isfinite(standardError[3 * t + c]) &&
+              std::isfinite(values[3 * t + c]) &&
               (guide.empty() || guide[3 * t + c] >= s.minGuide);
       if (!ok) continue;
       used[t] = 1;
@@ -90,11 +91,9 @@ SmoothedTexels smoothTexels(const TexelMap& map, const TriangleMesh& mesh, std::
   });
   SmoothedTexels out{std::vector<float>(values.begin(), values.end()),
                      std::vector<float>(standardError.begin(), standardError.end()), 0};
-  const bool byRatio = !guide.empty() && s.guideUse == GuideUse::Ratio;
-  const bool byEdges = !guide.empty() && s.guideUse == GuideUse::Edges;
+  const bool byEdges = !guide.empty();
   const std::vector<float> noise =
       byEdges ? guideNoise(map, mesh, guide, used, points, lengths) : std::vector<float>{};
-  const auto ratio = [&](size_t t, int c) { return byRatio ? 1.0f / guide[3 * t + c] : 1.0f; };
   const float sigma = 0.5f * static_cast<float>(s.radius), reach = static_cast<float>(s.radius) + 0.5f;
   std::atomic<size_t> smoothed{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, res, 8), [&](const tbb::blocked_range<int>& rows) {
@@ -106,12 +105,8 @@ SmoothedTexels smoothTexels(const TexelMap& map, const TriangleMesh& mesh, std::
         const uint32_t tri = map.triangle(i);
         const int object = mesh.faceObject[tri];
         const float len = lengths[tri];
-        float qi[3], vi[3];
-        for (int c = 0; c < 3; ++c) {
-          qi[c] = values[3 * i + c] * ratio(i, c);
-          const float e = standardError[3 * i + c] * ratio(i, c);
-          vi[c] = e * e;
-        }
+        float vi[3];
+        for (int c = 0; c < 3; ++c) vi[c] = standardError[3 * i + c] * standardError[3 * i + c];
         double wsum = 0, q[3] = {0, 0, 0}, var[3] = {0, 0, 0};
         int neighbours = 0;
         for (int dy = -s.radius; dy <= s.radius; ++dy)
@@ -122,12 +117,10 @@ SmoothedTexels smoothTexels(const TexelMap& map, const TriangleMesh& mesh, std::
             if (!used[j] || mesh.faceObject[map.triangle(j)] != object) continue;
             const float d = (points[j] - points[i]).norm() / len;
             if (d > reach) continue;
-            float qj[3], vj[3], z2 = 0, vmean = 0;
+            float vj[3], z2 = 0, vmean = 0;
             for (int c = 0; c < 3; ++c) {
-              qj[c] = values[3 * j + c] * ratio(j, c);
-              const float e = standardError[3 * j + c] * ratio(j, c);
-              vj[c] = e * e;
-              const float diff = qj[c] - qi[c];
+              vj[c] = standardError[3 * j + c] * standardError[3 * j + c];
+              const float diff = values[3 * j + c] - values[3 * i + c];
               z2 += diff * diff / std::max(vi[c] + vj[c], 1e-12f) / 3.0f;
               vmean += vj[c] / 3.0f;
             }
@@ -139,13 +132,13 @@ SmoothedTexels smoothTexels(const TexelMap& map, const TriangleMesh& mesh, std::
                              std::exp(-0.5 * z2 / (s.significance * s.significance));
             if (!(w > 0)) continue;
             wsum += w;
-            for (int c = 0; c < 3; ++c) q[c] += w * qj[c], var[c] += w * w * vj[c];
+            for (int c = 0; c < 3; ++c) q[c] += w * values[3 * j + c], var[c] += w * w * vj[c];
             neighbours += j != i;
           }
         CHECK(wsum > 0);  // the texel itself is always in
         for (int c = 0; c < 3; ++c) {
-          out.values[3 * i + c] = static_cast<float>(q[c] / wsum / ratio(i, c));
-          out.standardError[3 * i + c] = static_cast<float>(std::sqrt(var[c]) / wsum / ratio(i, c));
+          out.values[3 * i + c] = static_cast<float>(q[c] / wsum);
+          out.standardError[3 * i + c] = static_cast<float>(std::sqrt(var[c]) / wsum);
         }
         local += neighbours > 0;
       }

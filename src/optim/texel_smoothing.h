@@ -8,14 +8,12 @@
 //   - how well it agrees with the texel: exp(-z^2 / (2 significance^2)), z^2 the squared
 //     difference over the sum of both variances, mean over channels; a step the standard errors
 //     resolve (an edge) keeps its neighbours out.
-// With a guide (the median init: the frames' radiance, with their edges), one of two uses:
-//   - Edges: a neighbour is also weighed by how well its guide agrees with the texel's, by the
-//     same significance, against the guide's own noise (per object, from the median difference
-//     of adjacent texels' log luminance): edges the frames show stay even where the estimate's
-//     noise would hide them, and the guide's noise never enters the result;
-//   - Ratio: the texel's ratio to the guide is smoothed, then multiplied back: where the albedo
-//     changes and the light does not, the ratio is flat, so the guide's edges stay sharp, but its
-//     noise is carried into the result.
+// With a guide (the median init: the frames' radiance, with their edges), a neighbour is also
+// weighed by how well its guide agrees with the texel's, by the same significance, against the
+// guide's own noise (per object, from the median difference of adjacent texels' log luminance):
+// edges the frames show stay even where the estimate's noise would hide them, and the guide's
+// noise never enters the result. (Smoothing the ratio to the guide instead keeps its edges too but
+// carries its noise into the result: measured worse, docs/notes/2026-11-26-albedo-grain.md.)
 // The result's standard error is that of the weighted mean (neighbours' errors independent; any
 // bias the neighbours share is not in it).
 #pragma once
@@ -27,10 +25,7 @@
 
 namespace relume {
 
-enum class GuideUse { Edges, Ratio };
-
 struct TexelSmoothingSettings {
-  GuideUse guideUse = GuideUse::Edges;
   int radius = 2;               // window half-width in texels
   float significance = 2.0f;    // standard errors at which a difference keeps a neighbour out (soft)
   float minGuide = 1e-3f;       // a guide channel below this leaves the texel as it is

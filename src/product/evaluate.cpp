@@ -275,8 +275,10 @@ void runEvaluation(const EvalOptions& o) {
   Json report = {{"views", v.toJson()}};
   std::optional<TruthComparison> t;
   if (!o.truth.empty()) {
-    t = compareWithTruth(scene, loadSceneFile(o.truth), readImage(o.coverage), truthOptionsFor(o.scene));
+    Image truthAlbedo;
+    t = compareWithTruth(scene, loadSceneFile(o.truth), readImage(o.coverage), truthOptionsFor(o.scene), &truthAlbedo);
     report["truth"] = t->toJson();
+    writeExr(o.out / "albedo_truth.exr", truthAlbedo);  // per texel of the fit's atlas: for analyses
   }
   writeJson(o.out / "eval.json", report);  // before printing: the results outlive a closed stdout
   fmt::print("views: PSNR {:.2f} dB, MSRE {:.4f} over {} frames\n", v.psnr, v.msre, v.framePsnr.size());

@@ -425,7 +425,6 @@ void Fit::settleAlbedoError(const TexelSpace& space) {
   const std::vector<float> guide =
       c_.albedoSmoothing == AlbedoSmoothing::Albedo ? std::vector<float>{} : medianRadiance(space);
   TexelSmoothingSettings settings;
-  settings.guideUse = c_.albedoSmoothing == AlbedoSmoothing::GuideRatio ? GuideUse::Ratio : GuideUse::Edges;
   settings.radius = c_.albedoSmoothingRadius;
   SmoothedTexels s = smoothTexels(space.map, w_.mesh, appearance_.albedo.rgb, albedoError_, eligible, guide, settings);
   const ParamGroup albedo = paramGroups(appearance_).front();

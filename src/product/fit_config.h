@@ -22,9 +22,8 @@ enum class SamplerKind { Texture, Image };    // texture space (the paper's) or 
 enum class AlbedoStep { GaussNewton, Adam };  // damped diagonal Gauss-Newton (optim/gauss_newton.h) or the paper's Adam
 enum class LightTest { Reflector, RadianceFraction };  // how light sources are told from lit surfaces
 // The settled albedo smoothed by its standard errors (optim/texel_smoothing.h): not at all, by
-// them alone, also kept from crossing the median init's edges (the frames'), or as its ratio to
-// the median init.
-enum class AlbedoSmoothing { None, Albedo, GuideEdges, GuideRatio };
+// them alone, or also kept from crossing the median init's edges (the frames').
+enum class AlbedoSmoothing { None, Albedo, GuideEdges };
 
 template <>
 struct EnumNames<SamplerKind> {
@@ -38,11 +37,8 @@ struct EnumNames<AlbedoStep> {
 };
 template <>
 struct EnumNames<AlbedoSmoothing> {
-  static constexpr std::array<std::pair<AlbedoSmoothing, std::string_view>, 4> values{
-      {{AlbedoSmoothing::None, "none"},
-       {AlbedoSmoothing::Albedo, "albedo"},
-       {AlbedoSmoothing::GuideEdges, "guide_edges"},
-       {AlbedoSmoothing::GuideRatio, "guide_ratio"}}};
+  static constexpr std::array<std::pair<AlbedoSmoothing, std::string_view>, 3> values{
+      {{AlbedoSmoothing::None, "none"}, {AlbedoSmoothing::Albedo, "albedo"}, {AlbedoSmoothing::GuideEdges, "guide_edges"}}};
 };
 template <>
 struct EnumNames<LightTest> {

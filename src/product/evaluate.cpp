@@ -131,12 +131,12 @@ ViewComparison compareViews(const SceneDescription& desc, const std::filesystem:
 
 Json TruthComparison::toJson() const {
   Json j = {{"albedo_texels", albedoTexels},       {"albedo_mae", albedoMae},
-          {"albedo_psnr", albedoPsnr},           {"roughness_mae", roughnessMae},
-          {"specular_mae", specularMae},         {"material_objects", materialObjects},
-          {"emitters_true", emittersTrue},       {"emitters_found", emittersFound},
-          {"emitters_correct", emittersCorrect}, {"emission_rel_error", emissionRelError},
-          {"albedo_psnr_8bit", albedoPsnr8},     {"roughness_psnr_8bit", roughnessPsnr8},
-          {"emission_iou", emissionIou},         {"objects", perObject}};
+            {"albedo_psnr", albedoPsnr},           {"roughness_mae", roughnessMae},
+            {"specular_mae", specularMae},         {"material_objects", materialObjects},
+            {"emitters_true", emittersTrue},       {"emitters_found", emittersFound},
+            {"emitters_correct", emittersCorrect}, {"emission_rel_error", emissionRelError},
+            {"albedo_psnr_8bit", albedoPsnr8},     {"roughness_psnr_8bit", roughnessPsnr8},
+            {"emission_iou", emissionIou},         {"objects", perObject}};
   if (albedoStandardErrorRms >= 0)
     j["albedo_stderr_rms"] = albedoStandardErrorRms, j["albedo_within_2_stderr"] = albedoWithinTwoStandardErrors;
   return j;

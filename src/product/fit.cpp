@@ -417,7 +417,12 @@ void Fit::finishStage(const Stage& st, size_t stageIndex, const TexelSpace& spac
 // (optim/texel_smoothing.h) on the texels whose albedo is fitted.
 void Fit::settleAlbedoError(const TexelSpace& space) {
   albedoError_ = optimiser_.albedoStandardError();
-  if (albedoError_.empty() || c_.albedoSmoothing == AlbedoSmoothing::None) return;
+  if (c_.albedoSmoothing == AlbedoSmoothing::None) return;
+  if (albedoError_.empty()) {
+    spdlog::info("fit: albedo_smoothing {} skipped: the albedo step ({}) has no standard errors",
+                 enumName(c_.albedoSmoothing), enumName(c_.albedoStep));
+    return;
+  }
   const std::vector<uint8_t> held = decisions_.albedoHeld();
   std::vector<uint8_t> eligible(space.map.texelCount(), 0);
   for (size_t t = 0; t < eligible.size(); ++t)

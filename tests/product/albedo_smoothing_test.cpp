@@ -16,10 +16,7 @@ using namespace relume;
 namespace fs = std::filesystem;
 
 TEST(AlbedoSmoothing, StandardErrorsAreTheFitsNoiseAndSmoothingLowersTheError) {
-  SynthCaptureOptions so;
-  so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 8, so.testSpp = 8;
-  so.atlasResolution = 256;
-  const fs::path dir = preparedCapture("albedo_smoothing", so, 256);
+  const fs::path dir = preparedRoom256("albedo_smoothing");
   const SceneDescription truth = loadSceneFile(dir / "capture" / "gt" / "scene.json");
   const Image coverage = readImage(dir / "work" / "coverage.exr");
   FitConfig c = smallFitConfig();

@@ -16,10 +16,7 @@ using namespace relume;
 namespace fs = std::filesystem;
 
 TEST(HighlightAbsence, RoughObjectsWithoutAHighlightAreFittedRougher) {
-  SynthCaptureOptions so;
-  so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 8, so.testSpp = 8;
-  so.atlasResolution = 256;
-  const fs::path dir = preparedCapture("highlight_absence", so, 256);
+  const fs::path dir = preparedRoom256("highlight_absence");
   const Appearance truth = loadSceneFile(dir / "capture" / "gt" / "scene.json").appearance;
   FitConfig c = smallFitConfig();
   c.checkpointEvery = 1000;

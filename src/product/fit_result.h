@@ -25,7 +25,8 @@ struct FitProgress {
 // Writes WORK/result/ atomically (WORK/result.partial/, then renamed); returns its path.
 // frames.json holds the frame gains (FrameGains::toJson); albedo_stderr.exr (and a .png preview,
 // white at 0.1) the albedo's standard error per texel when `albedoError` is not empty: 1, the
-// albedo's whole range, where it is unknown (texels no frame saw), 0 off the surface.
+// albedo's whole range, where it is unknown (texels no frame saw, light sources' albedo, which is
+// not fitted), 0 off the surface.
 std::filesystem::path writeFitResult(const Workspace& w, const Appearance& appearance, const TexelSpace& space,
                                      const ObjectRoles& roles, const FitConfig& c, const FrameGains& gains,
                                      const FitProgress& progress, std::span<const float> albedoError);

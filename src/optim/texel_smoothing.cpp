@@ -29,15 +29,11 @@ std::vector<float> texelLengths(const TriangleMesh& mesh, int resolution) {
   return len;
 }
 
-float logLuminance(std::span<const float> rgb, size_t t) {
-  return std::log(0.2126f * rgb[3 * t] + 0.7152f * rgb[3 * t + 1] + 0.0722f * rgb[3 * t + 2]);
-}
-
 // Per object, the noise of the guide's log luminance at one texel: adjacent texels (right, below,
 // on the same object and next to each other on the surface) differ by noise except at the few
 // edges, so the median absolute difference, scaled to a normal's sigma and divided by sqrt(2).
 // Objects with fewer than 16 such pairs get infinity (their guide tells nothing apart).
-std::vector<float> guideNoise(const TexelMap& map, const TriangleMesh& mesh, std::span<const float> guide,
+std::vector<float> guideNoise(const TexelMap& map, const TriangleMesh& mesh, const std::vector<float>& logGuide,
                               const std::vector<uint8_t>& used, const std::vector<Vec3>& points,
                               const std::vector<float>& lengths) {
   const int res = map.resolution();
@@ -49,7 +45,7 @@ std::vector<float> guideNoise(const TexelMap& map, const TriangleMesh& mesh, std
       if (j >= used.size() || !used[j] || (j == i + 1 && j % res == 0)) continue;
       if (mesh.faceObject[map.triangle(j)] != object) continue;
       if ((points[j] - points[i]).norm() > 1.5f * lengths[map.triangle(i)]) continue;
-      diffs[object].push_back(std::abs(logLuminance(guide, j) - logLuminance(guide, i)));
+      diffs[object].push_back(std::abs(logGuide[j] - logGuide[i]));
     }
   }
   std::vector<float> noise(mesh.objectCount, std::numeric_limits<float>::infinity());
@@ -73,9 +69,12 @@ SmoothedTexels smoothTexels(const TexelMap& map, const TriangleMesh& mesh, std::
   CHECK(mesh.hasUv() && s.radius >= 1);
   const int res = map.resolution();
   const std::vector<float> lengths = texelLengths(mesh, res);
-  // Per texel, whether it takes part: eligible, a known error, a usable guide and texel length.
+  // Per texel, whether it takes part: eligible, a known error, a usable guide and texel length;
+  // its point, and its guide's log luminance.
+  const bool byEdges = !guide.empty();
   std::vector<uint8_t> used(n, 0);
   std::vector<Vec3> points(n);
+  std::vector<float> logGuide(byEdges ? n : 0);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1 << 12), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t t = r.begin(); t < r.end(); ++t) {
       if (!eligible[t] || !map.covered(t) || lengths[map.triangle(t)] <= 0) continue;
@@ -87,13 +86,14 @@ SmoothedTexels smoothTexels(const TexelMap& map, const TriangleMesh& mesh, std::
       if (!ok) continue;
       used[t] = 1;
       points[t] = map.point(mesh, t);
+      if (byEdges)
+        logGuide[t] = std::log(0.2126f * guide[3 * t] + 0.7152f * guide[3 * t + 1] + 0.0722f * guide[3 * t + 2]);
     }
   });
   SmoothedTexels out{std::vector<float>(values.begin(), values.end()),
                      std::vector<float>(standardError.begin(), standardError.end()), 0};
-  const bool byEdges = !guide.empty();
   const std::vector<float> noise =
-      byEdges ? guideNoise(map, mesh, guide, used, points, lengths) : std::vector<float>{};
+      byEdges ? guideNoise(map, mesh, logGuide, used, points, lengths) : std::vector<float>{};
   const float sigma = 0.5f * static_cast<float>(s.radius), reach = static_cast<float>(s.radius) + 0.5f;
   std::atomic<size_t> smoothed{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, res, 8), [&](const tbb::blocked_range<int>& rows) {
@@ -125,7 +125,7 @@ SmoothedTexels smoothTexels(const TexelMap& map, const TriangleMesh& mesh, std::
               vmean += vj[c] / 3.0f;
             }
             if (byEdges) {  // the guide's difference in its own standard errors (of a difference: sqrt(2))
-              const float dg = (logLuminance(guide, j) - logLuminance(guide, i)) / noise[object];
+              const float dg = (logGuide[j] - logGuide[i]) / noise[object];
               z2 += 0.5f * dg * dg;
             }
             const double w = std::exp(-0.5 * d * d / (sigma * sigma)) / std::max(vmean, 1e-10f) *

@@ -295,7 +295,7 @@ void runEvaluation(const EvalOptions& o) {
         t->albedoPsnr8, t->roughnessPsnr8, t->emissionIou);
     if (t->albedoStandardErrorRms >= 0)
       fmt::print("albedo standard errors: RMS {:.4f} against an error RMS of {:.4f}; {:.1f}% of errors within two\n",
-                 t->albedoStandardErrorRms, std::pow(10.0, -t->albedoPsnr / 20), 100 * t->albedoWithinTwoStandardErrors);
+                 t->albedoStandardErrorRms, t->albedoErrorRms(), 100 * t->albedoWithinTwoStandardErrors);
     for (const Json& object : t->perObject) fmt::print("  {}\n", object.dump());
   }
 }

@@ -3,6 +3,7 @@
 // truth (synthetic captures): albedo MAE/PSNR on texels observed often enough, per-object
 // roughness/specular error where highlights were observed, emitter set and emission error.
 #pragma once
+#include <cmath>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -78,6 +79,7 @@ TruthOptions truthOptionsFor(const std::filesystem::path& sceneFile);
 struct TruthComparison {
   size_t albedoTexels = 0;
   double albedoMae = 0, albedoPsnr = 0;
+  double albedoErrorRms() const { return std::pow(10.0, -albedoPsnr / 20); }  // PSNR's peak is 1
   // With the fit's standard errors, over the same texels and channels: their RMS (against the
   // error's, from albedoPsnr) and the fraction of errors within two of them (0.95 if honest and
   // unbiased; bias the errors do not count lowers it).

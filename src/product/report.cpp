@@ -500,7 +500,7 @@ img.tex{width:256px;height:256px} figure{display:inline-block;margin:4px} figcap
     page += fmt::format(
         "<p>The albedo's own standard errors over the same texels: RMS {:.4f} against an error RMS of {:.4f}; "
         "{:.1f}% of the errors are within two of them (95% if they are honest and the albedo unbiased).</p>",
-        scores.albedoStandardErrorRms, std::pow(10.0, -scores.albedoPsnr / 20), 100 * scores.albedoWithinTwoStandardErrors);
+        scores.albedoStandardErrorRms, scores.albedoErrorRms(), 100 * scores.albedoWithinTwoStandardErrors);
   page += "<h2>Views</h2>";
   try {
     page += viewsSection(out, fit, truthScene ? &*truthScene : nullptr, prepare, frameGainsOf(gains),

@@ -31,7 +31,7 @@ TEST(AlbedoSmoothing, StandardErrorsAreTheFitsNoiseAndSmoothingLowersTheError) {
   };
   const TruthComparison raw = fitted(AlbedoSmoothing::None);
   const TruthComparison smoothed = fitted(FitConfig{}.albedoSmoothing);
-  const double rawRms = std::pow(10.0, -raw.albedoPsnr / 20), smoothedRms = std::pow(10.0, -smoothed.albedoPsnr / 20);
+  const double rawRms = raw.albedoErrorRms(), smoothedRms = smoothed.albedoErrorRms();
   std::printf("AlbedoSmoothing: as fitted MAE %.4f, RMS %.4f, standard errors RMS %.4f, %.1f%% within two\n",
               raw.albedoMae, rawRms, raw.albedoStandardErrorRms, 100 * raw.albedoWithinTwoStandardErrors);
   std::printf("AlbedoSmoothing: smoothed MAE %.4f, RMS %.4f, standard errors RMS %.4f, %.1f%% within two\n",

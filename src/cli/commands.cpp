@@ -111,6 +111,9 @@ void registerPrepare(CLI::App& app, CommandTable& table) {
                 "`response`, else srgb)");
   c->add_flag("!--no-encoding-clips", o->encodingClips,
               "ablation: treat 8/16-bit frames' largest and smallest codes as exact values, not bounds");
+  addEnumOption(c, "--segmentation", o->segmentation,
+                "objects: the mesh's own ids, computed from the mesh and the frames, or auto (computed when the mesh "
+                "has a single object)");
   c->add_flag("--force", o->force, "redo every phase");
   table[c] = [=] {
     o->resolutions.clear();

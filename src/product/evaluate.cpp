@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <optional>
+#include <set>
 
 #include "capture/frame_image.h"
 #include "capture/transforms.h"
@@ -193,7 +194,7 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
     double abs = 0, signedSum = 0;
     size_t texels = 0;
   };  // bias vs noise, per object
-  std::vector<ObjectError> objectError(fa.objectCount());
+  std::vector<ObjectError> objectError(ta.objectCount());
   for (size_t t = 0; t < map.texelCount(); ++t) {
     if (!map.covered(t)) continue;
     const uint32_t tri = map.triangle(t);
@@ -221,7 +222,7 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
     for (int k = 0; k < 3; ++k) sq8 += std::pow((srgb8(fitted[k]) - srgb8(truth[k])) / 255.0, 2) / 3;
     roughSq8 += std::pow((unit8(fa.roughness[fObj]) - unit8(ta.roughness[tObj])) / 255.0, 2);
     ++c.albedoTexels;
-    ObjectError& oe = objectError[fObj];
+    ObjectError& oe = objectError[tObj];
     oe.abs += d.abs().sum() / 3, oe.signedSum += d.sum() / 3, ++oe.texels;
   }
   if (c.albedoTexels) {
@@ -232,33 +233,71 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
       c.albedoWithinTwoStandardErrors = static_cast<double>(withinTwo) / (3 * c.albedoTexels);
   }
   c.emissionIou = emitEither ? static_cast<double>(emitBoth) / emitEither : 1.0;
-  // Per object.
+  // Per true object. The fit's objects need not be the truth's (a computed segmentation): each
+  // true object is compared with the fit's objects over its faces, weighted by area, and is found as
+  // a light when the fit emits over at least half of its area. An object the fit keeps whole is
+  // compared with it directly.
+  struct Coverage {
+    double area = 0, emitting = 0, scored = 0, roughness = 0, specular = 0;
+    Eigen::Array3d emission = Eigen::Array3d::Zero();
+    std::set<int> parts;  // the fit's objects over its faces
+  };
+  std::vector<Coverage> cover(ta.objectCount());
+  std::vector<std::vector<double>> overlap(fa.objectCount(), std::vector<double>(ta.objectCount(), 0.0));
+  for (size_t f = 0; f < fm.triangles.size(); ++f) {
+    const int tObj = tm.faceObject[f], fObj = fm.faceObject[f];
+    const double a = tm.faceArea[f];
+    Coverage& cv = cover[tObj];
+    cv.parts.insert(fObj);
+    cv.area += a, overlap[fObj][tObj] += a;
+    cv.emitting += fa.isEmissive(fObj) ? a : 0.0;
+    cv.scored += o.highlightObserved.empty() || o.highlightObserved[fObj] ? a : 0.0;
+    cv.roughness += a * fa.roughness[fObj], cv.specular += a * fa.specular[fObj];
+    cv.emission += a * fa.meanEmission(fObj).cast<double>();
+  }
   int found = 0;
   double emissionErr = 0;
-  for (int obj = 0; obj < std::min(fa.objectCount(), ta.objectCount()); ++obj) {
-    const bool materials = o.highlightObserved.empty() || o.highlightObserved[obj];
-    const bool trueEmitter = ta.isEmissive(obj), fitEmitter = fa.isEmissive(obj);
-    const Color te = ta.meanEmission(obj), fe = fa.meanEmission(obj);
+  for (int obj = 0; obj < ta.objectCount(); ++obj) {
+    const Coverage& cv = cover[obj];
+    if (cv.area <= 0) continue;
+    const int one = cv.parts.size() == 1 ? *cv.parts.begin() : -1;
+    const bool materials =
+        one >= 0 ? o.highlightObserved.empty() || o.highlightObserved[one] : cv.scored >= cv.area / 2;
+    const bool trueEmitter = ta.isEmissive(obj);
+    const bool fitEmitter = one >= 0 ? fa.isEmissive(one) : cv.emitting >= cv.area / 2;
+    const float roughness = one >= 0 ? fa.roughness[one] : static_cast<float>(cv.roughness / cv.area);
+    const float specular = one >= 0 ? fa.specular[one] : static_cast<float>(cv.specular / cv.area);
+    const Color te = ta.meanEmission(obj);
+    const Color fe = one >= 0 ? fa.meanEmission(one) : Color((cv.emission / cv.area).cast<float>());
     Json row = {{"id", obj},
                 {"name", ta.names[obj]},
-                {"roughness", {fa.roughness[obj], ta.roughness[obj]}},
-                {"specular", {fa.specular[obj], ta.specular[obj]}},
+                {"roughness", {roughness, ta.roughness[obj]}},
+                {"specular", {specular, ta.specular[obj]}},
                 {"materials_scored", materials},
                 {"emitter", {fitEmitter, trueEmitter}}};
+    if (one < 0) row["fit_objects"] = cv.parts.size();
     if (const ObjectError& oe = objectError[obj]; oe.texels)
       row["albedo"] = {{"texels", oe.texels}, {"mae", oe.abs / oe.texels}, {"bias", oe.signedSum / oe.texels}};
     if (materials && !trueEmitter) {
-      c.roughnessMae += std::abs(fa.roughness[obj] - ta.roughness[obj]);
-      c.specularMae += std::abs(fa.specular[obj] - ta.specular[obj]);
+      c.roughnessMae += std::abs(roughness - ta.roughness[obj]);
+      c.specularMae += std::abs(specular - ta.specular[obj]);
       ++c.materialObjects;
     }
-    c.emittersTrue += trueEmitter, c.emittersFound += fitEmitter, c.emittersCorrect += trueEmitter && fitEmitter;
+    c.emittersTrue += trueEmitter, c.emittersCorrect += trueEmitter && fitEmitter;
     if (trueEmitter && fitEmitter) {
       const double err = ((fe - te).abs() / te.max(1e-6f)).mean();
       row["emission_rel_error"] = err;
       emissionErr += err, ++found;
     }
     c.perObject.push_back(row);
+  }
+  // Found: the true lights found, and each of the fit's lights that lies mostly on a true reflector.
+  c.emittersFound = c.emittersCorrect;
+  for (int j = 0; j < fa.objectCount(); ++j) {
+    if (!fa.isEmissive(j)) continue;
+    const auto& row = overlap[j];
+    const int mostly = static_cast<int>(std::max_element(row.begin(), row.end()) - row.begin());
+    if (row[mostly] > 0 && !ta.isEmissive(mostly)) ++c.emittersFound;
   }
   if (c.materialObjects) c.roughnessMae /= c.materialObjects, c.specularMae /= c.materialObjects;
   c.emissionRelError = found ? emissionErr / found : 1.0;

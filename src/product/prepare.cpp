@@ -7,6 +7,7 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <optional>
 
 #include "capture/capture_folder.h"
 #include "capture/duplicate_frames.h"
@@ -23,6 +24,7 @@
 #include "product/frame_gains.h"
 #include "scene/scene.h"
 #include "scene/texel_map.h"
+#include "sampling/face_appearance.h"
 #include "sampling/median_sketch.h"
 #include "sampling/visibility.h"
 
@@ -73,19 +75,117 @@ Image falseColour(const std::vector<uint32_t>& counts, int res) {
 
 // The phases, in order; each returns what prepare.json records of it.
 
+// The computed segmentation's face ids (segmentation phase), one int32 per face of the capture's
+// mesh as loadMesh reads it.
+constexpr char kSegmentsMagic[8] = {'R', 'S', 'E', 'G', 'M', 'N', 'T', '1'};
+
+void writeSegments(const fs::path& file, const std::vector<int32_t>& faceObject) {
+  writeAtomically(file, [&](const fs::path& tmp) {
+    std::ofstream out(tmp, std::ios::binary);
+    const uint64_t n = faceObject.size();
+    out.write(kSegmentsMagic, sizeof kSegmentsMagic);
+    out.write(reinterpret_cast<const char*>(&n), sizeof n);
+    out.write(reinterpret_cast<const char*>(faceObject.data()), static_cast<std::streamsize>(n * sizeof(int32_t)));
+    if (!out) fail("{}: could not be written", file.string());
+  });
+}
+
+std::vector<int32_t> readSegments(const fs::path& file, size_t faces) {
+  std::ifstream in(file, std::ios::binary);
+  char magic[sizeof kSegmentsMagic] = {};
+  uint64_t n = 0;
+  in.read(magic, sizeof magic);
+  in.read(reinterpret_cast<char*>(&n), sizeof n);
+  if (!in || std::memcmp(magic, kSegmentsMagic, sizeof magic) != 0 || n != faces)
+    fail("{}: not the segmentation of this mesh ({} faces; rerun prepare with --force)", file.string(), faces);
+  std::vector<int32_t> ids(n);
+  in.read(reinterpret_cast<char*>(ids.data()), static_cast<std::streamsize>(n * sizeof(int32_t)));
+  if (!in) fail("{}: truncated (rerun prepare with --force)", file.string());
+  for (int32_t id : ids)
+    if (id < 0 || static_cast<size_t>(id) >= faces) fail("{}: object id {} out of range", file.string(), id);
+  return ids;
+}
+
+// Segmentation: objects for a mesh that has none (scene/segmentation.h), from the faces' geometry
+// and what the kept frames show of them. Writes segments.bin and objects.json (per object: faces,
+// area, median radiance, clipped share).
+Json segmentationPhase(const fs::path& meshPath, const Capture& cap, const std::vector<size_t>& kept,
+                       const fs::path& work, const PrepareOptions& o) {
+  const Scene scene(loadMesh(meshPath));
+  const TriangleMesh& mesh = scene.mesh();
+  const FrameStore store(work / "frames.bin");
+  Timer observing;
+  const std::vector<FaceAppearance> appearance = observeFaces(scene, cap.frames, store, kept, o.faceAppearance);
+  const double observeSeconds = observing.seconds();
+  const Segmentation seg = segmentMesh(mesh, appearance, o.segmentationOptions);
+  struct Object {
+    size_t faces = 0;
+    double area = 0, observedArea = 0, clipped = 0;
+    Eigen::Array3d logSum = Eigen::Array3d::Zero();
+  };
+  std::vector<Object> objects(seg.objects);
+  size_t observedFaces = 0;
+  for (size_t f = 0; f < mesh.triangles.size(); ++f) {
+    Object& ob = objects[seg.faceObject[f]];
+    const double area = mesh.faceArea[f];
+    ++ob.faces, ob.area += area;
+    if (!appearance[f].observed) continue;
+    ++observedFaces;
+    ob.observedArea += area, ob.clipped += area * appearance[f].clippedFraction;
+    ob.logSum += area * appearance[f].logRadiance.cast<double>();
+  }
+  Json list = Json::array();
+  for (int id = 0; id < seg.objects; ++id) {
+    const Object& ob = objects[id];
+    Json entry{{"id", id}, {"name", fmt::format("segment {}", id)}, {"faces", ob.faces}, {"area", ob.area}};
+    if (ob.observedArea > 0) {
+      const Eigen::Array3d c = (ob.logSum / ob.observedArea).exp();
+      entry["radiance"] = {c[0], c[1], c[2]};
+      entry["clipped_fraction"] = ob.clipped / ob.observedArea;
+    }
+    list.push_back(entry);
+  }
+  writeSegments(work / "segments.bin", seg.faceObject);
+  writeJson(work / "objects.json", Json{{"objects", list}});
+  spdlog::info(
+      "segmentation: {} objects ({} connected components, {} regions grown, {} small ones merged, {} kept for their "
+      "brightness, {} isolated); {} of {} faces seen",
+      seg.objects, seg.components, seg.grownRegions, seg.mergedSmall, seg.keptSmallBright, seg.isolatedSmall,
+      observedFaces, mesh.triangles.size());
+  return Json{{"objects", seg.objects},
+              {"components", seg.components},
+              {"grown_regions", seg.grownRegions},
+              {"merged_small", seg.mergedSmall},
+              {"kept_small_bright", seg.keptSmallBright},
+              {"isolated_small", seg.isolatedSmall},
+              {"faces", mesh.triangles.size()},
+              {"faces_observed", observedFaces},
+              {"observe_seconds", observeSeconds}};
+}
+
 // Atlas: the mesh charted and packed into one uv atlas (scene/atlas.h), with the object names
-// from objects.json, else from the mesh file (OBJ groups).
-Json atlasPhase(const fs::path& capture, const fs::path& meshPath, const fs::path& work, const PrepareOptions& o) {
+// from objects.json, else from the mesh file (OBJ groups); or with the computed segmentation's
+// objects when `segments` names its file.
+Json atlasPhase(const fs::path& capture, const fs::path& meshPath, const fs::path& work, const PrepareOptions& o,
+                const std::optional<fs::path>& segments) {
   TriangleMesh mesh = loadMesh(meshPath);
+  Json names = Json::object();
+  if (segments) {
+    mesh.faceObject = readSegments(*segments, mesh.triangles.size());
+    mesh.objectCount = 1 + *std::max_element(mesh.faceObject.begin(), mesh.faceObject.end());
+    mesh.objectNames.clear();
+    for (const auto& [id, name] : readObjectNames(work / "objects.json")) names[std::to_string(id)] = name;
+  }
   AtlasReport ar;
   const TriangleMesh atlas = buildAtlas(mesh, o.atlas, &ar);
   writePly(work / "atlas_mesh.ply", atlas.toData());
   spdlog::info("atlas: {}", ar.summary());
   // Names from objects.json, else from the mesh file (OBJ groups).
-  Json names = Json::object();
-  for (size_t id = 0; id < mesh.objectNames.size(); ++id) names[std::to_string(id)] = mesh.objectNames[id];
-  if (pathExists(capture / "objects.json"))
-    for (const auto& [id, name] : readObjectNames(capture / "objects.json")) names[std::to_string(id)] = name;
+  if (!segments) {
+    for (size_t id = 0; id < mesh.objectNames.size(); ++id) names[std::to_string(id)] = mesh.objectNames[id];
+    if (pathExists(capture / "objects.json"))
+      for (const auto& [id, name] : readObjectNames(capture / "objects.json")) names[std::to_string(id)] = name;
+  }
   return Json{{"triangles", atlas.triangles.size()},
               {"objects", atlas.objectCount},
               {"dropped_degenerate", mesh.droppedDegenerate},
@@ -441,15 +541,6 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
     spdlog::info("prepare: {} done in {:.1f}s", name, t.seconds());
   };
 
-  // Atlas.
-  // "atlas2": the charting/packing version, so work folders made by an older atlas are re-charted.
-  const std::string atlasPrint =
-      fingerprintOf({meshPath}, fmt::format("atlas2 {} {} {} {}", o.atlas.gutterResolution, o.atlas.gutterTexels,
-                                            o.atlas.coneDegrees, o.atlas.planarDegrees));
-  runPhase("atlas", atlasPrint, {work / "atlas_mesh.ply"}, [&] { return atlasPhase(capture, meshPath, work, o); });
-  const TriangleMesh mesh = loadMesh(work / "atlas_mesh.ply");
-  const Scene scene(mesh);
-
   // Frames: convert, then filter.
   std::vector<fs::path> imagePaths = cap.files;
   for (const Frame& f : cap.frames) imagePaths.push_back(f.image);
@@ -464,6 +555,39 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   const std::vector<size_t> kept = jsonIntegers<size_t>(phases["frames"]["kept"], 0, cap.frames.size() - 1,
                                                         (work / "prepare.json").string(), "kept");
   if (kept.empty()) fail("prepare: every frame was dropped (see {})", (work / "prepare.json").string());
+
+  // Segmentation, when the objects are computed.
+  const bool computeObjects = o.segmentation == SegmentationMode::Computed ||
+                              (o.segmentation == SegmentationMode::Auto && loadMesh(meshPath).objectCount == 1);
+  std::string segmentationPrint = "given";
+  if (computeObjects) {
+    const SegmentationOptions& so = o.segmentationOptions;
+    // "segmentation1": the segmentation's version, so a changed method recomputes it.
+    segmentationPrint = fingerprintOf(
+        {meshPath}, fmt::format("segmentation1 {} {} {} {} {} {} {} {} {} {} {} {}", framesPrint, so.creaseDegrees,
+                                so.edgeContrast, so.regionContrast, so.significance, so.clipSplit, so.minAreaFraction,
+                                so.keepBrighter, o.faceAppearance.maxFrames, o.faceAppearance.radianceFloor,
+                                o.faceAppearance.minLogSpread, o.faceAppearance.planeTolerance));
+    runPhase("segmentation", segmentationPrint, {work / "segments.bin", work / "objects.json"},
+             [&] { return segmentationPhase(meshPath, cap, kept, work, o); });
+  } else if (phases.contains("segmentation")) {
+    phases.erase("segmentation");
+    report["phases"] = phases;
+    removeFile(work / "segments.bin");
+    removeFile(work / "objects.json");
+  }
+
+  // Atlas.
+  // "atlas2": the charting/packing version, so work folders made by an older atlas are re-charted.
+  const std::string atlasPrint =
+      fingerprintOf({meshPath}, fmt::format("atlas2 {} {} {} {} {}", o.atlas.gutterResolution, o.atlas.gutterTexels,
+                                            o.atlas.coneDegrees, o.atlas.planarDegrees, segmentationPrint));
+  const std::optional<fs::path> segments =
+      computeObjects ? std::optional<fs::path>(work / "segments.bin") : std::nullopt;
+  runPhase("atlas", atlasPrint, {work / "atlas_mesh.ply"},
+           [&] { return atlasPhase(capture, meshPath, work, o, segments); });
+  const TriangleMesh mesh = loadMesh(work / "atlas_mesh.ply");
+  const Scene scene(mesh);
 
   // Visibility index over tiles of the init resolution.
   const TexelMap initMap(mesh, initRes);

@@ -1,0 +1,273 @@
+#include "scene/segmentation.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <numeric>
+#include <tuple>
+#include <unordered_map>
+
+#include "core/check.h"
+
+namespace relume {
+namespace {
+
+// Vertices at bit-identical positions become one (meshes repeat a vertex at every uv or normal seam).
+std::vector<uint32_t> weldVertices(const TriangleMesh& mesh) {
+  struct Key {
+    uint32_t x, y, z;
+    bool operator==(const Key& o) const { return x == o.x && y == o.y && z == o.z; }
+  };
+  struct KeyHash {
+    size_t operator()(const Key& k) const {
+      return (static_cast<size_t>(k.x) * 73856093u) ^ (static_cast<size_t>(k.y) * 19349663u) ^
+             (static_cast<size_t>(k.z) * 83492791u);
+    }
+  };
+  std::unordered_map<Key, uint32_t, KeyHash> ids;
+  ids.reserve(mesh.positions.size());
+  std::vector<uint32_t> welded(mesh.positions.size());
+  for (size_t v = 0; v < mesh.positions.size(); ++v) {
+    Key k{};
+    const Vec3& p = mesh.positions[v];
+    // +0.0f: -0 and +0 are the same position.
+    const float x = p.x() + 0.0f, y = p.y() + 0.0f, z = p.z() + 0.0f;
+    std::memcpy(&k.x, &x, 4), std::memcpy(&k.y, &y, 4), std::memcpy(&k.z, &z, 4);
+    welded[v] = ids.emplace(k, static_cast<uint32_t>(ids.size())).first->second;
+  }
+  return welded;
+}
+
+// Pairs of faces that share an edge of the welded mesh. Around a non-manifold edge the faces are
+// chained in index order, so they still end up connected.
+std::vector<std::pair<uint32_t, uint32_t>> adjacentFaces(const TriangleMesh& mesh) {
+  const std::vector<uint32_t> welded = weldVertices(mesh);
+  std::vector<std::tuple<uint32_t, uint32_t, uint32_t>> edges;
+  edges.reserve(3 * mesh.triangles.size());
+  for (size_t f = 0; f < mesh.triangles.size(); ++f)
+    for (int e = 0; e < 3; ++e) {
+      const uint32_t a = welded[mesh.triangles[f][e]], b = welded[mesh.triangles[f][(e + 1) % 3]];
+      if (a != b) edges.emplace_back(std::min(a, b), std::max(a, b), static_cast<uint32_t>(f));
+    }
+  std::sort(edges.begin(), edges.end());
+  std::vector<std::pair<uint32_t, uint32_t>> pairs;
+  for (size_t i = 1; i < edges.size(); ++i)
+    if (std::get<0>(edges[i]) == std::get<0>(edges[i - 1]) && std::get<1>(edges[i]) == std::get<1>(edges[i - 1]) &&
+        std::get<2>(edges[i]) != std::get<2>(edges[i - 1]))
+      pairs.emplace_back(std::get<2>(edges[i - 1]), std::get<2>(edges[i]));
+  std::sort(pairs.begin(), pairs.end());
+  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+  return pairs;
+}
+
+// Face normals averaged over their neighbours (area-weighted, two rounds, only neighbours within
+// 60 degrees so creases stay sharp): a scan's vertex noise tilts single small faces by tens of
+// degrees, which a crease test on raw normals would take for edges. Orientation is ignored (meshes
+// often have inconsistent winding).
+std::vector<Vec3> smoothedNormals(const TriangleMesh& mesh, const std::vector<std::pair<uint32_t, uint32_t>>& pairs) {
+  const size_t faces = mesh.triangles.size();
+  std::vector<Vec3> raw(faces), smooth(faces);
+  for (size_t f = 0; f < faces; ++f) raw[f] = mesh.faceNormal(f);
+  smooth = raw;
+  constexpr float kNeighbourCos = 0.5f;
+  for (int round = 0; round < 2; ++round) {
+    std::vector<Vec3> sum(faces);
+    for (size_t f = 0; f < faces; ++f) sum[f] = mesh.faceArea[f] * smooth[f];
+    for (const auto& [a, b] : pairs) {
+      if (std::abs(raw[a].dot(raw[b])) < kNeighbourCos) continue;
+      const float sign = smooth[a].dot(smooth[b]) < 0 ? -1.0f : 1.0f;
+      sum[a] += sign * mesh.faceArea[b] * smooth[b];
+      sum[b] += sign * mesh.faceArea[a] * smooth[a];
+    }
+    for (size_t f = 0; f < faces; ++f) {
+      const float n = sum[f].norm();
+      smooth[f] = n > 0 && std::isfinite(n) ? Vec3(sum[f] / n) : raw[f];
+    }
+  }
+  return smooth;
+}
+
+class Regions {
+ public:
+  Regions(const TriangleMesh& mesh, const std::vector<FaceAppearance>& appearance)
+      : parent_(mesh.triangles.size()), stats_(mesh.triangles.size()) {
+    std::iota(parent_.begin(), parent_.end(), 0u);
+    for (size_t f = 0; f < parent_.size(); ++f) {
+      Stats& s = stats_[f];
+      s.area = mesh.faceArea[f];
+      if (!appearance[f].observed) continue;
+      s.observedArea = s.area;
+      s.logSum = s.area * appearance[f].logRadiance.cast<double>();
+      s.clipSum = s.area * appearance[f].clippedFraction;
+    }
+  }
+  uint32_t find(uint32_t f) {
+    while (parent_[f] != f) f = parent_[f] = parent_[parent_[f]];
+    return f;
+  }
+  void join(uint32_t a, uint32_t b) {
+    a = find(a), b = find(b);
+    DCHECK(a != b);
+    if (stats_[a].area < stats_[b].area || (stats_[a].area == stats_[b].area && b < a)) std::swap(a, b);
+    parent_[b] = a;
+    Stats& s = stats_[a];
+    const Stats& t = stats_[b];
+    s.area += t.area, s.observedArea += t.observedArea, s.logSum += t.logSum, s.clipSum += t.clipSum;
+  }
+  double area(uint32_t root) const { return stats_[root].area; }
+  bool observed(uint32_t root) const { return stats_[root].observedArea > 0; }
+  Eigen::Array3d meanLog(uint32_t root) const { return stats_[root].logSum / stats_[root].observedArea; }
+  double meanClip(uint32_t root) const { return stats_[root].clipSum / stats_[root].observedArea; }
+  double meanLogLuminance(uint32_t root) const {
+    const Eigen::Array3d c = meanLog(root).exp();
+    return std::log(0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]);
+  }
+  // The largest per-channel difference of the two regions' mean log radiance (0 if either was never seen).
+  double distance(uint32_t a, uint32_t b) const {
+    if (!observed(a) || !observed(b)) return 0;
+    return (meanLog(a) - meanLog(b)).abs().maxCoeff();
+  }
+  size_t size() const { return parent_.size(); }
+
+ private:
+  struct Stats {
+    double area = 0, observedArea = 0, clipSum = 0;
+    Eigen::Array3d logSum = Eigen::Array3d::Zero();
+  };
+  std::vector<uint32_t> parent_;
+  std::vector<Stats> stats_;
+};
+
+size_t countRoots(Regions& r) {
+  size_t n = 0;
+  for (uint32_t f = 0; f < r.size(); ++f) n += r.find(f) == f;
+  return n;
+}
+
+void joinAll(Regions& r, const std::vector<std::pair<uint32_t, uint32_t>>& pairs) {
+  for (const auto& [a, b] : pairs)
+    if (r.find(a) != r.find(b)) r.join(a, b);
+}
+
+}  // namespace
+
+std::vector<uint32_t> connectedComponents(const TriangleMesh& mesh) {
+  Regions components(mesh, std::vector<FaceAppearance>(mesh.triangles.size()));
+  joinAll(components, adjacentFaces(mesh));
+  std::vector<uint32_t> id(mesh.triangles.size(), UINT32_MAX), out(mesh.triangles.size());
+  uint32_t next = 0;
+  for (uint32_t f = 0; f < mesh.triangles.size(); ++f) {
+    const uint32_t r = components.find(f);
+    if (id[r] == UINT32_MAX) id[r] = next++;
+    out[f] = id[r];
+  }
+  return out;
+}
+
+Segmentation segmentMesh(const TriangleMesh& mesh, const std::vector<FaceAppearance>& appearance,
+                         const SegmentationOptions& o) {
+  CHECK(appearance.size() == mesh.triangles.size());
+  const std::vector<std::pair<uint32_t, uint32_t>> pairs = adjacentFaces(mesh);
+  const std::vector<Vec3> normal = smoothedNormals(mesh, pairs);
+  Segmentation seg;
+  {
+    Regions components(mesh, appearance);
+    joinAll(components, pairs);
+    seg.components = countRoots(components);
+  }
+
+  // Steps 1-3: the pairs that may join, most similar first.
+  const float creaseCos = std::cos(o.creaseDegrees * kPi / 180.0f), edgeLog = std::log(o.edgeContrast);
+  std::vector<std::pair<float, uint32_t>> candidates;
+  for (uint32_t i = 0; i < pairs.size(); ++i) {
+    const auto [a, b] = pairs[i];
+    if (std::abs(normal[a].dot(normal[b])) < creaseCos) continue;
+    const FaceAppearance &fa = appearance[a], &fb = appearance[b];
+    float difference = 0;
+    if (fa.observed && fb.observed) {
+      if (std::abs(fa.clippedFraction - fb.clippedFraction) > o.clipSplit) continue;
+      const Color d = (fa.logRadiance - fb.logRadiance).abs();
+      const Color noise = o.significance * (fa.logError.square() + fb.logError.square()).sqrt();
+      if ((d > noise.max(edgeLog)).any()) continue;
+      difference = d.maxCoeff();
+    }
+    candidates.emplace_back(difference, i);
+  }
+  std::sort(candidates.begin(), candidates.end());
+  Regions regions(mesh, appearance);
+  const double regionLog = std::log(o.regionContrast);
+  for (const auto& [difference, i] : candidates) {
+    const uint32_t a = regions.find(pairs[i].first), b = regions.find(pairs[i].second);
+    if (a == b) continue;
+    if (regions.observed(a) && regions.observed(b) &&
+        (regions.distance(a, b) > regionLog || std::abs(regions.meanClip(a) - regions.meanClip(b)) > o.clipSplit))
+      continue;
+    regions.join(a, b);
+  }
+  seg.grownRegions = countRoots(regions);
+
+  // Step 4: small regions into their most similar neighbour, smallest first, each region at most
+  // once per round (its neighbours' statistics are the round's), until a round merges nothing.
+  double total = 0;
+  for (float a : mesh.faceArea) total += a;
+  const double minArea = o.minAreaFraction * total, brighter = std::log(o.keepBrighter);
+  std::vector<char> kept(mesh.triangles.size(), 0);
+  bool merged = true;
+  std::vector<uint32_t> isolated;
+  while (merged) {
+    merged = false;
+    std::vector<std::pair<uint32_t, uint32_t>> links;
+    for (const auto& [a, b] : pairs) {
+      const uint32_t ra = regions.find(a), rb = regions.find(b);
+      if (ra != rb) links.emplace_back(ra, rb), links.emplace_back(rb, ra);
+    }
+    std::sort(links.begin(), links.end());
+    links.erase(std::unique(links.begin(), links.end()), links.end());
+    std::vector<std::pair<double, uint32_t>> small;
+    for (uint32_t f = 0; f < regions.size(); ++f)
+      if (regions.find(f) == f && regions.area(f) < minArea && !kept[f]) small.emplace_back(regions.area(f), f);
+    std::sort(small.begin(), small.end());
+    std::vector<char> touched(mesh.triangles.size(), 0);
+    isolated.clear();
+    for (const auto& [area, r] : small) {
+      if (touched[r]) continue;
+      auto it = std::lower_bound(links.begin(), links.end(), std::make_pair(r, 0u));
+      uint32_t best = r;
+      double bestDistance = INFINITY;
+      for (; it != links.end() && it->first == r; ++it) {
+        const double d = regions.distance(r, it->second);
+        if (d < bestDistance || (d == bestDistance && regions.area(it->second) > regions.area(best))) {
+          best = it->second;
+          bestDistance = d;
+        }
+      }
+      if (best == r) {
+        isolated.push_back(r);
+        continue;
+      }
+      if (touched[best]) continue;  // its statistics changed this round: next round
+      if (regions.observed(r) && regions.observed(best) &&
+          regions.meanLogLuminance(r) - regions.meanLogLuminance(best) > brighter) {
+        kept[r] = 1;
+        ++seg.keptSmallBright;
+        continue;
+      }
+      regions.join(r, best);
+      touched[regions.find(r)] = 1, touched[r] = 1, touched[best] = 1;
+      ++seg.mergedSmall;
+      merged = true;
+    }
+  }
+  seg.isolatedSmall = isolated.size();
+
+  std::vector<int32_t> id(mesh.triangles.size(), -1);
+  seg.faceObject.resize(mesh.triangles.size());
+  for (uint32_t f = 0; f < mesh.triangles.size(); ++f) {
+    const uint32_t r = regions.find(f);
+    if (id[r] < 0) id[r] = seg.objects++;
+    seg.faceObject[f] = id[r];
+  }
+  return seg;
+}
+
+}  // namespace relume

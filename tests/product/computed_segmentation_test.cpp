@@ -1,0 +1,67 @@
+// Known answer: the room captured without a segmentation (a mesh with no object ids, as most
+// scanners give it). Prepare computes one from the mesh and the frames; the fit then finds the
+// ceiling panels as it does with the true segmentation.
+#include <gtest/gtest.h>
+
+#include <map>
+
+#include "io/json.h"
+#include "product/evaluate.h"
+#include "product/fit.h"
+#include "scene/appearance.h"
+#include "scenes/imperfections.h"
+#include "support/prepared_capture.h"
+#include "support/small_fit_config.h"
+
+using namespace relume;
+namespace fs = std::filesystem;
+
+TEST(ComputedSegmentation, TheRoomWithoutObjectIdsIsSegmentedCleanlyAndItsLightsFound) {
+  SynthCaptureOptions so;
+  so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 8, so.testSpp = 8;
+  so.atlasResolution = 256;
+  so.imperfections = parseImperfections("segmentation=none");
+  const fs::path dir = preparedCapture("computed_segmentation", so, 256);
+  const Json prepared = readJson(dir / "work" / "prepare.json");
+  ASSERT_TRUE(prepared["phases"].contains("segmentation"));
+  const SceneDescription truth = loadSceneFile(dir / "capture" / "gt" / "scene.json");
+  const TriangleMesh fitted = loadMesh(dir / "work" / "atlas_mesh.ply");
+  ASSERT_EQ(fitted.triangles.size(), truth.mesh.triangles.size());
+  EXPECT_GE(fitted.objectCount, truth.mesh.objectCount);
+
+  // No computed object straddles two true ones (by area: at most 1% of it elsewhere), and every
+  // true light is exactly one computed object.
+  std::map<std::pair<int, int>, double> overlap;
+  std::vector<double> fittedArea(fitted.objectCount, 0.0), trueArea(truth.mesh.objectCount, 0.0);
+  for (size_t f = 0; f < fitted.triangles.size(); ++f) {
+    const double a = truth.mesh.faceArea[f];
+    overlap[{fitted.faceObject[f], truth.mesh.faceObject[f]}] += a;
+    fittedArea[fitted.faceObject[f]] += a, trueArea[truth.mesh.faceObject[f]] += a;
+  }
+  for (const auto& [ids, area] : overlap)
+    if (area < 0.5 * fittedArea[ids.first])
+      EXPECT_LT(area, 0.01 * fittedArea[ids.first])
+          << "computed object " << ids.first << " straddles true object " << truth.appearance.names[ids.second];
+  for (int t = 0; t < truth.mesh.objectCount; ++t) {
+    if (!truth.appearance.isEmissive(t)) continue;
+    int parts = 0;
+    for (const auto& [ids, area] : overlap)
+      if (ids.second == t) {
+        ++parts;
+        EXPECT_NEAR(area, fittedArea[ids.first], 1e-9 * area) << truth.appearance.names[t] << " shares its object";
+      }
+    EXPECT_EQ(parts, 1) << truth.appearance.names[t] << " is split";
+  }
+
+  FitConfig c = smallFitConfig();
+  c.checkpointEvery = 1000;
+  runFit(dir / "work", c, false);
+  const SceneDescription fit = loadSceneFile(dir / "work" / "result" / "scene.json");
+  const TruthComparison score = compareWithTruth(fit, truth, readImage(dir / "work" / "coverage.exr"), {});
+  EXPECT_EQ(score.emittersTrue, 2);
+  EXPECT_EQ(score.emittersCorrect, 2);
+  EXPECT_EQ(score.emittersFound, 2);
+  EXPECT_LT(score.emissionRelError, 0.15);
+  std::printf("computed segmentation: %d objects for %d; albedo MAE %.4f, emission error %.1f%%\n",
+              fitted.objectCount, truth.mesh.objectCount, score.albedoMae, 100 * score.emissionRelError);
+}

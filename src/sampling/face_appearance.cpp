@@ -35,13 +35,14 @@ std::pair<float, float> robustMean(std::vector<Observation>& obs, int c, std::ve
 bool interiorPixel(const Scene& scene, const std::vector<uint32_t>& component, uint32_t f, const Camera& cam,
                    const Vec2& pixel, const Vec3& p, const Vec3& n, float planeTolerance) {
   const float tolerance = planeTolerance * (p - cam.position).norm();
-  for (const Vec2 offset : {Vec2(-1.5f, -1.5f), Vec2(1.5f, -1.5f), Vec2(-1.5f, 1.5f), Vec2(1.5f, 1.5f)}) {
+  for (const Vec2& offset : {Vec2(-1.5f, -1.5f), Vec2(1.5f, -1.5f), Vec2(-1.5f, 1.5f), Vec2(1.5f, 1.5f)}) {
     const auto dir = cam.rayDirection(pixel + offset);
     if (!dir) return false;
     const RayHit hit = scene.traverse(cam.position, *dir);
     if (!hit.found() || component[hit.prim] != component[f]) return false;
     if (std::abs(n.dot(cam.position + hit.t * *dir - p)) > tolerance) return false;
   }
+  return true;
 }
 
 }  // namespace
@@ -84,9 +85,14 @@ std::vector<FaceAppearance> observeFaces(const Scene& scene, const std::vector<F
     FaceAppearance& a = out[f];
     a.observed = true;
     a.clippedFraction = static_cast<float>(s.all.size() - s.unclipped.size()) / s.all.size();
-    std::vector<Observation>& basis = s.unclipped.empty() ? s.all : s.unclipped;
+    if (s.unclipped.empty()) {  // every observation a floor: the tightest one
+      a.logRadiance = Color::Constant(-INFINITY);
+      for (const Observation& x : s.all) a.logRadiance = a.logRadiance.max(x.logValue);
+      a.logError = Color::Constant(o.minLogSpread);
+      return;
+    }
     for (int c = 0; c < 3; ++c)
-      std::tie(a.logRadiance[c], a.logError[c]) = robustMean(basis, c, s.values, o.minLogSpread);
+      std::tie(a.logRadiance[c], a.logError[c]) = robustMean(s.unclipped, c, s.values, o.minLogSpread);
   });
   return out;
 }

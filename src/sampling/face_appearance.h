@@ -22,9 +22,9 @@ struct FaceAppearanceOptions {
 };
 
 // One entry per face of scene.mesh(). The median is over the face's unclipped observations when it
-// has any (a lamp seen unclipped in a bracket's dark frames shows its value there), else over all
-// (a floor of the value); its standard error is max(1.4826 x the median absolute deviation,
-// minLogSpread) / sqrt(n).
+// has any (a lamp seen unclipped in a bracket's dark frames shows its value there); its standard
+// error is max(1.4826 x the median absolute deviation, minLogSpread) / sqrt(n). A face seen only
+// clipped gets the largest of its floors.
 std::vector<FaceAppearance> observeFaces(const Scene& scene, const std::vector<Frame>& frames,
                                          const FrameStore& store, const std::vector<size_t>& use,
                                          const FaceAppearanceOptions& options = {});

@@ -87,6 +87,9 @@ std::vector<Vec3> smoothedNormals(const TriangleMesh& mesh, const std::vector<st
   return smooth;
 }
 
+// Faces and regions seen clipped more often than this show floors, not values.
+constexpr double kMostlyClipped = 0.5;
+
 class Regions {
  public:
   Regions(const TriangleMesh& mesh, const std::vector<FaceAppearance>& appearance)
@@ -122,9 +125,10 @@ class Regions {
     const Eigen::Array3d c = meanLog(root).exp();
     return std::log(0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]);
   }
-  // The largest per-channel difference of the two regions' mean log radiance (0 if either was never seen).
+  // The largest per-channel difference of the two regions' mean log radiance (0 if either was never
+  // seen, or both mostly clipped).
   double distance(uint32_t a, uint32_t b) const {
-    if (!observed(a) || !observed(b)) return 0;
+    if (!observed(a) || !observed(b) || std::min(meanClip(a), meanClip(b)) > kMostlyClipped) return 0;
     return (meanLog(a) - meanLog(b)).abs().maxCoeff();
   }
   size_t size() const { return parent_.size(); }
@@ -184,7 +188,7 @@ Segmentation segmentMesh(const TriangleMesh& mesh, const std::vector<FaceAppeara
     if (std::abs(normal[a].dot(normal[b])) < creaseCos) continue;
     const FaceAppearance &fa = appearance[a], &fb = appearance[b];
     float difference = 0;
-    if (fa.observed && fb.observed) {
+    if (fa.observed && fb.observed && std::min(fa.clippedFraction, fb.clippedFraction) <= kMostlyClipped) {
       if (std::abs(fa.clippedFraction - fb.clippedFraction) > o.clipSplit) continue;
       const Color d = (fa.logRadiance - fb.logRadiance).abs();
       const Color noise = o.significance * (fa.logError.square() + fb.logError.square()).sqrt();
@@ -247,7 +251,8 @@ Segmentation segmentMesh(const TriangleMesh& mesh, const std::vector<FaceAppeara
       }
       if (touched[best]) continue;  // its statistics changed this round: next round
       if (regions.observed(r) && regions.observed(best) &&
-          regions.meanLogLuminance(r) - regions.meanLogLuminance(best) > brighter) {
+          (regions.meanLogLuminance(r) - regions.meanLogLuminance(best) > brighter ||
+           regions.meanClip(r) - regions.meanClip(best) > o.clipSplit)) {
         kept[r] = 1;
         ++seg.keptSmallBright;
         continue;

@@ -8,9 +8,12 @@
 //   3. what the frames show (FaceAppearance): adjacent faces join, most similar first, unless their
 //      observed radiance differs by more than `edgeContrast` and by more than its noise, or one is
 //      seen clipped and the other not; two grown regions join only while their mean radiances stay
-//      within `regionContrast` (so a ramp of mixed boundary faces cannot chain a lamp onto a wall);
+//      within `regionContrast` (so a ramp of mixed boundary faces cannot chain a lamp onto a wall).
+//      Faces (regions) seen mostly clipped are not compared by radiance: their floors differ with
+//      the exposures of the frames that saw them, not with the surface;
 //   4. small regions (below `minAreaFraction` of the surface) merge into their most similar
-//      neighbour, unless they are `keepBrighter` times brighter than it (a small lamp).
+//      neighbour, unless they are `keepBrighter` times brighter than it or clipped where it is not
+//      (a small lamp).
 // The paper's supplement found such a naive segmentation about as good as the captured one.
 #pragma once
 #include <cstdint>

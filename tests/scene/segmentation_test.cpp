@@ -151,6 +151,14 @@ TEST(Segmentation, AClippedPaneAndTheWhiteBlindBesideItArePartedByTheirClipping)
   EXPECT_EQ(segmentMesh(m, a, {}).objects, 2);
   for (auto& x : a) x.clippedFraction = 0;
   EXPECT_EQ(segmentMesh(m, a, {}).objects, 1);
+  // A pane seen only clipped, whose faces' floors differ with the exposures of the frames that saw
+  // them (1 in one half, 2.83 in the other): one object, the blind another.
+  for (size_t f = 0; f < a.size(); ++f) {
+    const Vec3 c = centroid(m, f);
+    a[f].clippedFraction = c.x() < 2 ? 1.0f : 0.0f;
+    a[f].logRadiance = Color::Constant(std::log(c.x() >= 2 ? 1.8f : c.z() < 2 ? 1.0f : 2.83f));
+  }
+  EXPECT_EQ(segmentMesh(m, a, {}).objects, 2);
 }
 
 TEST(Segmentation, SeparateComponentsStaySeparateAndIdsFollowTheFaces) {

@@ -10,6 +10,7 @@
 #include "capture/capture_folder.h"
 #include "capture/frame_image.h"
 #include "core/error.h"
+#include "core/rng.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
 #include "io/file_system.h"
@@ -18,6 +19,7 @@
 #include "product/evaluate.h"
 #include "product/prepare.h"
 #include "render/lights.h"
+#include "scene/texel_map.h"
 
 namespace relume {
 
@@ -234,9 +236,32 @@ std::string figure(const std::string& file, const std::string& caption) {
   return fmt::format("<figure><img class=\"tex\" src=\"{}\"><figcaption>{}</figcaption></figure>", file, caption);
 }
 
-// Albedo init / fit / truth (in the fit's atlas), coverage, emission textures.
+// Every texel in its object's colour (a hash of the id, light sources in white): where the objects
+// are, whether the mesh's or computed by prepare.
+std::string objectsFigure(const fs::path& out, const SceneDescription& fit, const Json& prepare) {
+  const int res = fit.appearance.albedo.width;
+  const TexelMap map(fit.mesh, res);
+  Image img(res, res);
+  for (size_t t = 0; t < map.texelCount(); ++t) {
+    if (!map.valid(t)) continue;
+    const int object = fit.mesh.faceObject[map.triangle(t)];
+    const uint64_t h = hashTuple({static_cast<uint64_t>(object), 0x0b1ec75ull});
+    const Color c = fit.appearance.isEmissive(object)
+                        ? Color::Ones()
+                        : Color(0.1f + 0.7f * ((h & 0xff) / 255.0f), 0.1f + 0.7f * ((h >> 8 & 0xff) / 255.0f),
+                                0.1f + 0.7f * ((h >> 16 & 0xff) / 255.0f));
+    img.set(static_cast<int>(t % res), static_cast<int>(t / res), c);
+  }
+  writeSrgbPng(out / "objects.png", img, 8);
+  const bool computed = prepare.at("phases").contains("segmentation");
+  return figure("objects.png", fmt::format("objects ({}, each its own colour, lights white; {})",
+                                           fit.appearance.objectCount(),
+                                           computed ? "computed by prepare: the mesh has none" : "the mesh's own"));
+}
+
+// Albedo init / fit / truth (in the fit's atlas), coverage, objects, emission textures.
 std::string texturesSection(const fs::path& work, const fs::path& out, const SceneDescription& fit,
-                            const SceneDescription* truth, TruthComparison* scores) {
+                            const SceneDescription* truth, const Json& prepare, TruthComparison* scores) {
   // prepare's pictures: a work folder copied without them still gets its report.
   auto prepared = [&](const std::string& file, const std::string& caption) -> std::string {
     if (!pathExists(work / file)) {
@@ -267,6 +292,7 @@ std::string texturesSection(const fs::path& work, const fs::path& out, const Sce
     }
   }
   s += prepared("coverage.png", "coverage (observations per texel: black never, blue once, red most)");
+  s += objectsFigure(out, fit, prepare);
   for (int o = 0; o < fit.appearance.objectCount(); ++o)
     if (const Texture* t = fit.appearance.emissionTexture(o)) {
       Image img(t->width, t->height);
@@ -472,11 +498,11 @@ fs::path writeReport(const fs::path& work, const ReportOptions& o) {
   TruthComparison scores;
   std::string textures;
   try {
-    textures = texturesSection(work, out, fit, truth, &scores);
+    textures = texturesSection(work, out, fit, truth, prepare, &scores);
   } catch (const Error& e) {  // a truth on other triangles (the `scan` capture) cannot be scored texel by texel
     spdlog::warn("report: truth not compared: {}", e.what());
     truth = nullptr;
-    textures = texturesSection(work, out, fit, nullptr, &scores);
+    textures = texturesSection(work, out, fit, nullptr, prepare, &scores);
   }
   std::string page = R"(<!DOCTYPE html><html><head><meta charset="utf-8"><title>relume fit report</title><style>
 body{font-family:sans-serif;margin:1.5em;max-width:1400px} table{border-collapse:collapse;margin:.5em 0}

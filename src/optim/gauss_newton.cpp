@@ -31,9 +31,9 @@ bool GaussNewtonState::stepEntry(size_t i, std::span<float> x, std::span<const f
   return true;
 }
 
-float GaussNewtonState::standardError(size_t i) const {
+float GaussNewtonState::standardError(size_t i, float bound) const {
   if (!tracksSpread() || residualSquare[i] < 0.0f || !(curvature[i] > 0.0f)) return -1.0f;
-  return std::sqrt(residualSquare[i] * weightSquare[i]) / curvature[i];
+  return std::min(std::sqrt(residualSquare[i] * weightSquare[i]) / curvature[i], bound);
 }
 
 size_t GaussNewtonState::step(std::span<float> x, std::span<const float> g, std::span<const float> h, float lo,

@@ -39,8 +39,10 @@ class GaussNewtonState {
         weightSquare(trackSpread ? entries : 0, 0.0f) {}
   size_t size() const { return curvature.size(); }
   bool tracksSpread() const { return !weightSquare.empty(); }
-  // Entry i's standard error; negative when unknown (no spread tracked, or no visit yet).
-  float standardError(size_t i) const;
+  // Entry i's standard error, at most `bound` (the width of the entry's domain: no estimate inside
+  // it is further off, while the formula divides by a curvature that a texel seen with next to no
+  // sensitivity leaves near 0); negative when unknown (no spread tracked, or no visit yet).
+  float standardError(size_t i, float bound) const;
   // One step on x with gradient g and curvature sample h, then projection onto [lo, hi].
   // Returns the entries updated. (The fit steps through stepTexels; this is its reference.)
   size_t step(std::span<float> x, std::span<const float> g, std::span<const float> h, float lo, float hi,

@@ -416,7 +416,9 @@ void Fit::finishStage(const Stage& st, size_t stageIndex, const TexelSpace& spac
 // The settled albedo's standard errors, and with albedo_smoothing the albedo smoothed by them
 // (optim/texel_smoothing.h) on the texels whose albedo is fitted.
 void Fit::settleAlbedoError(const TexelSpace& space) {
-  albedoError_ = optimiser_.albedoStandardError();
+  const ParamGroup albedo = paramGroups(appearance_).front();
+  CHECK(albedo.kind == ParamKind::Albedo);
+  albedoError_ = optimiser_.albedoStandardError(albedo.hi - albedo.lo);
   if (c_.albedoSmoothing == AlbedoSmoothing::None) return;
   if (albedoError_.empty()) {
     spdlog::info("fit: albedo_smoothing {} skipped: the albedo step ({}) has no standard errors",
@@ -432,8 +434,6 @@ void Fit::settleAlbedoError(const TexelSpace& space) {
   TexelSmoothingSettings settings;
   settings.radius = c_.albedoSmoothingRadius;
   SmoothedTexels s = smoothTexels(space.map, w_.mesh, appearance_.albedo.rgb, albedoError_, eligible, guide, settings);
-  const ParamGroup albedo = paramGroups(appearance_).front();
-  CHECK(albedo.kind == ParamKind::Albedo);
   for (float& v : s.values) v = std::clamp(v, albedo.lo, albedo.hi);
   auto median = [](std::vector<float> e) {
     std::erase_if(e, [](float x) { return x < 0; });

@@ -135,10 +135,10 @@ void GroupOptimiser::upsampleAlbedo(const TexelSpace& from, const TexelSpace& to
   polyak_.erase("albedo");
 }
 
-std::vector<float> GroupOptimiser::albedoStandardError() const {
+std::vector<float> GroupOptimiser::albedoStandardError(float bound) const {
   if (!newton_.tracksSpread()) return {};
   std::vector<float> e(newton_.size());
-  for (size_t i = 0; i < e.size(); ++i) e[i] = newton_.standardError(i);
+  for (size_t i = 0; i < e.size(); ++i) e[i] = newton_.standardError(i, bound);
   return e;
 }
 

@@ -54,9 +54,10 @@ class GroupOptimiser {
   void restartAfterLightChange();
 
   bool newtonAlbedo() const { return c_.albedoStep == AlbedoStep::GaussNewton; }
-  // Per albedo entry, the standard error of the Gauss-Newton fit (negative where unknown); empty
-  // without albedo_standard_error or before the albedo has stepped.
-  std::vector<float> albedoStandardError() const;
+  // Per albedo entry, the standard error of the Gauss-Newton fit, at most the albedo's domain
+  // width `bound` (negative where unknown); empty without albedo_standard_error or before the
+  // albedo has stepped.
+  std::vector<float> albedoStandardError(float bound) const;
   // Every group's state, for checkpoints (`groups` of the appearance being saved or restored).
   void serialise(CheckpointIo& io, std::span<ParamGroup> groups, size_t albedoEntries);
   double stateBytes() const;    // Adam moments and Gauss-Newton sums

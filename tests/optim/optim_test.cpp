@@ -188,8 +188,8 @@ TEST(GaussNewton, StandardErrorIsTheSpreadOfTheEstimate) {
     }
     double scatter = 0, reported = 0;
     for (size_t i = 0; i < entries; ++i) {
-      ASSERT_GE(s.standardError(i), 0.0f) << i;
-      scatter += (x[i] - a) * (x[i] - a), reported += s.standardError(i) * s.standardError(i);
+      ASSERT_GE(s.standardError(i, 1.0f), 0.0f) << i;
+      scatter += (x[i] - a) * (x[i] - a), reported += s.standardError(i, 1.0f) * s.standardError(i, 1.0f);
     }
     const double ratio = std::sqrt(reported / scatter);
     EXPECT_GT(ratio, 0.9);
@@ -198,13 +198,20 @@ TEST(GaussNewton, StandardErrorIsTheSpreadOfTheEstimate) {
   }
   // Unknown before the first visit; never without tracking.
   GaussNewtonState one(1, true), untracked(1);
-  EXPECT_LT(one.standardError(0), 0.0f);
+  EXPECT_LT(one.standardError(0, 1.0f), 0.0f);
   std::vector<float> x = {0.5f};
   const std::vector<float> g = {0.1f}, h = {1.0f};
   one.step(x, g, h, 0.0f, 1.0f, GaussNewtonSettings{});
   untracked.step(x, g, h, 0.0f, 1.0f, GaussNewtonSettings{});
-  EXPECT_GE(one.standardError(0), 0.0f);
-  EXPECT_LT(untracked.standardError(0), 0.0f);
+  EXPECT_GE(one.standardError(0, 1.0f), 0.0f);
+  EXPECT_LT(untracked.standardError(0, 1.0f), 0.0f);
+  // A visit with next to no sensitivity (the White Room had such texels at 1e5): the error is
+  // at most the domain's width.
+  GaussNewtonState faint(1, true);
+  const std::vector<float> large = {0.5f}, tiny = {1e-6f};
+  faint.step(x, large, tiny, 0.0f, 1.0f, GaussNewtonSettings{});
+  EXPECT_FLOAT_EQ(faint.standardError(0, 1.0f), 1.0f);
+  EXPECT_GT(faint.standardError(0, INFINITY), 1e4f);
 }
 
 // A texture-sized state is stepped by both cores in chunks: every entry must come out as if it

@@ -564,7 +564,8 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
     const SegmentationOptions& so = o.segmentationOptions;
     // "segmentation1": the segmentation's version, so a changed method recomputes it.
     segmentationPrint = fingerprintOf(
-        {meshPath}, fmt::format("segmentation1 {} {} {} {} {} {} {} {} {} {} {} {}", framesPrint, so.creaseDegrees,
+        {meshPath}, fmt::format("segmentation1 {} {} {} {} {} {} {} {} {} {} {} {} {}", framesPrint, so.creaseDegrees,
+                                so.regionCreaseDegrees,
                                 so.edgeContrast, so.regionContrast, so.significance, so.clipSplit, so.minAreaFraction,
                                 so.keepBrighter, o.faceAppearance.maxFrames, o.faceAppearance.radianceFloor,
                                 o.faceAppearance.minLogSpread, o.faceAppearance.planeTolerance));

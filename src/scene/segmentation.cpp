@@ -1,5 +1,7 @@
 #include "scene/segmentation.h"
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -89,6 +91,8 @@ std::vector<Vec3> smoothedNormals(const TriangleMesh& mesh, const std::vector<st
 
 // Faces and regions seen clipped more often than this show floors, not values.
 constexpr double kMostlyClipped = 0.5;
+// Regions of at least this many faces have main normals stable enough to compare.
+constexpr size_t kCreaseFaces = 16;
 
 class Regions {
  public:
@@ -98,7 +102,10 @@ class Regions {
     for (size_t f = 0; f < parent_.size(); ++f) {
       Stats& s = stats_[f];
       s.area = mesh.faceArea[f];
+      const Eigen::Vector3d n = mesh.faceNormal(f).cast<double>();
+      s.normalTensor = s.area * n * n.transpose();
       if (!appearance[f].observed) continue;
+      s.information = 1.0 / std::max(static_cast<double>(appearance[f].logError.square().mean()), 1e-8);
       s.observedArea = s.area;
       s.logSum = s.area * appearance[f].logRadiance.cast<double>();
       s.clipSum = s.area * appearance[f].clippedFraction;
@@ -116,11 +123,27 @@ class Regions {
     Stats& s = stats_[a];
     const Stats& t = stats_[b];
     s.area += t.area, s.observedArea += t.observedArea, s.logSum += t.logSum, s.clipSum += t.clipSum;
+    s.normalTensor += t.normalTensor, s.information += t.information, s.faces += t.faces;
+  }
+  // Whether two regions meet at a crease: B's faces are, on average, more than the crease angle
+  // away from A's main normal, or the other way round (cos2: the crease angle's squared cosine).
+  // Orientation is ignored (area-weighted second moments of the normals).
+  bool creased(uint32_t a, uint32_t b, double cos2) const {
+    const auto alignment = [&](uint32_t x, uint32_t y) {
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> e;
+      e.computeDirect(stats_[x].normalTensor);
+      const Eigen::Vector3d axis = e.eigenvectors().col(2);
+      return axis.dot(stats_[y].normalTensor * axis) / stats_[y].area;
+    };
+    return std::min(alignment(a, b), alignment(b, a)) < cos2;
   }
   double area(uint32_t root) const { return stats_[root].area; }
+  size_t faces(uint32_t root) const { return stats_[root].faces; }
   bool observed(uint32_t root) const { return stats_[root].observedArea > 0; }
   Eigen::Array3d meanLog(uint32_t root) const { return stats_[root].logSum / stats_[root].observedArea; }
   double meanClip(uint32_t root) const { return stats_[root].clipSum / stats_[root].observedArea; }
+  // Standard error of meanLog, from its faces' errors as if independent.
+  double logError(uint32_t root) const { return 1.0 / std::sqrt(stats_[root].information); }
   double meanLogLuminance(uint32_t root) const {
     const Eigen::Array3d c = meanLog(root).exp();
     return std::log(0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]);
@@ -135,8 +158,10 @@ class Regions {
 
  private:
   struct Stats {
-    double area = 0, observedArea = 0, clipSum = 0;
+    double area = 0, observedArea = 0, clipSum = 0, information = 0;  // information: sum of 1 / error^2
+    size_t faces = 1;
     Eigen::Array3d logSum = Eigen::Array3d::Zero();
+    Eigen::Matrix3d normalTensor = Eigen::Matrix3d::Zero();  // sum of area n n^T
   };
   std::vector<uint32_t> parent_;
   std::vector<Stats> stats_;
@@ -199,22 +224,28 @@ Segmentation segmentMesh(const TriangleMesh& mesh, const std::vector<FaceAppeara
   }
   std::sort(candidates.begin(), candidates.end());
   Regions regions(mesh, appearance);
+  double total = 0;
+  for (float a : mesh.faceArea) total += a;
+  const double minArea = o.minAreaFraction * total, brighter = std::log(o.keepBrighter);
   const double regionLog = std::log(o.regionContrast);
+  const double regionCreaseCos2 = std::pow(std::cos(o.regionCreaseDegrees * kPi / 180.0), 2);
   for (const auto& [difference, i] : candidates) {
     const uint32_t a = regions.find(pairs[i].first), b = regions.find(pairs[i].second);
     if (a == b) continue;
     if (regions.observed(a) && regions.observed(b) &&
         (regions.distance(a, b) > regionLog || std::abs(regions.meanClip(a) - regions.meanClip(b)) > o.clipSplit))
       continue;
+    // Two regions past the small size, with enough faces to average their noise, that meet at a
+    // crease noisy faces blurred into a ramp of small steps stay apart. (A region growing face by
+    // face round such a crease is not stopped: it would cut every sphere into caps.)
+    const auto settled = [&](uint32_t r) { return regions.area(r) >= minArea && regions.faces(r) >= kCreaseFaces; };
+    if (settled(a) && settled(b) && regions.creased(a, b, regionCreaseCos2)) continue;
     regions.join(a, b);
   }
   seg.grownRegions = countRoots(regions);
 
   // Step 4: small regions into their most similar neighbour, smallest first, each region at most
   // once per round (its neighbours' statistics are the round's), until a round merges nothing.
-  double total = 0;
-  for (float a : mesh.faceArea) total += a;
-  const double minArea = o.minAreaFraction * total, brighter = std::log(o.keepBrighter);
   std::vector<char> kept(mesh.triangles.size(), 0);
   bool merged = true;
   std::vector<uint32_t> isolated;
@@ -250,8 +281,9 @@ Segmentation segmentMesh(const TriangleMesh& mesh, const std::vector<FaceAppeara
         continue;
       }
       if (touched[best]) continue;  // its statistics changed this round: next round
+      const double noise = o.significance * std::hypot(regions.logError(r), regions.logError(best));
       if (regions.observed(r) && regions.observed(best) &&
-          (regions.meanLogLuminance(r) - regions.meanLogLuminance(best) > brighter ||
+          (regions.meanLogLuminance(r) - regions.meanLogLuminance(best) > std::max(brighter, noise) ||
            regions.meanClip(r) - regions.meanClip(best) > o.clipSplit)) {
         kept[r] = 1;
         ++seg.keptSmallBright;

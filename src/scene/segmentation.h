@@ -4,7 +4,9 @@
 // object. Faces are grouped by
 //   1. connectivity: faces that share no edge (after welding coincident vertices) never join;
 //   2. creases: adjacent faces whose normals (smoothed over their neighbours, against mesh noise)
-//      differ by more than `creaseDegrees` never join;
+//      differ by more than `creaseDegrees` never join, nor do two regions of 16 faces or more
+//      whose main normals differ by more than `regionCreaseDegrees` (a corner that noise rounded
+//      into a ramp of small steps);
 //   3. what the frames show (FaceAppearance): adjacent faces join, most similar first, unless their
 //      observed radiance differs by more than `edgeContrast` and by more than its noise, or one is
 //      seen clipped and the other not; two grown regions join only while their mean radiances stay
@@ -12,8 +14,8 @@
 //      Faces (regions) seen mostly clipped are not compared by radiance: their floors differ with
 //      the exposures of the frames that saw them, not with the surface;
 //   4. small regions (below `minAreaFraction` of the surface) merge into their most similar
-//      neighbour, unless they are `keepBrighter` times brighter than it or clipped where it is not
-//      (a small lamp).
+//      neighbour, unless they are `keepBrighter` times brighter than it (and beyond their noise) or
+//      clipped where it is not (a small lamp).
 // The paper's supplement found such a naive segmentation about as good as the captured one.
 #pragma once
 #include <cstdint>
@@ -33,6 +35,7 @@ struct FaceAppearance {
 
 struct SegmentationOptions {
   float creaseDegrees = 40;
+  float regionCreaseDegrees = 70;
   float edgeContrast = 1.3f;
   float regionContrast = 3.0f;
   float significance = 3;        // z: a difference within z standard errors is noise

@@ -18,14 +18,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-SynthCaptureOptions roomWithout(const std::string& imperfections) {
-  SynthCaptureOptions so;
-  so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 8, so.testSpp = 8;
-  so.atlasResolution = 256;
-  so.imperfections = parseImperfections(imperfections);
-  return so;
-}
-
 // No computed object straddles two true ones (by area: at most 1% of it elsewhere), and every
 // true light is exactly one computed object.
 void expectCleanSegmentation(const TriangleMesh& fitted, const SceneDescription& truth) {
@@ -58,7 +50,7 @@ void expectCleanSegmentation(const TriangleMesh& fitted, const SceneDescription&
 }  // namespace
 
 TEST(ComputedSegmentation, TheRoomWithoutObjectIdsIsSegmentedCleanlyAndItsLightsFound) {
-  const fs::path dir = preparedCapture("computed_segmentation", roomWithout("segmentation=none"), 256);
+  const fs::path dir = preparedCapture("computed_segmentation", room256("segmentation=none"), 256);
   ASSERT_TRUE(readJson(dir / "work" / "prepare.json")["phases"].contains("segmentation"));
   const SceneDescription truth = loadSceneFile(dir / "capture" / "gt" / "scene.json");
   const TriangleMesh fitted = loadMesh(dir / "work" / "atlas_mesh.ply");
@@ -82,11 +74,11 @@ TEST(ComputedSegmentation, TheRoomWithoutObjectIdsIsSegmentedCleanlyAndItsLights
 // apart from the ceiling. The mesh's own ids, when given, are kept.
 TEST(ComputedSegmentation, PanelsSeenOnlyClippedStayWholeAndGivenIdsAreKept) {
   const fs::path dir = preparedCapture("computed_segmentation_ldr",
-                                       roomWithout("bracket=-1.5,0,1.5;ldr=8;segmentation=none"), 256);
+                                       room256("bracket=-1.5,0,1.5;ldr=8;segmentation=none"), 256);
   const SceneDescription truth = loadSceneFile(dir / "capture" / "gt" / "scene.json");
   expectCleanSegmentation(loadMesh(dir / "work" / "atlas_mesh.ply"), truth);
 
-  const fs::path given = preparedCapture("computed_segmentation_given", roomWithout("ldr=8"), 256);
+  const fs::path given = preparedCapture("computed_segmentation_given", room256("ldr=8"), 256);
   EXPECT_FALSE(readJson(given / "work" / "prepare.json")["phases"].contains("segmentation"));
   const TriangleMesh kept = loadMesh(given / "work" / "atlas_mesh.ply");
   EXPECT_EQ(kept.objectCount, truth.mesh.objectCount);

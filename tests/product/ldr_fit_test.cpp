@@ -22,14 +22,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-SynthCaptureOptions smallRoom(const std::string& imperfections) {
-  SynthCaptureOptions so;
-  so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 8, so.testSpp = 8;
-  so.atlasResolution = 256;
-  so.imperfections = parseImperfections(imperfections);
-  return so;
-}
-
 FitConfig smallConfig(FrameGainMode gains) {
   FitConfig c = smallFitConfig();
   c.checkpointEvery = 1000;
@@ -54,7 +46,7 @@ double median(std::vector<double> v) {
 // Stored at 255, a panel's pixels say only "at least 1": bounds, the panels are fitted from the
 // light they cast, brighter than the clip; taken as values, they are fitted at exactly 1.
 TEST(LdrFit, SaturatedLightsAreBoundsNotValues) {
-  const fs::path dir = preparedCapture("ldr_fit_clip", smallRoom("ldr=8"), 256);
+  const fs::path dir = preparedCapture("ldr_fit_clip", room256("ldr=8"), 256);
   PrepareOptions values;
   values.resolutions = {256}, values.atlas.gutterResolution = 256, values.encodingClips = false;
   prepareCapture(dir / "capture", dir / "work_values", values);
@@ -81,7 +73,7 @@ TEST(LdrFit, SaturatedLightsAreBoundsNotValues) {
 // which sits at 1 on the surfaces the too-dark panels light most, it falls short, and so does the
 // scale (clipped_scale_shown_radiance: false).
 TEST(LdrFit, LightsSeenOnlySaturatedTakeTheScaleTheAlbedoAgreesOn) {
-  const fs::path dir = preparedCapture("ldr_fit_clip_scale", smallRoom("ldr=8"), 256);
+  const fs::path dir = preparedCapture("ldr_fit_clip_scale", room256("ldr=8"), 256);
   FitConfig off = smallConfig(FrameGainMode::None);
   off.clippedLightScale = false;
   const TruthComparison kept = fitAndScore(dir / "work", dir / "capture", off);
@@ -126,7 +118,7 @@ TEST(LdrFit, LightsSeenOnlySaturatedTakeTheScaleTheAlbedoAgreesOn) {
 // Taken as values they are reflectors (short of the 4x contrast) and the fit has no light at all;
 // taken as floors they are the lights at the first decision.
 TEST(LdrFit, LightsStoredAtTheDarkestClipAreJudgedByTheirFloor) {
-  SynthCaptureOptions so = smallRoom("bracket=-1.5,0,1.5;ldr=8");
+  SynthCaptureOptions so = room256("bracket=-1.5,0,1.5;ldr=8");
   so.kind = SynthSceneKind::Lounge;
   const fs::path dir = preparedCapture("ldr_fit_lounge_floor", so, 256);
   FitConfig c = smallConfig(FrameGainMode::None);
@@ -152,7 +144,7 @@ TEST(LdrFit, LightsStoredAtTheDarkestClipAreJudgedByTheirFloor) {
 // are (light_unclipped_emission: false), the clipped values pull the mean down to a bound, and the
 // emission stage's value stands instead: short of the truth after a stage too short to converge.
 TEST(LdrFit, LightsSeenUnclippedInTheDarkFramesEmitWhatThoseShow) {
-  const fs::path dir = preparedCapture("ldr_fit_dark_bracket", smallRoom("bracket=-6,0;ldr=8"), 256);
+  const fs::path dir = preparedCapture("ldr_fit_dark_bracket", room256("bracket=-6,0;ldr=8"), 256);
   FitConfig c = smallConfig(FrameGainMode::None);
   c.albedoPasses = 4, c.materialIterations = 0, c.lightRedecide = false, c.emissionIterations = 30;
   const TruthComparison shown = fitAndScore(dir / "work", dir / "capture", c);
@@ -169,7 +161,7 @@ TEST(LdrFit, LightsSeenUnclippedInTheDarkFramesEmitWhatThoseShow) {
 // gains come back to 1% (median; 3% at worst) in the gauge (geometric mean 1) and the albedo is
 // that of the clean capture's fit (0.047 on this capture) rather than 0.14.
 TEST(LdrFit, UnrecordedGainsAreEstimated) {
-  const fs::path dir = preparedCapture("ldr_fit_gains", smallRoom("exposure-drift=0.3;wb=0.03"), 256);
+  const fs::path dir = preparedCapture("ldr_fit_gains", room256("exposure-drift=0.3;wb=0.03"), 256);
   const TruthComparison without = fitAndScore(dir / "work", dir / "capture", smallConfig(FrameGainMode::None));
   const TruthComparison with = fitAndScore(dir / "work", dir / "capture", smallConfig(FrameGainMode::Rgb));
   EXPECT_LT(with.albedoMae, 0.06);

@@ -34,12 +34,17 @@ inline std::filesystem::path smallPreparedRoom(const std::string& name) {
   return preparedCapture(name, so, 128);
 }
 
-// The room, 16 frames of 64x48 at 8 spp, prepared at 256^2: the known-answer fits' capture.
-inline std::filesystem::path preparedRoom256(const std::string& name) {
+// The room, 16 frames of 64x48 at 8 spp, truth atlas 256^2: the known-answer fits' capture, with
+// `imperfections` (scenes/imperfections.h) when given.
+inline SynthCaptureOptions room256(const std::string& imperfections = "") {
   SynthCaptureOptions so;
   so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 8, so.testSpp = 8;
   so.atlasResolution = 256;
-  return preparedCapture(name, so, 256);
+  if (!imperfections.empty()) so.imperfections = parseImperfections(imperfections);
+  return so;
 }
+
+// room256() prepared at 256^2.
+inline std::filesystem::path preparedRoom256(const std::string& name) { return preparedCapture(name, room256(), 256); }
 
 }  // namespace relume

@@ -242,6 +242,9 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
     Eigen::Array3d emission = Eigen::Array3d::Zero();
     std::set<int> parts;  // the fit's objects over its faces
   };
+  if (!o.highlightObserved.empty() && o.highlightObserved.size() != static_cast<size_t>(fa.objectCount()))
+    fail("eval: materials.json lists {} objects, the fitted scene has {}", o.highlightObserved.size(),
+         fa.objectCount());
   std::vector<Coverage> cover(ta.objectCount());
   std::vector<std::vector<double>> overlap(fa.objectCount(), std::vector<double>(ta.objectCount(), 0.0));
   for (size_t f = 0; f < fm.triangles.size(); ++f) {

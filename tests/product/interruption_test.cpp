@@ -106,6 +106,7 @@ TEST(Interruption, KilledPreparesRerunToTheUninterruptedOutputs) {
   SynthCaptureOptions so;
   so.frames = 24, so.testFrames = 1, so.width = 128, so.height = 96, so.spp = 2, so.testSpp = 2;
   so.atlasResolution = 256;
+  so.imperfections = parseImperfections("segmentation=none");  // the segmentation phase runs too
   so.out = fs::temp_directory_path() / "relume_interruption_prepare" / "capture";
   fs::remove_all(so.out.parent_path());
   writeSynthCapture(so);
@@ -115,7 +116,8 @@ TEST(Interruption, KilledPreparesRerunToTheUninterruptedOutputs) {
   const double runSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::map<std::string, std::string> whole;
   for (const auto& e : fs::directory_iterator(reference)) whole[e.path().filename().string()] = content(e.path());
-  ASSERT_TRUE(whole.count("frames.bin") && whole.count("visibility.bin") && whole.count("albedo_init.exr"));
+  ASSERT_TRUE(whole.count("frames.bin") && whole.count("visibility.bin") && whole.count("albedo_init.exr") &&
+              whole.count("segments.bin") && whole.count("objects.json"));
 
   // Killed as `kill` says, then run again; false if the run ended before the kill.
   auto killThenRerun = [&](const Kill& kill, const std::string& moment) {

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "core/error.h"
+#include "io/json.h"
 #include "product/evaluate.h"
 #include "render/lights.h"
 #include "scenes/synth.h"
@@ -46,6 +47,48 @@ TEST(Evaluate, PeersMeasuresAreExactOnTheTruthAndFallWithErrors) {
   EXPECT_LT(off.albedoPsnr8, 25.0);
   EXPECT_GT(off.emissionIou, 0.2);
   EXPECT_LT(off.emissionIou, 0.8);
+}
+
+// A fit on other objects than the truth's (a computed segmentation) is scored per true object over
+// its faces: materials weighted by area, a light found where the fit emits over half of it, and
+// the fit's lights on true reflectors counted as found but not correct.
+TEST(Evaluate, TrueObjectsAreComparedWithTheFitsObjectsOverTheirFaces) {
+  Pair p = roomPair();
+  TriangleMesh& fm = p.fit.mesh;
+  Appearance& a = p.fit.appearance;
+  const int floor = idOf(a, "floor"), rug = idOf(a, "rug"), ceiling = idOf(a, "ceiling"),
+            lightA = idOf(a, "ceiling_light_a"), lightB = idOf(a, "ceiling_light_b"), cube = idOf(a, "cube");
+  // Every other floor face goes to the fit's rug, whose roughness differs.
+  a.roughness[floor] = 0.2f, a.roughness[rug] = 0.6f;
+  double floorArea = 0, movedArea = 0;
+  bool flip = false;
+  for (size_t f = 0; f < fm.triangles.size(); ++f)
+    if (fm.faceObject[f] == floor) {
+      floorArea += fm.faceArea[f];
+      if ((flip = !flip)) fm.faceObject[f] = rug, movedArea += fm.faceArea[f];
+    }
+  // Light a keeps a quarter of its faces; light b three quarters (the rest go to the ceiling).
+  int k = 0;
+  for (size_t f = 0; f < fm.triangles.size(); ++f) {
+    if (fm.faceObject[f] == lightA && k++ % 4 != 0) fm.faceObject[f] = ceiling;
+    else if (fm.faceObject[f] == lightB && k++ % 4 == 0) fm.faceObject[f] = ceiling;
+  }
+  a.emission[cube] = Color::Constant(2.0f);  // a false light
+  const TruthComparison c = compareWithTruth(p.fit, p.truth, p.coverage, {});
+  for (const Json& row : c.perObject)
+    if (row["name"] == "floor") {
+      EXPECT_EQ(row["fit_objects"], 2);
+      const double expected = (0.2 * (floorArea - movedArea) + 0.6 * movedArea) / floorArea;
+      EXPECT_NEAR(row["roughness"][0].get<double>(), expected, 1e-5);
+    } else if (row["name"] == "ceiling_light_a") {
+      EXPECT_FALSE(row["emitter"][0].get<bool>());
+    } else if (row["name"] == "ceiling_light_b") {
+      EXPECT_TRUE(row["emitter"][0].get<bool>());
+      EXPECT_EQ(row["fit_objects"], 2);
+    }
+  EXPECT_EQ(c.emittersTrue, 2);
+  EXPECT_EQ(c.emittersCorrect, 1);
+  EXPECT_EQ(c.emittersFound, 2);  // light b, and the cube
 }
 
 namespace {

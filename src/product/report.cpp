@@ -240,6 +240,7 @@ std::string figure(const std::string& file, const std::string& caption) {
 // are, whether the mesh's or computed by prepare.
 std::string objectsFigure(const fs::path& out, const SceneDescription& fit, const Json& prepare) {
   const int res = fit.appearance.albedo.width;
+  if (res <= 0) return "";  // constant albedo per object: no atlas to draw in
   const TexelMap map(fit.mesh, res);
   Image img(res, res);
   for (size_t t = 0; t < map.texelCount(); ++t) {

@@ -140,8 +140,11 @@ bool LightDecisions::decide(const TexelSpace& space, const std::string& after, b
     cameras[j] = it != byPosition.end() ? it->second : nullptr;
   }
   const LightSampler lights(*w_.scene, a_);
-  std::vector<LightEvidence> evidence =
-      gatherLightEvidence(*w_.scene, w_.mesh, a_, lights, batch.rays, batch.object, path_, stream, &cameras);
+  const std::function<std::optional<Color>(size_t, const Vec2&)> framePixel = [&](size_t j, const Vec2& q) {
+    return w_.store->bilinear(batch.frame[j], q);
+  };
+  std::vector<LightEvidence> evidence = gatherLightEvidence(*w_.scene, w_.mesh, a_, lights, batch.rays, batch.object,
+                                                            path_, stream, &cameras, &framePixel);
   const LightTestSettings test{c_.lightMinUnexplained, c_.lightSignificance, c_.pruneFraction, c_.lightMinContrast,
                                c_.lightSaturatedFloor};
   const std::vector<LightDecision> decisions = decideLights(evidence, candidate, test, r_.emitter);

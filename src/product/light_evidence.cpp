@@ -77,6 +77,24 @@ bool interiorPixel(const Scene& scene, const Camera& camera, const Vec3& p, int 
   return true;
 }
 
+bool besideBrighter(const Scene& scene, const Camera& camera, const Vec3& p, int object, float own,
+                    const std::function<std::optional<Color>(const Vec2&)>& frame) {
+  const auto pixel = camera.project(p);
+  if (!pixel) return false;
+  for (int dy = -1; dy <= 1; ++dy)
+    for (int dx = -1; dx <= 1; ++dx) {
+      if (dx == 0 && dy == 0) continue;
+      const Vec2 q = *pixel + Vec2(dx, dy);
+      const auto dir = camera.rayDirection(q);
+      if (!dir) continue;
+      const auto hit = scene.intersect(camera.position, *dir);
+      if (hit && hit->object == object) continue;
+      const auto value = frame(q);
+      if (value && luminance(*value) > 1.25f * own) return true;
+    }
+  return false;
+}
+
 Appearance albedoOneAppearance(const Appearance& appearance) {
   Appearance white(appearance.objectCount());
   white.model = appearance.model;
@@ -91,7 +109,9 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
                                                const Appearance& appearance, const LightSampler& lights,
                                                const std::vector<BatchRay>& rays, const std::vector<int>& objects,
                                                const PathSettings& path, uint64_t seed,
-                                               const std::vector<const Camera*>* cameras) {
+                                               const std::vector<const Camera*>* cameras,
+                                               const std::function<std::optional<Color>(size_t, const Vec2&)>*
+                                                   framePixel) {
   CHECK(!cameras || cameras->size() == rays.size());
   const size_t n = rays.size();
   // The first vertex of every path evaluated with albedo 1 (sampling stays with the fitted
@@ -105,7 +125,7 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
   // Per ray: the own emission seen directly, the model's mirror bound and the perfect mirror's ray.
   std::vector<Color> ownEmission(n, Color::Zero());
   std::vector<float> mirrorBound(n, 0.0f);
-  std::vector<uint8_t> valid(n, 0), interior(n, 0);
+  std::vector<uint8_t> valid(n, 0), interior(n, 0), blended(n, 0);
   std::vector<Vec3> point(n), normal(n);
   std::vector<BatchRay> mirrorRays(n);
   tbb::parallel_for(size_t{0}, n, [&](size_t j) {
@@ -116,6 +136,9 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
     if (!hit || hit->object != objects[j]) return;
     valid[j] = 1;
     interior[j] = !cameras || ((*cameras)[j] && interiorPixel(scene, *(*cameras)[j], hit->p, objects[j]));
+    if (!interior[j] && framePixel && (*cameras)[j])
+      blended[j] = besideBrighter(scene, *(*cameras)[j], hit->p, objects[j], luminance(r.reference),
+                                  [&](const Vec2& q) { return (*framePixel)(j, q); });
     ownEmission[j] = emittedRadiance(appearance, *hit, r.dir);
     const Vec3 n0 = hit->ng.dot(r.dir) < 0 ? hit->ng : Vec3(-hit->ng);
     point[j] = hit->p, normal[j] = n0;
@@ -145,7 +168,7 @@ std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const Triangl
     if (mesh.faceObject[f] >= 0 && mesh.faceObject[f] < appearance.objectCount())
       out[mesh.faceObject[f]].area += mesh.faceArea[f];
   for (size_t j = 0; j < n; ++j) {
-    if (!valid[j] || (!interior[j] && interiorRays[objects[j]] >= kMinInteriorRays)) continue;
+    if (!valid[j] || (!interior[j] && interiorRays[objects[j]] >= kMinInteriorRays) || blended[j]) continue;
     LightEvidence& e = out[objects[j]];
     const Color reflectorColor = (returned[j] - ownEmission[j]).max(0.0f);
     const Color radiance = rays[j].reference / rays[j].gain;  // the frame's pixel as radiance

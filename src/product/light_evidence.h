@@ -23,6 +23,8 @@
 //               the median mean I of the candidates that do not pass): when no light in view explains the room,
 //               every surface passes, and the brightest wall is no more a light than the rest.
 #pragma once
+#include <functional>
+#include <optional>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -116,6 +118,13 @@ struct LightEvidence {
 // border of the image, or whose neighbours show something else, mixes them into its value).
 bool interiorPixel(const Scene& scene, const Camera& camera, const Vec3& p, int object);
 
+// Whether a pixel of another object among the 8 around the pixel that sees `p` is brighter in the
+// frame (`frame`: its value at a pixel position) than 1.25x p's own luminance `own`: the pixel
+// filter blends it into p's pixel, which then shows more than p (a window's reveal, thin in every
+// view, beside the pane). A small lamp's neighbours are darker than it.
+bool besideBrighter(const Scene& scene, const Camera& camera, const Vec3& p, int object, float own,
+                    const std::function<std::optional<Color>(const Vec2&)>& frame);
+
 // `appearance`'s roughness and specular with albedo 1 everywhere and no emission: evaluated at a
 // path's first vertex, what a white surface there would return.
 Appearance albedoOneAppearance(const Appearance& appearance);
@@ -126,12 +135,15 @@ Appearance albedoOneAppearance(const Appearance& appearance);
 // another object (or lies on the image border, or has no camera): the pixel filter mixes those
 // neighbours into the reference, so an object seen only at its silhouette (a thin string in front
 // of a window) would borrow their radiance. An object with fewer than 16 such interior rays is
-// judged on all of its rays.
+// judged on all of its rays, except, with `framePixel` (ray j's frame at a pixel position), those
+// besideBrighter another object.
 std::vector<LightEvidence> gatherLightEvidence(const Scene& scene, const TriangleMesh& mesh,
                                                const Appearance& appearance, const LightSampler& lights,
                                                const std::vector<BatchRay>& rays, const std::vector<int>& objects,
                                                const PathSettings& path, uint64_t seed,
-                                               const std::vector<const Camera*>* cameras = nullptr);
+                                               const std::vector<const Camera*>* cameras = nullptr,
+                                               const std::function<std::optional<Color>(size_t, const Vec2&)>*
+                                                   framePixel = nullptr);
 
 struct LightTestSettings {
   double minUnexplained = 0.5;  // share of its radiance that no reflector returns

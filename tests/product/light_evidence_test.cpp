@@ -365,3 +365,47 @@ TEST(LightDecisions, ACandidateSeenOnlySaturatedIsJudgedByItsFloor) {
   ev[0].saturatedRays = 94;
   EXPECT_EQ(decideLights(ev, candidate, LightTestSettings{}, emitting)[0].verdict, LightVerdict::Reflector);
 }
+
+// A pixel beside a brighter pixel of another object is blended with it (a window's reveal, thin in
+// every view, beside the pane); one whose neighbours are its own or darker is not (a small lamp).
+TEST(LightEvidence, PixelsBesideABrighterObjectAreTold) {
+  const SceneDescription d = makeSynthScene(SynthSceneKind::Cornell, 64).scene;
+  const Scene scene(d.mesh);
+  Camera camera;  // in the box, looking up at the ceiling and its light
+  camera.width = 96, camera.height = 72, camera.fx = camera.fy = 60, camera.cx = 48, camera.cy = 36;
+  camera.position = Vec3(1.0f, 0.6f, 1.0f);
+  camera.rotation.col(0) = Vec3(1, 0, 0), camera.rotation.col(1) = Vec3(0, 0, -1), camera.rotation.col(2) = Vec3(0, 1, 0);
+  const int light = static_cast<int>(std::find(d.appearance.names.begin(), d.appearance.names.end(), "light") -
+                                     d.appearance.names.begin());
+  // The frame: the light's emission where the light is, 0.5 elsewhere.
+  const auto objectAt = [&](const Vec2& q) {
+    const auto dir = camera.rayDirection(q);
+    const auto hit = dir ? scene.intersect(camera.position, *dir) : std::nullopt;
+    return hit ? hit->object : -1;
+  };
+  const auto frame = [&](const Vec2& q) -> std::optional<Color> {
+    return objectAt(q) == light ? d.appearance.emission[light] : Color::Constant(0.5f);
+  };
+  int beside = 0, apart = 0, lamp = 0;
+  for (int y = 1; y + 1 < camera.height; ++y)
+    for (int x = 1; x + 1 < camera.width; ++x) {
+      const Vec2 q(x + 0.5f, y + 0.5f);
+      const auto hit = scene.intersect(camera.position, *camera.rayDirection(q));
+      if (!hit) continue;
+      bool nextToLight = false;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) nextToLight = nextToLight || objectAt(q + Vec2(dx, dy)) == light;
+      const float own = luminance(*frame(q));
+      const bool told = besideBrighter(scene, camera, hit->p, hit->object, own, frame);
+      if (hit->object == light) {
+        EXPECT_FALSE(told) << x << ", " << y;  // the lamp itself: its neighbours are darker
+        ++lamp;
+      } else {
+        EXPECT_EQ(told, nextToLight) << x << ", " << y;
+        (nextToLight ? beside : apart) += 1;
+      }
+    }
+  EXPECT_GT(lamp, 4);
+  EXPECT_GT(beside, 8);
+  EXPECT_GT(apart, 1000);
+}

@@ -87,7 +87,7 @@ SmoothedTexels smoothTexels(const TexelMap& map, const TriangleMesh& mesh, std::
       used[t] = 1;
       points[t] = map.point(mesh, t);
       if (byEdges)
-        logGuide[t] = std::log(0.2126f * guide[3 * t] + 0.7152f * guide[3 * t + 1] + 0.0722f * guide[3 * t + 2]);
+        logGuide[t] = std::log(luminance(Color(guide[3 * t], guide[3 * t + 1], guide[3 * t + 2])));
     }
   });
   SmoothedTexels out{std::vector<float>(values.begin(), values.end()),

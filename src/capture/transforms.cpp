@@ -88,6 +88,10 @@ static Capture parseTransforms(const std::filesystem::path& path) {
   Capture cap;
   cap.file = path;
   cap.files = {path};
+  if (root.contains("exact_poses")) {
+    if (!root["exact_poses"].is_boolean()) fail("{}: 'exact_poses' must be true or false", file);
+    cap.exactPoses = root["exact_poses"].get<bool>();
+  }
   const auto dir = path.parent_path();
   for (size_t i = 0; i < root["frames"].size(); ++i) {
     const Json& f = root["frames"][i];
@@ -147,9 +151,10 @@ static Capture parseTransforms(const std::filesystem::path& path) {
   return cap;
 }
 
-void writeTransforms(const std::filesystem::path& path, const std::vector<Frame>& frames) {
+void writeTransforms(const std::filesystem::path& path, const std::vector<Frame>& frames, bool exactPoses) {
   Json root;
   root["camera_model"] = "OPENCV";
+  if (exactPoses) root["exact_poses"] = true;
   const auto filterJson = [](const PixelFilter& pf) { return Json{{"type", pf.name()}, {"width", pf.width()}}; };
   const PixelFilter common = frames.empty() ? PixelFilter{} : frames.front().camera.filter;
   root["pixel_filter"] = filterJson(common);

@@ -27,12 +27,15 @@ struct Capture {
   std::filesystem::path file;                // transforms.json, or COLMAP's images.txt|bin
   std::vector<std::filesystem::path> files;  // every file the cameras were read from (fingerprints)
   std::vector<Frame> frames;
+  // The poses are exact (a rendered capture: `exact_poses` in transforms.json), not a
+  // reconstruction's estimate; refine_poses auto leaves them as they are.
+  bool exactPoses = false;
 };
 
 // Throws relume::Error naming the file, the frame index and the field.
 Capture readTransforms(const std::filesystem::path& path);
-// Writes frames with paths relative to the json's folder (atomic).
-void writeTransforms(const std::filesystem::path& path, const std::vector<Frame>& frames);
+// Writes frames with paths relative to the json's folder (atomic); `exactPoses` as Capture's.
+void writeTransforms(const std::filesystem::path& path, const std::vector<Frame>& frames, bool exactPoses = false);
 // Radiance is never negative, so a negative value marks a pixel that must not be used (NaN/Inf on disk).
 inline constexpr float kMaskedPixel = -1.0f;
 

@@ -31,6 +31,7 @@ enum class RandomStream : uint64_t {
   SynthSensorNoise = 0x737034,      // scenes/imperfections.cpp: a frame's shot and read noise
   SynthMeshNoise = 0x737035,        // scenes/imperfections.cpp: a mesh vertex's displacement
   SynthMissingFrames = 0x737036,    // scenes/imperfections.cpp: which training frames are left out
+  PoseRefinement = 0x706f7365,      // product/fit.cpp: the renders frames are aligned with
 };
 
 inline constexpr uint64_t streamTag(RandomStream s) { return static_cast<uint64_t>(s); }
@@ -44,7 +45,7 @@ inline constexpr std::array kAllRandomStreams{
     RandomStream::ClippedLightScale,  RandomStream::ExperimentRays,   RandomStream::ExperimentPerturbation,
     RandomStream::LeakRays,           RandomStream::SynthPose,        RandomStream::SynthWhiteBalance,
     RandomStream::SynthExposureDrift, RandomStream::SynthSensorNoise, RandomStream::SynthMeshNoise,
-    RandomStream::SynthMissingFrames, RandomStream::HighlightAbsence};
+    RandomStream::SynthMissingFrames, RandomStream::HighlightAbsence, RandomStream::PoseRefinement};
 constexpr bool allTagsDistinct() {
   for (size_t i = 0; i < kAllRandomStreams.size(); ++i)
     for (size_t j = i + 1; j < kAllRandomStreams.size(); ++j)

@@ -7,6 +7,7 @@
 
 #include "core/check.h"
 #include "core/error.h"
+#include "core/random_streams.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
 #include "io/file_system.h"
@@ -20,6 +21,7 @@
 #include "product/fit_schedule.h"
 #include "product/fit_workspace.h"
 #include "product/frame_gains.h"
+#include "product/frame_poses.h"
 #include "product/group_optimiser.h"
 #include "product/light_decisions.h"
 
@@ -42,7 +44,9 @@ class Fit {
         optimiser_(c_),
         gains_(resolveFrameGains(c_.frameGains, w_.frames, *w_.store, w_.kept), w_.frames.size(), w_.kept,
                c_.gainReferenceFrame, c_.gainMemory),
-        decisions_(c_, w_, appearance_, roles_, settings_.path, gains_) {
+        decisions_(c_, w_, appearance_, roles_, settings_.path, gains_),
+        poses_(w_.frames),
+        refinePoses_(c_.refinePoses == RefinePoses::On || (c_.refinePoses == RefinePoses::Auto && !w_.exactPoses)) {
     settings_.mode = c_.gradients;
     settings_.emitters = c_.emitterGradients;
     settings_.pairing = c_.pairing;
@@ -67,6 +71,7 @@ class Fit {
   void upsampleAlbedo(const TexelSpace& from, const TexelSpace& to);
   void runStage(const Stage& st, size_t stageIndex, int firstIteration, const TexelSpace& space);
   void finishStage(const Stage& st, size_t stageIndex, const TexelSpace& space);
+  void refinePoses(const std::string& after);
 
   // Emission textures cover each emitter's uv window; an emitter with a large window (a window, a
   // wall wrongly kept as a light) would otherwise hold a 4096^2-scale texture with its optimiser
@@ -83,7 +88,9 @@ class Fit {
   void serialiseState(CheckpointIo& io);
   void writeCheckpoint(size_t stage, int iteration, const TexelSpace& space);
   fs::path writeResult(const TexelSpace& space) const {
-    return writeFitResult(w_, appearance_, space, roles_, c_, gains_,
+    Json frames = gains_.toJson(w_.frames);
+    if (poses_.refined()) frames["poses"] = poses_.toJson(w_.frames);
+    return writeFitResult(w_, appearance_, space, roles_, c_, frames,
                           {globalIteration_, lastLoss_, stats_, peakMemory_}, albedoError_);
   }
 
@@ -100,6 +107,8 @@ class Fit {
   GroupOptimiser optimiser_;
   FrameGains gains_;
   LightDecisions decisions_;
+  FramePoses poses_;
+  bool refinePoses_;
   SamplerStats stats_;
   std::vector<float> albedoError_;      // the settled albedo's standard error per entry (empty: none)
   std::optional<LightSampler> lights_;  // by the current emission; each iteration's shares the last's tables
@@ -143,6 +152,9 @@ FitSummary Fit::run(bool resumeRequested) {
   });
   spdlog::info("fit: {} stages, final albedo resolution {}^2 ({} texels sampleable at {}^2), radiance scale {:.3g}",
                stages.size(), finalRes_, init.sampleable.size(), init.resolution, radianceScale_);
+  if (refinePoses_)
+    spdlog::info("fit: poses refined between stages ({})",
+                 c_.refinePoses == RefinePoses::On ? "refine_poses on" : "the capture's poses are estimates");
   if (gains_.estimated())
     spdlog::info("fit: frame gains estimated ({}{})", enumName(gains_.mode()),
                  c_.frameGains == FrameGainMode::Auto ? ": some 8/16-bit frames have no recorded exposure" : "");
@@ -410,7 +422,18 @@ void Fit::finishStage(const Stage& st, size_t stageIndex, const TexelSpace& spac
   }
   if (st.pruneAfter && c_.emitterParameterisation && c_.clippedLightScale) decisions_.findClippedLights(space);
   if (st.scaleClippedLightsAfter && decisions_.scaleClippedLights(space, st.name)) optimiser_.restartAfterLightChange();
+  if (st.refinePosesAfter && refinePoses_) refinePoses(st.name);
   if (hooks_.writeFiles) writeCheckpoint(stageIndex + 1, 0, space);
+}
+
+// Every kept frame aligned with the reconstruction rendered from its pose (pose_refinement.h).
+void Fit::refinePoses(const std::string& after) {
+  PoseAlignSettings s;
+  s.width = c_.poseImageWidth, s.levels = c_.posePyramidLevels;
+  FramePoses::Target target;
+  target.model = &appearance_, target.spp = c_.poseRenderSpp, target.path = settings_.path;
+  target.seed = hashTuple({c_.seed, streamTag(RandomStream::PoseRefinement), static_cast<uint64_t>(globalIteration_)});
+  poses_.refine(w_, target, gains_, s, c_.unalignedFrames == UnalignedFrames::Drop, after);
 }
 
 // The settled albedo's standard errors, and with albedo_smoothing the albedo smoothed by them
@@ -465,6 +488,7 @@ void Fit::serialiseState(CheckpointIo& io) {
   }
   roles_.serialise(io);
   gains_.serialise(io);
+  poses_.serialise(io, w_);
 }
 
 void Fit::writeCheckpoint(size_t stage, int iteration, const TexelSpace& space) {

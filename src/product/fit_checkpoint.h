@@ -13,8 +13,9 @@
 
 namespace relume {
 
-// Version 4: frame gains (version 3: light decisions and out-of-model objects).
-inline constexpr int kFitCheckpointVersion = 5;
+// Version 6: refined poses (5: the scale probes of lights seen only saturated; 4: frame gains;
+// 3: light decisions and out-of-model objects).
+inline constexpr int kFitCheckpointVersion = 6;
 
 class CheckpointIo {
  public:

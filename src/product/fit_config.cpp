@@ -14,7 +14,7 @@ namespace {
 
 using ConfigField = std::variant<int*, float*, bool*, uint64_t*, std::vector<std::string>*, SamplerKind*, AlbedoStep*,
                                  LightTest*, RayFootprint*, GradientMode*, EmitterGradients*, Pairing*, FrameGainMode*,
-                                 AlbedoSmoothing*>;
+                                 AlbedoSmoothing*, RefinePoses*, UnalignedFrames*>;
 
 // The keys, in the order the reference lists them.
 template <typename Fn>
@@ -85,6 +85,11 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("gain_reference_frame", ConfigField(&c.gainReferenceFrame));
   fn("gain_memory", ConfigField(&c.gainMemory));
   fn("gain_refine", ConfigField(&c.gainRefine));
+  fn("refine_poses", ConfigField(&c.refinePoses));
+  fn("pose_render_spp", ConfigField(&c.poseRenderSpp));
+  fn("pose_image_width", ConfigField(&c.poseImageWidth));
+  fn("pose_pyramid_levels", ConfigField(&c.posePyramidLevels));
+  fn("unaligned_frames", ConfigField(&c.unalignedFrames));
   fn("coarse_to_fine", ConfigField(&c.coarseToFine));
   fn("emission_textures", ConfigField(&c.emissionTextures));
   fn("emission_texture_resolution", ConfigField(&c.emissionTextureResolution));
@@ -156,6 +161,9 @@ void FitConfig::validate(const std::string& where) const {
   need(std::isfinite(c.highlightMinContrast), "highlight_min_contrast must be finite");
   need(c.gainReferenceFrame >= -1, "gain_reference_frame must be a frame index, or -1 (geometric mean 1)");
   need(c.gainMemory >= 0 && c.gainMemory < 1, "gain_memory must be in [0, 1)");
+  need(c.poseRenderSpp >= 1 && c.poseRenderSpp <= 4096, "pose_render_spp must be in [1, 4096]");
+  need(c.poseImageWidth >= 32 && c.poseImageWidth <= 8192, "pose_image_width must be in [32, 8192]");
+  need(c.posePyramidLevels >= 1 && c.posePyramidLevels <= 8, "pose_pyramid_levels must be in [1, 8]");
   need(c.checkpointEvery >= 1 && c.metricsEvery >= 1, "checkpoint_every and metrics_every must be >= 1");
   need(c.stopAfterIterations >= 0, "stop_after_iterations must be >= 0 (0 = run to the end)");
 }

@@ -24,6 +24,10 @@ enum class LightTest { Reflector, RadianceFraction };  // how light sources are 
 // The settled albedo smoothed by its standard errors (optim/texel_smoothing.h): not at all, by
 // them alone, or also kept from crossing the median init's edges (the frames').
 enum class AlbedoSmoothing { None, Albedo, GuideEdges };
+// Pose refinement (product/pose_refinement.h): auto = on when the capture's poses come from a
+// reconstruction (COLMAP, or a transforms.json that does not say `exact_poses`).
+enum class RefinePoses { Auto, On, Off };
+enum class UnalignedFrames { Keep, Drop };  // a frame the refinement cannot align: kept at its pose, or dropped
 
 template <>
 struct EnumNames<SamplerKind> {
@@ -39,6 +43,16 @@ template <>
 struct EnumNames<AlbedoSmoothing> {
   static constexpr std::array<std::pair<AlbedoSmoothing, std::string_view>, 3> values{
       {{AlbedoSmoothing::None, "none"}, {AlbedoSmoothing::Albedo, "albedo"}, {AlbedoSmoothing::GuideEdges, "guide_edges"}}};
+};
+template <>
+struct EnumNames<RefinePoses> {
+  static constexpr std::array<std::pair<RefinePoses, std::string_view>, 3> values{
+      {{RefinePoses::Auto, "auto"}, {RefinePoses::On, "on"}, {RefinePoses::Off, "off"}}};
+};
+template <>
+struct EnumNames<UnalignedFrames> {
+  static constexpr std::array<std::pair<UnalignedFrames, std::string_view>, 2> values{
+      {{UnalignedFrames::Keep, "keep"}, {UnalignedFrames::Drop, "drop"}}};
 };
 template <>
 struct EnumNames<LightTest> {
@@ -155,6 +169,13 @@ struct FitConfig {
   int gainReferenceFrame = -1;  // the frame whose gain is 1; -1: the gains' geometric mean is 1
   float gainMemory = 0.9f;      // per-iteration decay of a frame's evidence sums (~1/(1-m) iterations)
   bool gainRefine = false;      // update the gains in the fit too (closed form), not only prepare's
+  // Poses: each frame aligned with the reconstruction's render after the first albedo stage and
+  // after the material stage (docs/design/poses.md).
+  RefinePoses refinePoses = RefinePoses::Auto;
+  int poseRenderSpp = 16;     // paths per pixel of the render a frame is aligned with
+  int poseImageWidth = 320;   // frames are aligned at most this wide (box-downscaled)
+  int posePyramidLevels = 3;  // each half the last: corrections up to ~2^levels pixels are found
+  UnalignedFrames unalignedFrames = UnalignedFrames::Keep;
   uint64_t seed = 1;
   int checkpointEvery = 100, metricsEvery = 10;
   int stopAfterIterations = 0;  // stop (with a checkpoint) after this many iterations; 0 = run to the end

@@ -13,7 +13,7 @@ namespace relume {
 namespace fs = std::filesystem;
 
 fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const TexelSpace& space,
-                        const ObjectRoles& roles, const FitConfig& c, const FrameGains& gains,
+                        const ObjectRoles& roles, const FitConfig& c, const Json& frames,
                         const FitProgress& progress, std::span<const float> albedoError) {
   const fs::path result = w.dir / "result", staging = w.dir / "result.partial";
   removeAll(staging);
@@ -64,7 +64,7 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
   writeJson(staging / "materials.json", summary);
   writeJson(staging / "lights.json",
             {{"light_test", enumName(c.lightTest)}, {"hint", c.lights}, {"decisions", roles.lightDecisions}});
-  writeJson(staging / "frames.json", gains.toJson(w.frames));
+  writeJson(staging / "frames.json", frames);
   removeAll(result);
   killPoint("result-staged");
   renamePath(staging, result);

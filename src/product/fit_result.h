@@ -9,7 +9,6 @@
 #include "params/gradients.h"
 #include "product/fit_config.h"
 #include "product/fit_workspace.h"
-#include "product/frame_gains.h"
 #include "product/group_optimiser.h"
 #include "product/light_decisions.h"
 
@@ -23,12 +22,12 @@ struct FitProgress {
 };
 
 // Writes WORK/result/ atomically (WORK/result.partial/, then renamed); returns its path.
-// frames.json holds the frame gains (FrameGains::toJson); albedo_stderr.exr (and a .png preview,
-// white at 0.1) the albedo's standard error per texel when `albedoError` is not empty: 1, the
-// albedo's whole range, where it is unknown (texels no frame saw, light sources' albedo, which is
-// not fitted), 0 off the surface.
+// frames.json holds `frames` (the frame gains, FrameGains::toJson, and the refined poses);
+// albedo_stderr.exr (and a .png preview, white at 0.1) the albedo's standard error per texel when
+// `albedoError` is not empty: 1, the albedo's whole range, where it is unknown (texels no frame
+// saw, light sources' albedo, which is not fitted), 0 off the surface.
 std::filesystem::path writeFitResult(const Workspace& w, const Appearance& appearance, const TexelSpace& space,
-                                     const ObjectRoles& roles, const FitConfig& c, const FrameGains& gains,
+                                     const ObjectRoles& roles, const FitConfig& c, const Json& frames,
                                      const FitProgress& progress, std::span<const float> albedoError);
 
 // Bytes the fit holds, by part, once a stage's buffers are allocated; "total" leaves out the

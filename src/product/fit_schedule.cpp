@@ -84,6 +84,9 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   const bool redecide =
       c.emitterParameterisation && c.lightTest == LightTest::Reflector && c.lightRedecide && c.lights.empty();
   s.back().redecideAfter = redecide;
+  // The poses are refined once the albedo explains the frames (pose_refinement.h), and again after
+  // the material stage when finer albedo stages follow to use them.
+  s.back().refinePosesAfter = true;
   // The fill belongs to the reflector test's light estimate (with the hint too, so the two compare).
   s.front().fillUnobservedAfter = s.back().fillUnobservedAfter = c.lightTest == LightTest::Reflector;
   const size_t refitStage = s.size();
@@ -96,6 +99,7 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   const ParamMask afterMaterials = c.materialStageSettles ? albedo : materials;
   const size_t materialStage = s.size();
   s.push_back({"materials", materials, resolutions.front(), c.materialIterations});
+  s.back().refinePosesAfter = resolutions.size() > 1;
   for (size_t i = 1; i < resolutions.size(); ++i)
     s.push_back(
         {fmt::format("albedo@{}", resolutions[i]), afterMaterials, resolutions[i], albedoIterations(resolutions[i])});

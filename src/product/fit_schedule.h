@@ -32,6 +32,7 @@ struct Stage {
   bool scaleClippedLightsAfter = false;          // lights seen only saturated are scaled at its end
   bool onlyWithClippedLights = false;            // run only when the lights include such lights
   bool afterClippedScale = false;                // run only while their last scale moved them
+  bool refinePosesAfter = false;                 // the frames' poses are refined at its end (with refine_poses)
 
   // The learning-rate factor at iteration `it` for the kinds this stage settles: 1 over its first
   // half, then linear down to `finalFraction` (1 for the kinds it does not settle).

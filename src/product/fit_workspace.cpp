@@ -21,7 +21,9 @@ Workspace::Workspace(const fs::path& work) : dir(work) {
     if (!pathExists(work / f)) fail("{}: missing {}; rerun `relume prepare`", work.string(), f);
   withJsonErrors(pj, [&] {
     const fs::path capture = prepare.at("capture").get<std::string>();
-    frames = readCapture(capture).frames;
+    Capture cap = readCapture(capture);
+    frames = std::move(cap.frames);
+    exactPoses = cap.exactPoses;
     kept = jsonIntegers<uint32_t>(prepare.at("phases").at("frames").at("kept"), 0, UINT32_MAX, pj.string(), "kept");
     resolutions = jsonIntegers<int>(prepare.at("resolutions"), 1, kMaxTextureResolution, pj.string(), "resolutions");
     if (resolutions.empty()) fail("{}: no resolutions; rerun `relume prepare`", pj.string());

@@ -24,7 +24,8 @@ struct Workspace {
   Json prepare;
   TriangleMesh mesh;
   std::unique_ptr<Scene> scene;
-  std::vector<Frame> frames;
+  std::vector<Frame> frames;  // their poses as the fit has refined them (frame_poses.h)
+  bool exactPoses = false;    // the capture says its poses are exact (Capture::exactPoses)
   std::unique_ptr<FrameStore> store;
   VisibilityIndex vis;
   int initResolution = 0;

@@ -100,7 +100,7 @@ DegradeSummary writeDegraded(const DegradeOptions& o, const Capture& source, con
                                        radiance.image));
     ++summary.framesWritten;
   }
-  writeTransforms(o.out / "transforms.json", written);
+  writeTransforms(o.out / "transforms.json", written, source.exactPoses && !o.spec.pose);
   const double largestVertexOffset = writeFlawedMesh(o.spec, mesh, o.out, o.seed);
   if (o.spec.segmentation) writeObjectNames(o.capture, mesh, o.out);
   summary.heldOutCopied = copyHeldOut(o.capture, o.out);

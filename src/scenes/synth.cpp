@@ -482,7 +482,8 @@ int writeSynthCapture(const SynthCaptureOptions& o) {
                    r.stats.rays / r.stats.seconds * 1e-6);
       progress.advance();
     }
-    writeTransforms(o.out / json, frames);
+    // Rendered poses are exact unless the imperfections moved them.
+    writeTransforms(o.out / json, frames, !(o.imperfections && o.imperfections->pose));
   }
   if (o.imperfections)
     writeJson(o.out / "gt" / "imperfections.json",

@@ -63,6 +63,9 @@ TEST(Transforms, RoundTripThroughWriter) {
   EXPECT_FLOAT_EQ(cap.frames[0].exposure, 2.0f);
   EXPECT_EQ(cap.frames[0].image, f.image);
   EXPECT_TRUE(cap.frames[0].camera.filter.isUnitBox());  // relume's own renders
+  EXPECT_FALSE(cap.exactPoses);  // a pose is an estimate unless the capture says otherwise
+  writeTransforms(dir / "rt_exact.json", {f}, true);
+  EXPECT_TRUE(readTransforms(dir / "rt_exact.json").exactPoses);
   // A capture's pixel filter, common and per frame, survives the writer.
   Frame g = f;
   f.camera.filter = PixelFilter(PixelFilterType::BlackmanHarris, 1.5f);
@@ -71,6 +74,18 @@ TEST(Transforms, RoundTripThroughWriter) {
   const Capture filtered = readTransforms(dir / "rt_filter.json");
   EXPECT_EQ(filtered.frames[1].camera.filter, f.camera.filter);
   EXPECT_EQ(filtered.frames[2].camera.filter, g.camera.filter);
+}
+
+TEST(Transforms, ExactPosesIsABoolean) {
+  const std::string frames = R"("fl_x": 10, "w": 10, "h": 10, "frames": [{"file_path": "a.exr",
+    "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}])";
+  EXPECT_FALSE(readTransforms(writeFile("exact_false.json", "{\"exact_poses\": false, " + frames + "}")).exactPoses);
+  try {
+    readTransforms(writeFile("exact_bad.json", "{\"exact_poses\": 1, " + frames + "}"));
+    FAIL() << "a number taken for exact_poses";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("exact_poses"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Transforms, PixelFilterDefaultsToCyclesWidth) {

@@ -33,8 +33,7 @@ struct PoseAlignSettings {
 // whose camera is `camera`; NaN where the pixel is masked or clipped (it bounds, it does not tell).
 struct AlignImage {
   int width = 0, height = 0;
-  std::vector<float> luminance;
-  float at(int x, int y) const { return luminance[static_cast<size_t>(y) * width + x]; }
+  std::vector<float> luminance;  // row-major, row 0 at the top
 };
 
 // Frame `frame` of `store` box-downscaled to at most `maxWidth` pixels wide, luminance divided by

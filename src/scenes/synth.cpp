@@ -483,7 +483,7 @@ int writeSynthCapture(const SynthCaptureOptions& o) {
       progress.advance();
     }
     // Rendered poses are exact unless the imperfections moved them.
-    writeTransforms(o.out / json, frames, !(o.imperfections && o.imperfections->pose));
+    writeTransforms(o.out / json, frames, !(flaws && flaws->pose));
   }
   if (o.imperfections)
     writeJson(o.out / "gt" / "imperfections.json",

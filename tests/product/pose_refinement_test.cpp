@@ -10,7 +10,6 @@
 #include "io/image.h"
 #include "product/fit.h"
 #include "product/pose_refinement.h"
-#include "render/film.h"
 #include "render/lights.h"
 #include "scene/scene.h"
 #include "scenes/synth.h"
@@ -34,17 +33,9 @@ class PoseRefinement : public ::testing::Test {
     delete room_;
   }
 
-  // What a frame from `camera` shows: the true appearance, 64 paths per pixel.
+  // What a frame from `camera` shows: the true appearance, 64 paths per pixel, on the frame's own grid.
   static AlignImage frameFrom(const Camera& camera, const Appearance& a) {
-    const LightSampler lights(*scene_, a);
-    RenderOptions ro;
-    ro.spp = 64, ro.seed = 99;
-    const Image img = renderImage(*scene_, a, lights, camera, ro).color;
-    AlignImage out;
-    out.width = img.width, out.height = img.height;
-    for (int y = 0; y < img.height; ++y)
-      for (int x = 0; x < img.width; ++x) out.luminance.push_back(luminance(img.at(x, y)));
-    return out;
+    return renderedTarget(*scene_, a, LightSampler(*scene_, a), camera, 64, 99, PathSettings{});
   }
 
   // The model rendered as the frame was (64 paths per pixel): the test is of the alignment, not of

@@ -25,7 +25,8 @@ enum class LightTest { Reflector, RadianceFraction };  // how light sources are 
 // them alone, or also kept from crossing the median init's edges (the frames').
 enum class AlbedoSmoothing { None, Albedo, GuideEdges };
 // Pose refinement (product/pose_refinement.h): auto = on when the capture's poses come from a
-// reconstruction (COLMAP, or a transforms.json that does not say `exact_poses`).
+// reconstruction (COLMAP, or a transforms.json that does not say `exact_poses`). Off by default:
+// on the Cycles White Room it moved 1 cm position errors to 3.5 cm (docs/notes, pose refinement).
 enum class RefinePoses { Auto, On, Off };
 enum class UnalignedFrames { Keep, Drop };  // a frame the refinement cannot align: kept at its pose, or dropped
 
@@ -171,7 +172,7 @@ struct FitConfig {
   bool gainRefine = false;      // update the gains in the fit too (closed form), not only prepare's
   // Poses: each frame aligned with the reconstruction's render after the first albedo stage and
   // after the material stage (docs/design/poses.md).
-  RefinePoses refinePoses = RefinePoses::Auto;
+  RefinePoses refinePoses = RefinePoses::Off;
   int poseRenderSpp = 16;     // paths per pixel of the render a frame is aligned with
   int poseImageWidth = 320;   // frames are aligned at most this wide (box-downscaled)
   int posePyramidLevels = 3;  // each half the last: corrections up to ~2^levels pixels are found

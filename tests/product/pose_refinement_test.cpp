@@ -146,7 +146,8 @@ int firstIterationOf(const std::filesystem::path& metrics, const std::string& st
 TEST(PoseRefinementFit, AnEstimatedPoseIsRefinedAndAResumedFitKeepsItsPoses) {
   namespace fs = std::filesystem;
   const fs::path dir = preparedCapture("pose_fit", room256("pose=1cm,0.3deg"), 256);
-  FitConfig c = smallFitConfig();  // refine_poses auto: the capture's poses are estimates
+  FitConfig c = smallFitConfig();
+  c.refinePoses = RefinePoses::Auto;  // on: the capture's poses are estimates
   runFit(dir / "work", c, false);
   const Json frames = readJson(dir / "work" / "result" / "frames.json");
   ASSERT_TRUE(frames.contains("poses"));
@@ -173,6 +174,7 @@ TEST(PoseRefinementFit, ExactPosesAreLeftAsTheyAre) {
   namespace fs = std::filesystem;
   const fs::path dir = preparedCapture("pose_fit_exact", room256(), 256);
   FitConfig c = smallFitConfig();
+  c.refinePoses = RefinePoses::Auto;  // off: synth says its poses are exact
   c.albedoPasses = 8, c.materialIterations = 0;
   runFit(dir / "work", c, false);
   EXPECT_FALSE(readJson(dir / "work" / "result" / "frames.json").contains("poses"));

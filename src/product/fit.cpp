@@ -430,10 +430,10 @@ void Fit::finishStage(const Stage& st, size_t stageIndex, const TexelSpace& spac
 void Fit::refinePoses(const std::string& after) {
   PoseAlignSettings s;
   s.width = c_.poseImageWidth, s.levels = c_.posePyramidLevels;
-  FramePoses::Target target;
-  target.model = &appearance_, target.spp = c_.poseRenderSpp, target.path = settings_.path;
-  target.seed = hashTuple({c_.seed, streamTag(RandomStream::PoseRefinement), static_cast<uint64_t>(globalIteration_)});
-  poses_.refine(w_, target, gains_, s, c_.unalignedFrames == UnalignedFrames::Drop, after);
+  FramePoses::Render render;
+  render.spp = c_.poseRenderSpp, render.path = settings_.path;
+  render.seed = hashTuple({c_.seed, streamTag(RandomStream::PoseRefinement), static_cast<uint64_t>(globalIteration_)});
+  poses_.refine(w_, appearance_, render, gains_, s, c_.unalignedFrames == UnalignedFrames::Drop, after);
 }
 
 // The settled albedo's standard errors, and with albedo_smoothing the albedo smoothed by them

@@ -24,17 +24,16 @@ FramePoses::FramePoses(const std::vector<Frame>& given) : dropped_(given.size(),
   for (const Frame& f : given) given_.push_back(f.camera);
 }
 
-void FramePoses::refine(Workspace& w, const Target& target, const FrameGains& gains, const PoseAlignSettings& s,
-                        bool drop, const std::string& round) {
+void FramePoses::refine(Workspace& w, const Appearance& model, const Render& render, const FrameGains& gains,
+                        const PoseAlignSettings& s, bool drop, const std::string& round) {
   Timer timer;
-  CHECK(target.model != nullptr);
-  const LightSampler lights(*w.scene, *target.model);
+  const LightSampler lights(*w.scene, model);
   std::vector<FrameAlignment> result;
   for (uint32_t f : w.kept) {
     Camera camera = w.frames[f].camera;
     const AlignImage image = alignImageFromStore(*w.store, f, luminance(gains.gain(f)), s.width, camera);
     const AlignImage aim =
-        renderedTarget(*w.scene, *target.model, lights, targetGrid(camera), target.spp, target.seed + f, target.path);
+        renderedTarget(*w.scene, model, lights, targetGrid(camera), render.spp, render.seed + f, render.path);
     result.push_back(alignFrame(*w.scene, camera, image, aim, s));
   }
   Json entries = Json::array();

@@ -16,18 +16,17 @@ class FramePoses {
   // `given`: the capture's cameras as read (the corrections are measured from them).
   explicit FramePoses(const std::vector<Frame>& given);
 
-  // What each frame is aligned with: `model` rendered from the frame's pose (renderedTarget).
-  struct Target {
-    const Appearance* model = nullptr;
+  // How a frame's target is rendered (renderedTarget): frame f's render draws from seed + f.
+  struct Render {
     int spp = 16;
     PathSettings path;
-    uint64_t seed = 0;  // frame f's render draws from seed + f
+    uint64_t seed = 0;
   };
-  // Aligns every kept frame of `w` with its target from its current pose (all from the poses the
-  // round starts with), then moves the aligned ones in w.frames and, with `drop`, takes the failed
-  // ones out of w.kept. `round` names the refinement in logs and the result.
-  void refine(Workspace& w, const Target& target, const FrameGains& gains, const PoseAlignSettings& s, bool drop,
-              const std::string& round);
+  // Aligns every kept frame of `w` with `model` rendered from its current pose (all from the poses
+  // the round starts with), then moves the aligned ones in w.frames and, with `drop`, takes the
+  // failed ones out of w.kept. `round` names the refinement in logs and the result.
+  void refine(Workspace& w, const Appearance& model, const Render& render, const FrameGains& gains,
+              const PoseAlignSettings& s, bool drop, const std::string& round);
   bool refined() const { return !rounds_.empty(); }
   // Restores w.frames' poses and w.kept from a checkpoint that holds them (or writes them).
   void serialise(CheckpointIo& io, Workspace& w);

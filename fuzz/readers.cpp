@@ -14,6 +14,7 @@
 #include "capture/colmap.h"
 #include "capture/frame_store.h"
 #include "capture/objects.h"
+#include "capture/photometric_consistency.h"
 #include "capture/response.h"
 #include "capture/transforms.h"
 #include "core/error.h"
@@ -22,6 +23,7 @@
 #include "sampling/visibility.h"
 #include "scene/appearance.h"
 #include "scene/mesh.h"
+#include "scene/segmentation.h"
 #include "scenes/imperfections.h"
 
 namespace relume::fuzz {
@@ -139,6 +141,23 @@ void readColmapModel(const fs::path& file, const std::string& ext) {
   }
 }
 
+// segments.bin for a mesh of as many faces as the file has ids after its 16-byte header, so the
+// fuzzer reaches the ids; the object count prepare derives from them must then be in range.
+void readFaceObjectsFile(const fs::path& file) {
+  const uintmax_t size = fs::file_size(file);
+  const size_t faces = size > 16 ? static_cast<size_t>((size - 16) / 4) : 1;
+  const std::vector<int32_t> ids = readFaceObjects(file, faces);
+  const int32_t objects = 1 + *std::max_element(ids.begin(), ids.end());
+  if (ids.size() != faces || objects < 1 || static_cast<size_t>(objects) > faces)
+    throw std::logic_error(fmt::format("segments: {} ids, {} objects for {} faces", ids.size(), objects, faces));
+}
+
+// frame_gains.json for a capture of 8 frames: every gain read must be positive and finite.
+void readFrameGains(const fs::path& file) {
+  for (const Color& g : readConsistencyGains(file, 8))
+    if (!(isFinite(g) && (g > 0.0f).all())) throw std::logic_error("frame gains: a gain not positive and finite");
+}
+
 const std::map<std::string, Reader>& readers() {
   static const std::map<std::string, Reader> table = {
       {"ply", {"input.ply", [](const fs::path& f) { (void)loadMesh(f); }}},
@@ -154,6 +173,8 @@ const std::map<std::string, Reader>& readers() {
       {"checkpoint", {"checkpoint.bin", touchCheckpoint}},
       {"imperfections", {"imperfections.txt", parseImperfectionSpec}},
       {"response-table", {"response.txt", readResponseTable}},
+      {"segments", {"segments.bin", readFaceObjectsFile}},
+      {"frame-gains", {"frame_gains.json", readFrameGains}},
   };
   return table;
 }

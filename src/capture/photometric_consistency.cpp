@@ -4,6 +4,8 @@
 #include <cmath>
 
 #include "core/check.h"
+#include "core/error.h"
+#include "io/json.h"
 
 namespace relume {
 namespace {
@@ -77,6 +79,34 @@ ConsistencyGains solveConsistencyGains(const std::vector<std::vector<GainObserva
     out.residualRms[c] = rms;
   }
   return out;
+}
+
+void writeConsistencyGains(const std::filesystem::path& file, const ConsistencyGains& gains,
+                           std::span<const uint32_t> kept) {
+  Json frames = Json::array();
+  for (uint32_t f : kept) {
+    const Color& g = gains.gain[f];
+    frames.push_back({{"frame", f}, {"gain", {g[0], g[1], g[2]}}, {"texels", gains.texels[f]}});
+  }
+  writeJson(file, {{"frames", frames}, {"log_residual_rms", gains.residualRms}});
+}
+
+std::vector<Color> readConsistencyGains(const std::filesystem::path& file, size_t frameCount) {
+  std::vector<Color> gains(frameCount, Color::Ones());
+  const Json j = readJson(file);
+  withJsonErrors(file, [&] {
+    for (const Json& f : j.at("frames")) {
+      const int64_t frame =
+          jsonInteger(f.at("frame"), 0, static_cast<int64_t>(frameCount) - 1, file.string(), "frame");
+      const Json& g = f.at("gain");
+      const Color c(g.at(0).get<float>(), g.at(1).get<float>(), g.at(2).get<float>());
+      if (!(isFinite(c) && (c > 0.0f).all()))
+        fail("{}: frame {}: gain must be positive and finite", file.string(), frame);
+      gains[static_cast<size_t>(frame)] = c;
+    }
+    return 0;
+  });
+  return gains;
 }
 
 }  // namespace relume

@@ -6,6 +6,7 @@
 // highlights and misregistered edges from pulling it. The gauge: the gains' geometric mean is 1.
 #pragma once
 #include <cstdint>
+#include <filesystem>
 #include <span>
 #include <vector>
 
@@ -28,5 +29,13 @@ struct ConsistencyGains {
 // `kept` must not appear.
 ConsistencyGains solveConsistencyGains(const std::vector<std::vector<GainObservation>>& observations, size_t frameCount,
                                        std::span<const uint32_t> kept);
+
+// prepare's frame_gains.json: per kept frame its gain and texel count, and the residual's RMS.
+// Written atomically.
+void writeConsistencyGains(const std::filesystem::path& file, const ConsistencyGains& gains,
+                           std::span<const uint32_t> kept);
+// The gains of `frameCount` frames (1 for frames the file does not list). Throws relume::Error
+// naming the file and field on a frame out of range or a gain that is not positive and finite.
+std::vector<Color> readConsistencyGains(const std::filesystem::path& file, size_t frameCount);
 
 }  // namespace relume

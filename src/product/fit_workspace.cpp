@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "capture/capture_folder.h"
+#include "capture/photometric_consistency.h"
 #include "core/error.h"
 #include "io/file_system.h"
 #include "io/image.h"
@@ -100,23 +101,9 @@ std::vector<std::vector<uint32_t>> TexelSpace::sampleableByObject(const Triangle
 }
 
 std::vector<Color> Workspace::consistencyGains() const {
-  std::vector<Color> gains(frames.size(), Color::Ones());
   const fs::path file = dir / "frame_gains.json";
   if (!pathExists(file)) fail("{}: missing; rerun `relume prepare`", file.string());
-  const Json j = readJson(file);
-  withJsonErrors(file, [&] {
-    for (const Json& f : j.at("frames")) {
-      const int64_t frame =
-          jsonInteger(f.at("frame"), 0, static_cast<int64_t>(frames.size()) - 1, file.string(), "frame");
-      const Json& g = f.at("gain");
-      const Color c(g.at(0).get<float>(), g.at(1).get<float>(), g.at(2).get<float>());
-      if (!(isFinite(c) && (c > 0.0f).all()))
-        fail("{}: frame {}: gain must be positive and finite", file.string(), frame);
-      gains[static_cast<size_t>(frame)] = c;
-    }
-    return 0;
-  });
-  return gains;
+  return readConsistencyGains(file, frames.size());
 }
 
 }  // namespace relume

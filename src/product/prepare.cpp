@@ -4,8 +4,6 @@
 #include <tbb/parallel_for.h>
 
 #include <atomic>
-#include <cstring>
-#include <fstream>
 #include <map>
 #include <optional>
 
@@ -23,6 +21,7 @@
 #include "io/json.h"
 #include "product/frame_gains.h"
 #include "scene/scene.h"
+#include "scene/segmentation.h"
 #include "scene/texel_map.h"
 #include "sampling/face_appearance.h"
 #include "sampling/median_sketch.h"
@@ -75,37 +74,6 @@ Image falseColour(const std::vector<uint32_t>& counts, int res) {
 
 // The phases, in order; each returns what prepare.json records of it.
 
-// The computed segmentation's face ids (segmentation phase), one int32 per face of the capture's
-// mesh as loadMesh reads it.
-constexpr char kSegmentsMagic[8] = {'R', 'S', 'E', 'G', 'M', 'N', 'T', '1'};
-
-void writeSegments(const fs::path& file, const std::vector<int32_t>& faceObject) {
-  writeAtomically(file, [&](const fs::path& tmp) {
-    std::ofstream out(tmp, std::ios::binary);
-    const uint64_t n = faceObject.size();
-    out.write(kSegmentsMagic, sizeof kSegmentsMagic);
-    out.write(reinterpret_cast<const char*>(&n), sizeof n);
-    out.write(reinterpret_cast<const char*>(faceObject.data()), static_cast<std::streamsize>(n * sizeof(int32_t)));
-    if (!out) fail("{}: could not be written", file.string());
-  });
-}
-
-std::vector<int32_t> readSegments(const fs::path& file, size_t faces) {
-  std::ifstream in(file, std::ios::binary);
-  char magic[sizeof kSegmentsMagic] = {};
-  uint64_t n = 0;
-  in.read(magic, sizeof magic);
-  in.read(reinterpret_cast<char*>(&n), sizeof n);
-  if (!in || std::memcmp(magic, kSegmentsMagic, sizeof magic) != 0 || n != faces)
-    fail("{}: not the segmentation of this mesh ({} faces; rerun prepare with --force)", file.string(), faces);
-  std::vector<int32_t> ids(n);
-  in.read(reinterpret_cast<char*>(ids.data()), static_cast<std::streamsize>(n * sizeof(int32_t)));
-  if (!in) fail("{}: truncated (rerun prepare with --force)", file.string());
-  for (int32_t id : ids)
-    if (id < 0 || static_cast<size_t>(id) >= faces) fail("{}: object id {} out of range", file.string(), id);
-  return ids;
-}
-
 // Segmentation: objects for a mesh that has none (scene/segmentation.h), from the faces' geometry
 // and what the kept frames show of them. Writes segments.bin and objects.json (per object: faces,
 // area, median radiance, clipped share).
@@ -145,7 +113,7 @@ Json segmentationPhase(const fs::path& meshPath, const Capture& cap, const std::
     }
     list.push_back(entry);
   }
-  writeSegments(work / "segments.bin", seg.faceObject);
+  writeFaceObjects(work / "segments.bin", seg.faceObject);
   writeJson(work / "objects.json", Json{{"objects", list}});
   spdlog::info(
       "segmentation: {} objects ({} connected components, {} regions grown, {} small ones merged, {} kept for their "
@@ -171,7 +139,7 @@ Json atlasPhase(const fs::path& capture, const fs::path& meshPath, const fs::pat
   TriangleMesh mesh = loadMesh(meshPath);
   Json names = Json::object();
   if (segments) {
-    mesh.faceObject = readSegments(*segments, mesh.triangles.size());
+    mesh.faceObject = readFaceObjects(*segments, mesh.triangles.size());
     mesh.objectCount = 1 + *std::max_element(mesh.faceObject.begin(), mesh.faceObject.end());
     mesh.objectNames.clear();
     for (const auto& [id, name] : readObjectNames(work / "objects.json")) names[std::to_string(id)] = name;
@@ -403,10 +371,7 @@ ConsistencyGains consistencyGains(TexelObservations& observations, const TexelMa
   });
   const std::vector<uint32_t> keptFrames(kept.begin(), kept.end());
   const ConsistencyGains g = solveConsistencyGains(sampled, store.frameCount(), keptFrames);
-  Json frames = Json::array();
-  for (uint32_t f : keptFrames)
-    frames.push_back({{"frame", f}, {"gain", {g.gain[f][0], g.gain[f][1], g.gain[f][2]}}, {"texels", g.texels[f]}});
-  writeJson(work / "frame_gains.json", {{"frames", frames}, {"log_residual_rms", g.residualRms}});
+  writeConsistencyGains(work / "frame_gains.json", g, keptFrames);
   return g;
 }
 

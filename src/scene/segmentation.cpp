@@ -5,11 +5,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <numeric>
 #include <tuple>
 #include <unordered_map>
 
 #include "core/check.h"
+#include "core/error.h"
+#include "io/atomic_file.h"
 
 namespace relume {
 namespace {
@@ -305,6 +308,39 @@ Segmentation segmentMesh(const TriangleMesh& mesh, const std::vector<FaceAppeara
     seg.faceObject[f] = id[r];
   }
   return seg;
+}
+
+namespace {
+constexpr char kFaceObjectsMagic[8] = {'R', 'S', 'E', 'G', 'M', 'N', 'T', '1'};
+}  // namespace
+
+void writeFaceObjects(const std::filesystem::path& file, const std::vector<int32_t>& faceObject) {
+  writeAtomically(file, [&](const std::filesystem::path& tmp) {
+    std::ofstream out(tmp, std::ios::binary);
+    const uint64_t n = faceObject.size();
+    out.write(kFaceObjectsMagic, sizeof kFaceObjectsMagic);
+    out.write(reinterpret_cast<const char*>(&n), sizeof n);
+    out.write(reinterpret_cast<const char*>(faceObject.data()), static_cast<std::streamsize>(n * sizeof(int32_t)));
+    if (!out) fail("{}: could not be written", file.string());
+  });
+}
+
+std::vector<int32_t> readFaceObjects(const std::filesystem::path& file, size_t faces) {
+  std::ifstream in(file, std::ios::binary);
+  char magic[sizeof kFaceObjectsMagic] = {};
+  uint64_t n = 0;
+  in.read(magic, sizeof magic);
+  in.read(reinterpret_cast<char*>(&n), sizeof n);
+  if (!in || std::memcmp(magic, kFaceObjectsMagic, sizeof magic) != 0 || n != faces || faces == 0)
+    fail("{}: not the segmentation of this mesh ({} faces; rerun prepare with --force)", file.string(), faces);
+  std::vector<int32_t> ids(n);
+  in.read(reinterpret_cast<char*>(ids.data()), static_cast<std::streamsize>(n * sizeof(int32_t)));
+  if (!in) fail("{}: truncated (rerun prepare with --force)", file.string());
+  if (in.peek() != std::char_traits<char>::eof())
+    fail("{}: longer than the segmentation of {} faces (rerun prepare with --force)", file.string(), faces);
+  for (int32_t id : ids)
+    if (id < 0 || static_cast<size_t>(id) >= faces) fail("{}: object id {} out of range", file.string(), id);
+  return ids;
 }
 
 }  // namespace relume

@@ -19,6 +19,7 @@
 // The paper's supplement found such a naive segmentation about as good as the captured one.
 #pragma once
 #include <cstdint>
+#include <filesystem>
 #include <vector>
 
 #include "scene/mesh.h"
@@ -61,5 +62,11 @@ std::vector<uint32_t> connectedComponents(const TriangleMesh& mesh);
 // `appearance` has one entry per face of `mesh` (all unobserved: geometry alone decides).
 Segmentation segmentMesh(const TriangleMesh& mesh, const std::vector<FaceAppearance>& appearance,
                          const SegmentationOptions& options);
+
+// A segmentation's file (prepare's segments.bin): a magic, the face count, one int32 object id per
+// face of the mesh as loadMesh reads it. Written atomically.
+void writeFaceObjects(const std::filesystem::path& file, const std::vector<int32_t>& faceObject);
+// Throws relume::Error naming the file unless it holds exactly `faces` (> 0) ids, each below `faces`.
+std::vector<int32_t> readFaceObjects(const std::filesystem::path& file, size_t faces);
 
 }  // namespace relume

@@ -2,9 +2,11 @@
 // against a truth with the same random numbers, and their noise estimates.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/error.h"
+#include "core/rng.h"
 #include "io/json.h"
 #include "product/evaluate.h"
 #include "render/lights.h"
@@ -89,6 +91,54 @@ TEST(Evaluate, TrueObjectsAreComparedWithTheFitsObjectsOverTheirFaces) {
   EXPECT_EQ(c.emittersTrue, 2);
   EXPECT_EQ(c.emittersCorrect, 1);
   EXPECT_EQ(c.emittersFound, 2);  // light b, and the cube
+}
+
+namespace {
+std::vector<Frame> roomViews() {
+  std::vector<Frame> views;
+  for (const Camera& c : synthCameraPath(SynthSceneKind::Room, 3, 48, 36, 0.25)) views.push_back(Frame{c});
+  return views;
+}
+}  // namespace
+
+// Albedo in the views: exact on the truth, an albedo off by 0.1 is off by 0.1 in every counted pixel,
+// and a displaced mesh is compared where its rays land (the texel measure needs the same triangles).
+TEST(Evaluate, AlbedoInTheViewsIsComparedPixelByPixelOnObjectsInteriors) {
+  Pair p = roomPair();
+  const std::vector<Frame> views = roomViews();
+  const AlbedoViewComparison same = compareAlbedoViews(p.fit, p.truth, views, &p.coverage, 5);
+  ASSERT_GT(same.pixels, 1000u);
+  EXPECT_EQ(same.mae, 0.0);
+  EXPECT_LT(same.pixels, 3u * 46 * 34);  // edges and the lights are left out
+  for (const Json& row : same.perObject) EXPECT_EQ(row["name"].get<std::string>().rfind("ceiling_light", 0), std::string::npos);
+
+  for (float& v : p.fit.appearance.albedo.rgb) v += 0.1f;
+  const AlbedoViewComparison brighter = compareAlbedoViews(p.fit, p.truth, views, &p.coverage, 5);
+  EXPECT_EQ(brighter.pixels, same.pixels);
+  EXPECT_NEAR(brighter.mae, 0.1, 1e-4);
+  EXPECT_NEAR(brighter.psnr, 20.0, 1e-2);
+  for (const Json& row : brighter.perObject) EXPECT_NEAR(row["bias"].get<double>(), 0.1, 1e-4) << row.dump();
+
+  // Unobserved texels are not counted.
+  Image unseen(64, 64);
+  EXPECT_EQ(compareAlbedoViews(p.fit, p.truth, views, &unseen, 5).pixels, 0u);
+}
+
+TEST(Evaluate, ADisplacedMeshIsScoredAndADifferentOneRefused) {
+  Pair p = roomPair();
+  TriangleMesh& fm = p.fit.mesh;
+  Pcg32 rng(7);
+  for (Vec3& v : fm.positions)  // a scan's noise: up to 5 mm in each coordinate
+    v += 0.005f * Vec3(2 * rng.next1D() - 1, 2 * rng.next1D() - 1, 2 * rng.next1D() - 1);
+  const TruthComparison texels = compareWithTruth(p.fit, p.truth, p.coverage, {});
+  EXPECT_LT(texels.albedoMae, 1e-6);  // same triangles: each texel against the truth at its own point
+  const AlbedoViewComparison views = compareAlbedoViews(p.fit, p.truth, roomViews(), &p.coverage, 5);
+  EXPECT_GT(views.pixels, 1000u);
+  EXPECT_LT(views.mae, 0.01);  // the striped wallpaper's stripes move by the noise: a little error
+  EXPECT_GT(views.mae, 0.0);
+
+  std::rotate(fm.triangles.begin(), fm.triangles.begin() + 1, fm.triangles.end());  // other triangles
+  EXPECT_THROW(compareWithTruth(p.fit, p.truth, p.coverage, {}), Error);
 }
 
 namespace {

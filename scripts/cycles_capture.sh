@@ -35,7 +35,7 @@ for f in transforms.json transforms_test.json; do
 done
 render() {  # cameras, output folder, spp; renders kept in OUT are reused only for the same scene, cameras and spp
   local stamp
-  stamp="$(cat "$TRUTH" "$1" | sha256sum | cut -c1-16) spp $3"
+  stamp="$(cat "$TRUTH" "$1" | sha256sum | cut -c1-16) spp $3 with albedo"
   [ -f "$2/done" ] && [ "$(cat "$2/done")" = "$stamp" ] && return
   rm -rf "$2"
   blender -b --factory-startup --python-exit-code 1 --python "$ROOT/scripts/cycles_compare.py" -- render "$SRC" "$2" \
@@ -52,12 +52,18 @@ CAP="$OUT/capture"
 rm -rf "$CAP" && mkdir -p "$CAP/images" "$CAP/test"
 cp "$SRC/mesh.ply" "$SRC/objects.json" "$CAP/"
 # Cycles formed the pixels with its default filter (Blackman-Harris, Filter Width 1.5 px): the capture says so.
+# The held-out frames carry Cycles' Diffuse Color pass as their albedo_path (eval's per-pixel albedo).
 for f in transforms.json transforms_test.json; do
-  python3 -c 'import json, sys; t = json.load(open(sys.argv[1])); t["pixel_filter"] = {"type": "blackman-harris", "width": 1.5}
-json.dump(t, open(sys.argv[2], "w"), indent=1)' "$SRC/$f" "$CAP/$f"
+  python3 -c 'import json, os, sys; t = json.load(open(sys.argv[1])); t["pixel_filter"] = {"type": "blackman-harris", "width": 1.5}
+for fr in t["frames"] if sys.argv[3] == "test" else []:
+    stem, ext = os.path.splitext(fr["file_path"]); fr["albedo_path"] = stem + "_albedo" + ext
+json.dump(t, open(sys.argv[2], "w"), indent=1)' "$SRC/$f" "$CAP/$f" "$([ $f = transforms_test.json ] && echo test)"
 done
 frames "$SRC/transforms.json" | while read -r p; do cp "$OUT/cycles_train/$(basename "$p")" "$CAP/$p" || exit 1; done
-frames "$SRC/transforms_test.json" | while read -r p; do cp "$OUT/cycles_test/$(basename "$p")" "$CAP/$p" || exit 1; done
+frames "$SRC/transforms_test.json" | while read -r p; do
+  stem="$(basename "${p%.*}")"
+  cp "$OUT/cycles_test/$stem.exr" "$CAP/$p" && cp "$OUT/cycles_test/${stem}_albedo.exr" "$CAP/${p%.*}_albedo.exr" || exit 1
+done
 "$R" --log warn prepare "$CAP" --out "$OUT/work" --res 512,1024 --gutter-res 512 --force
 if [ -n "${FIT_CONFIG:-}" ]; then cfg="$FIT_CONFIG"; else
   cfg="$OUT/fit.json"

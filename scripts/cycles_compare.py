@@ -8,7 +8,8 @@ render SCENE_DIR OUT_DIR --spp N --seed S [--bounces 8 --diffuse-bounces 8 --glo
   Principled BSDF (v1: metallic 0, specular tint 0, sheen/clearcoat/subsurface/transmission 0) per
   object, plus an Emission shader of the object's radiance on the front side only (relume's
   emitters are one-sided); black world; cameras from transforms.json (OpenGL axes = Blender's).
-  Writes OUT_DIR/view_K.exr (linear RGB) and OUT_DIR/view_K_index.exr (object id + 1).
+  Writes OUT_DIR/view_K.exr (linear RGB), OUT_DIR/view_K_index.exr (object id + 1) and
+  OUT_DIR/view_K_albedo.exr (Cycles' Diffuse Color pass: the albedo pass relume eval can compare with).
   --gltf imports `relume export`'s .glb with Blender's glTF importer instead (materials as the
   importer maps them, nothing fixed up; scripts/gltf_blender_check.sh); --front-emission then
   makes emission one-sided, as relume's.
@@ -177,6 +178,7 @@ def render(a):
     sc.render.film_transparent = False
     sc.view_settings.view_transform = "Standard"
     sc.view_layers[0].use_pass_object_index = True
+    sc.view_layers[0].use_pass_diffuse_color = True  # the albedo pass relume eval compares albedo with
     sc.use_nodes = True
     nt = sc.node_tree
     layers = nt.nodes["Render Layers"]
@@ -201,11 +203,13 @@ def render(a):
         out.file_slots.clear()
         out.file_slots.new(stem + "_#")
         out.file_slots.new(stem + "_index_#")
+        out.file_slots.new(stem + "_albedo_#")
         nt.links.new(layers.outputs["Image"], out.inputs[0])
         nt.links.new(layers.outputs["IndexOB"], out.inputs[1])
+        nt.links.new(layers.outputs["DiffCol"], out.inputs[2])
         sc.frame_set(1)
         bpy.ops.render.render(write_still=False)
-        for suffix in ("", "_index"):
+        for suffix in ("", "_index", "_albedo"):
             os.replace(os.path.join(a.out, "%s%s_1.exr" % (stem, suffix)), os.path.join(a.out, "%s%s.exr" % (stem, suffix)))
 
 

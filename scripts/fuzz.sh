@@ -12,9 +12,10 @@ BUILD="$ROOT/build-fuzz"
 SECONDS_EACH="${1:-60}"
 shift || true
 READERS=("$@")
-if ! command -v clang++ > /dev/null; then
-  [[ $(id -u) -eq 0 ]] || { echo "fuzz.sh: needs clang (apt-get install clang)" >&2; exit 1; }
-  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends clang
+# clang, and its runtimes (libFuzzer, ASan), which Debian packages apart from it.
+if ! command -v clang++ > /dev/null || ! dpkg -s libclang-rt-dev > /dev/null 2>&1; then
+  [[ $(id -u) -eq 0 ]] || { echo "fuzz.sh: needs clang (apt-get install clang libclang-rt-dev)" >&2; exit 1; }
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends clang libclang-rt-dev
 fi
 CXX=clang++ cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRELUME_FUZZ=ON > /dev/null
 cmake --build "$BUILD" -j "${JOBS:-$(nproc)}" --target fuzzers

@@ -138,6 +138,10 @@ static Capture parseTransforms(const std::filesystem::path& path) {
     c.position = m.block<3, 1>(0, 3).cast<float>();
     if (!f.contains("file_path") || !f["file_path"].is_string()) fail("{}: missing 'file_path'", where);
     fr.image = dir / f["file_path"].get<std::string>();
+    if (f.contains("albedo_path")) {
+      if (!f["albedo_path"].is_string()) fail("{}: 'albedo_path' must be a string", where);
+      fr.albedo = dir / f["albedo_path"].get<std::string>();
+    }
     fr.exposure = static_cast<float>(in.exposure.value_or(1.0));
     fr.exposureRecorded = in.exposure.has_value();
     if (!(fr.exposure >= kMinExposure && fr.exposure <= kMaxExposure))
@@ -164,6 +168,7 @@ void writeTransforms(const std::filesystem::path& path, const std::vector<Frame>
     Json f;
     if (!(c.filter == common)) f["pixel_filter"] = filterJson(c.filter);
     f["file_path"] = relativePath(fr.image, path.parent_path()).generic_string();
+    if (!fr.albedo.empty()) f["albedo_path"] = relativePath(fr.albedo, path.parent_path()).generic_string();
     f["fl_x"] = c.fx;
     f["fl_y"] = c.fy;
     f["cx"] = c.cx;

@@ -21,6 +21,9 @@ struct Frame {
   float clipLow = 0.0f;
   float clipHigh = std::numeric_limits<float>::infinity();
   Response response;  // of integer-encoded images (the capture's `response`)
+  // The frame's albedo pass (`albedo_path`: a synthetic capture's diffuse colour, linear, the
+  // frame's size), which `relume eval` compares the fit's albedo with; empty when there is none.
+  std::filesystem::path albedo;
 };
 
 struct Capture {

@@ -346,31 +346,43 @@ Json AlbedoViewComparison::toJson() const {
   return {{"pixels", pixels}, {"mae", mae}, {"psnr", psnr}, {"objects", perObject}};
 }
 
-AlbedoViewComparison compareAlbedoViews(const SceneDescription& fit, const SceneDescription& truth,
+AlbedoViewComparison compareAlbedoViews(const SceneDescription& fit, const SceneDescription* truth,
                                         const std::vector<Frame>& views, const Image* coverage, int minObservations,
                                         const std::filesystem::path& out) {
-  const Scene fitScene(fit.mesh), truthScene(truth.mesh);
-  const Appearance& ta = truth.appearance;
+  const Scene fitScene(fit.mesh);
+  const std::optional<Scene> truthScene = truth ? std::optional<Scene>(std::in_place, truth->mesh) : std::nullopt;
+  const Appearance& objects = truth ? truth->appearance : fit.appearance;  // whose objects count and mask
   struct ObjectError {
     double abs = 0, signedSum = 0;
     size_t pixels = 0;
   };
-  std::vector<ObjectError> objectError(ta.objectCount());
+  std::vector<ObjectError> objectError(objects.objectCount());
   double abs = 0, sq = 0;
   AlbedoViewComparison c;
   for (const Frame& frame : views) {
     const Camera& cam = frame.camera;
     const std::vector<AlbedoPixel> f = albedoView(fitScene, fit.appearance, cam);
-    const std::vector<AlbedoPixel> t = albedoView(truthScene, ta, cam);
-    Image fitImage(cam.width, cam.height), truthImage(cam.width, cam.height);
+    const std::vector<AlbedoPixel> t =
+        truth ? albedoView(*truthScene, truth->appearance, cam) : std::vector<AlbedoPixel>();
+    const std::vector<AlbedoPixel>& seen = truth ? t : f;
+    std::optional<Image> pass;
+    if (!frame.albedo.empty()) {
+      pass = readImage(frame.albedo);
+      if (pass->width != cam.width || pass->height != cam.height)
+        fail("{}: albedo pass is {}x{}, its frame {}x{}", frame.albedo.string(), pass->width, pass->height,
+             cam.width, cam.height);
+    } else if (!truth) {
+      fail("eval: {} has no albedo_path and no --truth gives its albedo", frame.image.string());
+    }
+    Image fitImage(cam.width, cam.height), referenceImage(cam.width, cam.height);
     for (int y = 1; y + 1 < cam.height; ++y)
       for (int x = 1; x + 1 < cam.width; ++x) {
         const size_t i = static_cast<size_t>(y) * cam.width + x;
-        const int object = t[i].object;
-        if (object < 0 || f[i].object < 0 || ta.isEmissive(object)) continue;
+        const int object = seen[i].object;
+        if (object < 0 || f[i].object < 0 || objects.isEmissive(object)) continue;
         bool interior = true;
         for (int dy = -1; dy <= 1 && interior; ++dy)
-          for (int dx = -1; dx <= 1; ++dx) interior &= t[i + dy * cam.width + dx].object == object;
+          for (int dx = -1; dx <= 1; ++dx) interior &= seen[i + dy * cam.width + dx].object == object;
         if (!interior) continue;
         if (coverage) {
           const Vec2 uv = f[i].uv;
@@ -378,23 +390,24 @@ AlbedoViewComparison compareAlbedoViews(const SceneDescription& fit, const Scene
           const int cy = std::clamp(static_cast<int>(uv.y() * coverage->height), 0, coverage->height - 1);
           if (coverage->at(cx, cy)[0] < minObservations) continue;
         }
-        const Color d = f[i].albedo - t[i].albedo;
+        const Color reference = pass ? pass->at(x, y) : t[i].albedo;
+        const Color d = f[i].albedo - reference;
         abs += d.abs().sum() / 3, sq += d.square().sum() / 3, ++c.pixels;
         ObjectError& oe = objectError[object];
         oe.abs += d.abs().sum() / 3, oe.signedSum += d.sum() / 3, ++oe.pixels;
-        fitImage.set(x, y, f[i].albedo), truthImage.set(x, y, t[i].albedo);
+        fitImage.set(x, y, f[i].albedo), referenceImage.set(x, y, reference);
       }
     if (!out.empty()) {
       const std::string stem = frame.image.stem().string();
       writePng(out / ("albedo_" + stem + ".png"), fitImage);
-      writePng(out / ("albedo_truth_" + stem + ".png"), truthImage);
+      writePng(out / ("albedo_reference_" + stem + ".png"), referenceImage);
     }
   }
   if (c.pixels) c.mae = abs / c.pixels, c.psnr = psnrOf(sq, c.pixels);
-  for (int obj = 0; obj < ta.objectCount(); ++obj)
+  for (int obj = 0; obj < objects.objectCount(); ++obj)
     if (const ObjectError& oe = objectError[obj]; oe.pixels)
       c.perObject.push_back({{"id", obj},
-                             {"name", ta.names[obj]},
+                             {"name", objects.names[obj]},
                              {"pixels", oe.pixels},
                              {"mae", oe.abs / oe.pixels},
                              {"bias", oe.signedSum / oe.pixels}});
@@ -409,18 +422,29 @@ void runEvaluation(const EvalOptions& o) {
   createDirectories(o.out);
   const ViewComparison v = compareViews(scene, o.cameras, ro, o.out);
   Json report = {{"views", v.toJson()}};
+  const std::vector<Frame> views = readTransforms(o.cameras).frames;
+  const bool passes = std::any_of(views.begin(), views.end(), [](const Frame& f) { return !f.albedo.empty(); });
+  const std::optional<SceneDescription> truth =
+      o.truth.empty() ? std::nullopt : std::optional<SceneDescription>(loadSceneFile(o.truth));
+  const std::optional<Image> coverage = o.coverage.empty() ? std::nullopt : std::optional<Image>(readImage(o.coverage));
+  const TruthOptions options = truthOptionsFor(o.scene);
   std::optional<TruthComparison> t;
-  std::optional<AlbedoViewComparison> a;
-  if (!o.truth.empty()) {
-    const SceneDescription truth = loadSceneFile(o.truth);
-    const Image coverage = readImage(o.coverage);
-    const TruthOptions options = truthOptionsFor(o.scene);
+  if (truth) {
     Image truthAlbedo;
-    t = compareWithTruth(scene, truth, coverage, options, &truthAlbedo);
+    t = compareWithTruth(scene, *truth, *coverage, options, &truthAlbedo);
     report["truth"] = t->toJson();
     writeExr(o.out / "albedo_truth.exr", truthAlbedo);  // per texel of the fit's atlas: for analyses
-    a = compareAlbedoViews(scene, truth, readTransforms(o.cameras).frames, &coverage, options.minObservations, o.out);
+  }
+  std::optional<AlbedoViewComparison> a, ofTruth;
+  if (truth || passes) {
+    const SceneDescription* reference = truth ? &*truth : nullptr;
+    a = compareAlbedoViews(scene, reference, views, coverage ? &*coverage : nullptr, options.minObservations, o.out);
     report["albedo_views"] = a->toJson();
+    // The true albedo rendered by relume against the passes: how close a perfect fit could come.
+    if (truth && passes) {
+      ofTruth = compareAlbedoViews(*truth, reference, views, nullptr, options.minObservations);
+      report["albedo_views_of_truth"] = ofTruth->toJson();
+    }
   }
   writeJson(o.out / "eval.json", report);  // before printing: the results outlive a closed stdout
   fmt::print("views: PSNR {:.2f} dB, MSRE {:.4f} over {} frames\n", v.psnr, v.msre, v.framePsnr.size());
@@ -441,8 +465,11 @@ void runEvaluation(const EvalOptions& o) {
     for (const Json& object : t->perObject) fmt::print("  {}\n", object.dump());
   }
   if (a)
-    fmt::print("albedo in the views: MAE {:.4f}, PSNR {:.2f} dB over {} pixels (objects' interiors, lights out)\n",
-               a->mae, a->psnr, a->pixels);
+    fmt::print("albedo in the views{}: MAE {:.4f}, PSNR {:.2f} dB over {} pixels (objects' interiors, lights out)\n",
+               passes ? " against their albedo passes" : "", a->mae, a->psnr, a->pixels);
+  if (ofTruth)
+    fmt::print("  the true albedo against the same passes: MAE {:.4f}, PSNR {:.2f} dB over {} pixels\n", ofTruth->mae,
+               ofTruth->psnr, ofTruth->pixels);
 }
 
 }  // namespace relume

@@ -104,20 +104,23 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
                                  const TruthOptions& options, Image* truthAlbedo = nullptr);
 
 // The albedo as the held-out views show it, pixel by pixel: at each pixel's centre, the fit's albedo
-// where the ray meets the fit's mesh against the truth's where it meets the truth's mesh, so the
-// two meshes may differ (a displaced or incomplete scan). A pixel counts when the truth shows one
-// object there and in its 8 neighbours (an edge mixes objects, and a mesh off by a few millimetres
-// moves them), that object is not a light, and, with `coverage`, the fit's texel there was observed
-// at least `minObservations` times. This is the measure a capture with an albedo pass is judged by.
+// where the ray meets the fit's mesh against the reference: the frame's albedo pass when it has one
+// (Frame::albedo, what the renderer that made the frames shaded with), else the truth's albedo where
+// the ray meets the truth's mesh. The meshes may differ (a displaced or incomplete scan). A pixel
+// counts when one object is seen there and in its 8 neighbours (an edge mixes objects, and a mesh off
+// by a few millimetres moves them), that object is not a light, and, with `coverage`, the fit's
+// texel there was observed at least `minObservations` times. Objects are the truth's when `truth` is
+// given, else the fit's. This is the measure a capture with an albedo pass is judged by.
 struct AlbedoViewComparison {
   size_t pixels = 0;
   double mae = 0, psnr = 0;  // over counted pixels and channels; PSNR's peak is 1
-  Json perObject = Json::array();  // per true object with counted pixels: pixels, MAE, mean signed error
+  Json perObject = Json::array();  // per object with counted pixels: pixels, MAE, mean signed error
   Json toJson() const;
 };
-// Writes albedo_<frame>.png and albedo_truth_<frame>.png (counted pixels; others black) into `out`
-// when it is not empty.
-AlbedoViewComparison compareAlbedoViews(const SceneDescription& fit, const SceneDescription& truth,
+// Throws relume::Error when a view has neither an albedo pass nor a truth, or a pass that is not the
+// frame's size. Writes albedo_<frame>.png and albedo_reference_<frame>.png (counted pixels; others
+// black) into `out` when it is not empty.
+AlbedoViewComparison compareAlbedoViews(const SceneDescription& fit, const SceneDescription* truth,
                                         const std::vector<Frame>& views, const Image* coverage, int minObservations,
                                         const std::filesystem::path& out = {});
 

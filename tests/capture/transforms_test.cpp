@@ -88,6 +88,25 @@ TEST(Transforms, ExactPosesIsABoolean) {
   }
 }
 
+// An albedo pass (eval's per-pixel reference) is a path relative to the json, kept by writeTransforms.
+TEST(Transforms, AlbedoPathIsRelativeToTheJsonAndWrittenBack) {
+  const fs::path p = writeFile("albedo.json", R"({"fl_x": 10, "w": 10, "h": 10, "frames": [
+    {"file_path": "test/a.exr", "albedo_path": "test/a_albedo.exr",
+     "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]},
+    {"file_path": "test/b.exr", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}]})");
+  const Capture cap = readTransforms(p);
+  EXPECT_EQ(cap.frames[0].albedo, p.parent_path() / "test/a_albedo.exr");
+  EXPECT_TRUE(cap.frames[1].albedo.empty());
+  const fs::path again = p.parent_path() / "albedo_again.json";
+  writeTransforms(again, cap.frames);
+  const Capture back = readTransforms(again);
+  EXPECT_EQ(back.frames[0].albedo, cap.frames[0].albedo);
+  EXPECT_TRUE(back.frames[1].albedo.empty());
+  EXPECT_NE(errorOf(writeFile("albedo_bad.json", R"({"fl_x": 10, "w": 10, "h": 10, "frames": [{"file_path": "a.exr",
+    "albedo_path": 3, "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}]})")).find("albedo_path"),
+            std::string::npos);
+}
+
 TEST(Transforms, PixelFilterDefaultsToCyclesWidth) {
   const std::string frame = R"("file_path": "a.exr", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]])";
   const Capture cap = readTransforms(

@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 
 #include "core/error.h"
 #include "core/rng.h"
+#include "io/image.h"
 #include "io/json.h"
 #include "product/evaluate.h"
 #include "render/lights.h"
@@ -106,14 +108,14 @@ std::vector<Frame> roomViews() {
 TEST(Evaluate, AlbedoInTheViewsIsComparedPixelByPixelOnObjectsInteriors) {
   Pair p = roomPair();
   const std::vector<Frame> views = roomViews();
-  const AlbedoViewComparison same = compareAlbedoViews(p.fit, p.truth, views, &p.coverage, 5);
+  const AlbedoViewComparison same = compareAlbedoViews(p.fit, &p.truth, views, &p.coverage, 5);
   ASSERT_GT(same.pixels, 1000u);
   EXPECT_EQ(same.mae, 0.0);
   EXPECT_LT(same.pixels, 3u * 46 * 34);  // edges and the lights are left out
   for (const Json& row : same.perObject) EXPECT_EQ(row["name"].get<std::string>().rfind("ceiling_light", 0), std::string::npos);
 
   for (float& v : p.fit.appearance.albedo.rgb) v += 0.1f;
-  const AlbedoViewComparison brighter = compareAlbedoViews(p.fit, p.truth, views, &p.coverage, 5);
+  const AlbedoViewComparison brighter = compareAlbedoViews(p.fit, &p.truth, views, &p.coverage, 5);
   EXPECT_EQ(brighter.pixels, same.pixels);
   EXPECT_NEAR(brighter.mae, 0.1, 1e-4);
   EXPECT_NEAR(brighter.psnr, 20.0, 1e-2);
@@ -121,7 +123,36 @@ TEST(Evaluate, AlbedoInTheViewsIsComparedPixelByPixelOnObjectsInteriors) {
 
   // Unobserved texels are not counted.
   Image unseen(64, 64);
-  EXPECT_EQ(compareAlbedoViews(p.fit, p.truth, views, &unseen, 5).pixels, 0u);
+  EXPECT_EQ(compareAlbedoViews(p.fit, &p.truth, views, &unseen, 5).pixels, 0u);
+}
+
+// A capture's albedo pass is the reference where a frame has one: with no truth, the fit's objects
+// mask it; a pass of another size, or a view with neither pass nor truth, is an error.
+TEST(Evaluate, AlbedoPassesAreTheReferenceWhereFramesHaveThem) {
+  Pair p = roomPair();
+  std::fill(p.fit.appearance.albedo.rgb.begin(), p.fit.appearance.albedo.rgb.end(), 0.5f);
+  std::vector<Frame> views = roomViews();
+  const std::filesystem::path dir = testing::TempDir() + "albedo_passes";
+  std::filesystem::create_directories(dir);
+  for (size_t k = 0; k < views.size(); ++k) {
+    Image pass(views[k].camera.width, views[k].camera.height);
+    std::fill(pass.rgb.begin(), pass.rgb.end(), k == 0 ? 0.7f : 0.5f);
+    views[k].albedo = dir / fmt::format("albedo_{}.exr", k);
+    writeExr(views[k].albedo, pass);
+  }
+  const AlbedoViewComparison withTruth = compareAlbedoViews(p.fit, &p.truth, views, &p.coverage, 5);
+  const AlbedoViewComparison fitObjects = compareAlbedoViews(p.fit, nullptr, views, &p.coverage, 5);
+  for (const AlbedoViewComparison& c : {withTruth, fitObjects}) {
+    ASSERT_GT(c.pixels, 1000u);
+    EXPECT_GT(c.mae, 0.01);  // the first view's pass is 0.2 brighter than the fit
+    EXPECT_LT(c.mae, 0.2 * 0.5);
+  }
+  views.erase(views.begin());
+  EXPECT_LT(compareAlbedoViews(p.fit, nullptr, views, &p.coverage, 5).mae, 1e-6);  // bilinear rounding
+  views[0].albedo.clear();
+  EXPECT_THROW(compareAlbedoViews(p.fit, nullptr, views, &p.coverage, 5), Error);
+  writeExr(views[1].albedo, Image(8, 8));
+  EXPECT_THROW(compareAlbedoViews(p.fit, &p.truth, views, &p.coverage, 5), Error);
 }
 
 TEST(Evaluate, ADisplacedMeshIsScoredAndADifferentOneRefused) {
@@ -132,7 +163,7 @@ TEST(Evaluate, ADisplacedMeshIsScoredAndADifferentOneRefused) {
     v += 0.005f * Vec3(2 * rng.next1D() - 1, 2 * rng.next1D() - 1, 2 * rng.next1D() - 1);
   const TruthComparison texels = compareWithTruth(p.fit, p.truth, p.coverage, {});
   EXPECT_LT(texels.albedoMae, 1e-6);  // same triangles: each texel against the truth at its own point
-  const AlbedoViewComparison views = compareAlbedoViews(p.fit, p.truth, roomViews(), &p.coverage, 5);
+  const AlbedoViewComparison views = compareAlbedoViews(p.fit, &p.truth, roomViews(), &p.coverage, 5);
   EXPECT_GT(views.pixels, 1000u);
   EXPECT_LT(views.mae, 0.01);  // the striped wallpaper's stripes move by the noise: a little error
   EXPECT_GT(views.mae, 0.0);

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <vector>
 
 namespace relume {
 
@@ -24,6 +25,14 @@ inline float safeSqrt(float x) { return std::sqrt(std::max(x, 0.0f)); }
 template <typename T>
 inline T sqr(T x) {
   return x * x;
+}
+
+// The upper median (element size/2 in order); 0 for none.
+template <typename T>
+T medianOf(std::vector<T> v) {
+  if (v.empty()) return T(0);
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
 }
 
 // Orthonormal basis around a unit normal (Duff et al. 2017, branchless).

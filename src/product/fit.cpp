@@ -458,11 +458,9 @@ void Fit::settleAlbedoError(const TexelSpace& space) {
   settings.radius = c_.albedoSmoothingRadius;
   SmoothedTexels s = smoothTexels(space.map, w_.mesh, appearance_.albedo.rgb, albedoError_, eligible, guide, settings);
   for (float& v : s.values) v = std::clamp(v, albedo.lo, albedo.hi);
-  auto median = [](std::vector<float> e) {
+  auto median = [](std::vector<float> e) {  // of the known errors (-1: unknown)
     std::erase_if(e, [](float x) { return x < 0; });
-    if (e.empty()) return 0.0f;
-    std::nth_element(e.begin(), e.begin() + e.size() / 2, e.end());
-    return e[e.size() / 2];
+    return medianOf(std::move(e));
   };
   spdlog::info("fit: albedo smoothed ({}, radius {}) on {} texels; median standard error {:.4f} -> {:.4f}",
                enumName(c_.albedoSmoothing), c_.albedoSmoothingRadius, s.smoothed, median(albedoError_),

@@ -8,6 +8,7 @@
 #include "io/atomic_file.h"
 #include "io/file_system.h"
 #include "io/image.h"
+#include "product/confidence.h"
 
 namespace relume {
 namespace fs = std::filesystem;
@@ -32,6 +33,14 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
     writeExr(staging / "albedo_stderr.exr", error);
     writePng(staging / "albedo_stderr.png", error, 10.0f);
   }
+  const fs::path agreementFile = w.dir / "agreement.exr";
+  const TexelConfidence confidence =
+      texelConfidence(w, space, appearance, roles,
+                      pathExists(agreementFile) ? std::optional<Image>(readImage(agreementFile)) : std::nullopt,
+                      albedoError);
+  writeExr(staging / "confidence.exr", confidence.channels);
+  writePng(staging / "confidence.png", confidencePicture(confidence, space.resolution));
+  writeJson(staging / "confidence.json", confidence.summary);
   Json materials = Json::array();
   std::vector<size_t> observed(appearance.objectCount(), 0), total(appearance.objectCount(), 0);
   for (size_t t = 0; t < space.map.texelCount(); ++t)

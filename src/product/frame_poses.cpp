@@ -10,16 +10,6 @@
 #include "render/lights.h"
 
 namespace relume {
-namespace {
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
-
-}  // namespace
-
 FramePoses::FramePoses(const std::vector<Frame>& given) : dropped_(given.size(), 0) {
   for (const Frame& f : given) given_.push_back(f.camera);
 }
@@ -76,7 +66,7 @@ void FramePoses::refine(Workspace& w, const Appearance& model, const Render& ren
   spdlog::info(
       "fit: poses refined after {}: {} frames aligned (median step {:.2f} mm, {:.3f} deg), {} unchanged, {} failed, "
       "{:.1f} s",
-      round, aligned, 1e3 * median(moved), median(turned), entries.size() - aligned - failed, failed, timer.seconds());
+      round, aligned, 1e3 * medianOf(moved), medianOf(turned), entries.size() - aligned - failed, failed, timer.seconds());
 }
 
 void FramePoses::serialise(CheckpointIo& io, Workspace& w) {

@@ -173,13 +173,9 @@ std::pair<double, double> offsetAndSpread(const Level& L, const Pose& pose) {
     if (std::isfinite(observed)) r.push_back(observed - p.logModel);
   }
   if (r.empty()) return {0.0, 0.0};
-  auto median = [](std::vector<double> v) {
-    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-    return v[v.size() / 2];
-  };
-  const double m = median(r);
+  const double m = medianOf(r);
   for (double& x : r) x = std::abs(x - m);
-  return {m, 1.4826 * median(r)};
+  return {m, 1.4826 * medianOf(r)};
 }
 
 }  // namespace

@@ -19,6 +19,7 @@
 #include "io/file_system.h"
 #include "io/image.h"
 #include "io/json.h"
+#include "product/confidence.h"
 #include "product/frame_gains.h"
 #include "scene/scene.h"
 #include "scene/segmentation.h"
@@ -375,6 +376,48 @@ ConsistencyGains consistencyGains(TexelObservations& observations, const TexelMa
   return g;
 }
 
+// How the frames agree on each texel (agreement.exr, at the init resolution). An observation's
+// deviation is the largest over channels of |log((c + e) / (m + e))| from the texel's init value m
+// (the median), with e a tenth of m's luminance, so that colour counts (a red sofa before a brown
+// floor of its brightness) and a channel far darker than the others does not turn its noise into
+// disagreement. R: the mean deviation of the texel's unclipped observations; G: the share of them
+// beyond a factor kAgreementRatio (a misregistered edge, an object the mesh lacks, a highlight);
+// B: the share of all its observations clipped (a channel at the frame's ceiling, or every channel
+// at its floor). 0 where no frame saw the texel. Returns medians over observed texels (prepare.json).
+Json agreementPass(TexelObservations& observations, const FrameStore& store, const Image& init,
+                   const std::vector<uint32_t>& coverage, const std::function<Color(uint32_t, const Color&)>& radiance,
+                   const fs::path& file) {
+  const size_t texels = coverage.size();
+  std::vector<float> deviation(texels, 0.0f);
+  std::vector<uint32_t> disagree(texels, 0), clipped(texels, 0), unclipped(texels, 0);
+  const float threshold = std::log(kAgreementRatio);
+  observations.pass("agreement", [&](size_t t, uint32_t f, const Color& c) {
+    const FrameStats& s = store.stats(f);
+    if ((c >= s.clipHigh).any() || (c <= s.clipLow).all()) {
+      ++clipped[t];
+      return;
+    }
+    const Color m = init.at(static_cast<int>(t % init.width), static_cast<int>(t / init.width));
+    const float e = std::max(0.1f * luminance(m), 1e-12f);
+    const float d = ((radiance(f, c).max(0.0f) + e) / (m + e)).log().abs().maxCoeff();
+    deviation[t] += d, disagree[t] += d > threshold, ++unclipped[t];
+  });
+  Image out(init.width, init.height);
+  std::vector<float> spreads, shares;
+  for (size_t t = 0; t < texels; ++t) {
+    if (!coverage[t]) continue;
+    const float spread = unclipped[t] ? deviation[t] / unclipped[t] : 0.0f;
+    const float share = unclipped[t] ? static_cast<float>(disagree[t]) / unclipped[t] : 0.0f;
+    out.set(static_cast<int>(t % init.width), static_cast<int>(t / init.width),
+            Color(spread, share, static_cast<float>(clipped[t]) / (clipped[t] + unclipped[t])));
+    spreads.push_back(spread), shares.push_back(share);
+  }
+  writeExr(file, out);
+  return {{"agreement_ratio", kAgreementRatio},
+          {"median_log_spread", medianOf(spreads)},
+          {"median_share_disagreeing", medianOf(shares)}};
+}
+
 // Initial albedo: the streaming median (or mean) of each texel's observed radiance, and how many
 // observations each texel had (coverage).
 Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, const std::vector<size_t>& kept,
@@ -432,6 +475,7 @@ Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, 
     albedo.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes),
                m[3] > 0 ? Color((m.head<3>() / m[3]).cast<float>()) : Color::Constant(0.5f));
   }
+  const Json agreementSummary = agreementPass(observations, store, albedo, coverage, radiance, work / "agreement.exr");
   writeExr(work / "albedo_init.exr", albedo);
   writePng(work / "albedo_init.png", albedo);  // preview
   writeExr(work / "coverage.exr", cov);
@@ -444,6 +488,7 @@ Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, 
               {"unobserved_texels", unobserved},
               {"fraction_unobserved", fraction},
               {"texels_geometric_normal", observations.texelsWithGeometricNormal()},
+              {"agreement", agreementSummary},
               {"skipped_rays", scene.skippedRays() - skippedBefore}};
 }
 
@@ -566,7 +611,8 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   // "init2": with the frame gains of the frames' agreement.
   const std::string initPrint = fingerprintOf({}, fmt::format("init2 {} {}", visPrint, static_cast<int>(o.init)));
   runPhase("init", initPrint,
-           {work / "albedo_init.exr", work / "coverage.exr", work / "coverage.png", work / "frame_gains.json"},
+           {work / "albedo_init.exr", work / "coverage.exr", work / "coverage.png", work / "frame_gains.json",
+            work / "agreement.exr"},
            [&] { return initPhase(scene, initMap, cap, kept, work, o); });
 
   PrepareSummary s;

@@ -16,6 +16,7 @@
 #include "io/file_system.h"
 #include "io/image.h"
 #include "io/json.h"
+#include "product/confidence.h"
 #include "product/evaluate.h"
 #include "product/prepare.h"
 #include "render/lights.h"
@@ -234,6 +235,50 @@ std::string viewsSection(const fs::path& out, const SceneDescription& fit, const
 
 std::string figure(const std::string& file, const std::string& caption) {
   return fmt::format("<figure><img class=\"tex\" src=\"{}\"><figcaption>{}</figcaption></figure>", file, caption);
+}
+
+// Where the reconstruction rests on what the frames showed and where it is guessed
+// (result/confidence.*, product/confidence.h): the picture with its legend, and per object the
+// shares of its texels by evidence and what its materials rest on.
+std::string confidenceSection(const fs::path& work, const fs::path& out) {
+  const fs::path picture = work / "result" / "confidence.png", summaryFile = work / "result" / "confidence.json";
+  if (!pathExists(picture) || !pathExists(summaryFile)) return "<p>No confidence texture (a fit before it existed).</p>";
+  copyFileOver(picture, out / "confidence.png");
+  const Json summary = readJson(summaryFile);
+  std::string legend, header, rows;
+  for (int k = 0; k < kTexelEvidenceKinds; ++k) {
+    const auto e = static_cast<TexelEvidence>(k);
+    const Color c = texelEvidenceColour(e);
+    legend += fmt::format("<span style=\"background:rgb({},{},{});padding:0 0.6em\">&nbsp;</span> {} &nbsp; ",
+                          std::lround(255 * linearToSrgb(c[0])), std::lround(255 * linearToSrgb(c[1])),
+                          std::lround(255 * linearToSrgb(c[2])), texelEvidenceName(e));
+    header += fmt::format("<th>{}</th>", texelEvidenceName(e));
+  }
+  const auto shareCells = [](const Json& row) {
+    std::string cells = fmt::format("<td>{}</td>", row.at("texels").get<size_t>());
+    for (int k = 0; k < kTexelEvidenceKinds; ++k) {
+      const double share = row.value(texelEvidenceName(static_cast<TexelEvidence>(k)), 0.0);
+      cells += share > 0 ? fmt::format("<td>{:.1f}%</td>", 100 * share) : "<td></td>";
+    }
+    return cells;
+  };
+  for (const Json& row : summary.at("objects")) {
+    const Json materials = row.value("materials_from", Json("(a light)"));
+    rows += fmt::format("<tr><td>{}</td><td>{}</td>{}<td>{}</td></tr>", row.at("id").get<int>(),
+                        html(row.at("name").get<std::string>()), shareCells(row),
+                        html(materials.is_string() ? materials.get<std::string>() : materials.dump()));
+  }
+  const Json& t = summary.at("thresholds");
+  return figure("confidence.png", "evidence per texel: " + legend) +
+         fmt::format("<p>unseen: no frame saw it; few: under {:g} observations; disagree: over {:.0f}% of its "
+                     "observations beyond a factor {:g} of its median (the mesh is not where the frames saw the surface, "
+                     "or a highlight); uncertain: a standard error over {:g}; light saturated: over {:.0f}% of its "
+                     "observations clipped, its emission inferred.</p>",
+                     t.at("few_observations").get<double>(), 100 * t.at("disagree_share").get<double>(),
+                     t.at("agreement_ratio").get<double>(),
+                     t.at("uncertain_albedo").get<double>(), 100 * t.at("saturated_share").get<double>()) +
+         "<table><tr><th>id</th><th>name</th><th>texels</th>" + header + "<th>materials from</th></tr>" +
+         "<tr><td></td><td>all</td>" + shareCells(summary.at("all")) + "<td></td></tr>" + rows + "</table>";
 }
 
 // Every texel in its object's colour (a hash of the id, light sources in white): where the objects
@@ -537,6 +582,7 @@ img.tex{width:256px;height:256px} figure{display:inline-block;margin:4px} figcap
     page += "<p>Views not rendered: " + html(e.what()) + "</p>";
   }
   page += "<h2>Textures</h2>" + textures;
+  page += "<h2>Where the reconstruction is guessed</h2>" + confidenceSection(work, out);
   page += "<h2>Materials</h2>" + materialsSection(materials, truth);
   page += "<h2>Light sources</h2>" + lightsSection(work / "result" / "lights.json");
   const fs::path consistencyFile = work / "frame_gains.json";

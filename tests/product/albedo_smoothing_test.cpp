@@ -3,10 +3,12 @@
 // albedo smoothed by them is nearer the truth than the one left as fitted.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
 #include "io/image.h"
+#include "io/json.h"
 #include "product/evaluate.h"
 #include "product/fit.h"
 #include "support/prepared_capture.h"
@@ -14,6 +16,23 @@
 
 using namespace relume;
 namespace fs = std::filesystem;
+
+namespace {
+// The result's confidence texture carries each texel's largest standard error, and its evidence
+// shares cover every texel.
+void expectConfidenceCarriesTheStandardErrors(const fs::path& result) {
+  const Image error = readImage(result / "albedo_stderr.exr"), confidence = readImage(result / "confidence.exr");
+  ASSERT_EQ(error.width, confidence.width);
+  for (size_t t = 0; t < error.rgb.size() / 3; ++t)
+    ASSERT_EQ(confidence.rgb[3 * t + 1], std::max({error.rgb[3 * t], error.rgb[3 * t + 1], error.rgb[3 * t + 2]}));
+  EXPECT_TRUE(fs::exists(result / "confidence.png"));
+  double shares = 0;
+  const Json summary = readJson(result / "confidence.json");
+  for (const auto& [kind, share] : summary.at("all").items())
+    if (kind != "texels") shares += share.get<double>();
+  EXPECT_NEAR(shares, 1.0, 1e-9);
+}
+}  // namespace
 
 TEST(AlbedoSmoothing, StandardErrorsAreTheFitsNoiseAndSmoothingLowersTheError) {
   const fs::path dir = preparedRoom256("albedo_smoothing");
@@ -27,6 +46,7 @@ TEST(AlbedoSmoothing, StandardErrorsAreTheFitsNoiseAndSmoothingLowersTheError) {
     runFit(dir / "work", c, false);
     const fs::path scene = dir / "work" / "result" / "scene.json";
     EXPECT_TRUE(fs::exists(dir / "work" / "result" / "albedo_stderr.exr"));
+    expectConfidenceCarriesTheStandardErrors(dir / "work" / "result");
     return compareWithTruth(loadSceneFile(scene), truth, coverage, truthOptionsFor(scene));
   };
   const TruthComparison raw = fitted(AlbedoSmoothing::None);

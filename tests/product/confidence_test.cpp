@@ -1,0 +1,143 @@
+// Where the frames disagree with the mesh (prepare's agreement.exr) and the per-texel evidence the
+// fit's result reports (product/confidence.h), on the room with its sofa left out of the mesh: the
+// frames show the sofa where the mesh has the floor and walls behind it.
+#include <gtest/gtest.h>
+
+#include "capture/objects.h"
+#include "capture/transforms.h"
+#include "io/image.h"
+#include "io/mesh_data.h"
+#include "product/confidence.h"
+#include "sampling/visibility.h"
+#include "scene/texel_map.h"
+#include "support/prepared_capture.h"
+
+using namespace relume;
+namespace fs = std::filesystem;
+
+namespace {
+
+int idOf(const std::map<int, std::string>& names, const std::string& name) {
+  for (const auto& [id, n] : names)
+    if (n == name) return id;
+  ADD_FAILURE() << "no object " << name;
+  return -1;
+}
+
+// The room prepared from a mesh without its sofa; the whole mesh is kept as DIR/truth_mesh.ply.
+fs::path roomWithoutItsSofa() {
+  return preparedCapture("confidence_no_sofa", room256(), 256, [](const fs::path& capture) {
+    MeshData m = readPly(capture / "mesh.ply");
+    writePly(capture.parent_path() / "truth_mesh.ply", m);
+    const int sofa = idOf(readObjectNames(capture / "objects.json"), "sofa");
+    MeshData kept = m;
+    kept.triangles.clear(), kept.faceObject.clear();
+    for (size_t f = 0; f < m.triangles.size(); ++f)
+      if (m.faceObject[f] != sofa) kept.triangles.push_back(m.triangles[f]), kept.faceObject.push_back(m.faceObject[f]);
+    writePly(capture / "mesh.ply", kept);
+  });
+}
+
+}  // namespace
+
+// Texels whose observations partly show the missing sofa (the share the truth's mesh hides) disagree
+// in about that share; texels nothing hides agree.
+TEST(Confidence, AnObjectTheMeshLacksMakesTheFramesDisagreeWhereItHidesTheSurface) {
+  const fs::path dir = roomWithoutItsSofa();
+  const fs::path work = dir / "work";
+  const TriangleMesh atlas = loadMesh(work / "atlas_mesh.ply");
+  const Scene prepared(atlas), truth(loadMesh(dir / "truth_mesh.ply"));
+  const std::vector<Frame> frames = readTransforms(dir / "capture" / "transforms.json").frames;
+  const Image agreement = readImage(work / "agreement.exr"), coverage = readImage(work / "coverage.exr");
+  const TexelMap map(atlas, agreement.width);
+  const std::map<int, std::string> names = readObjectNames(dir / "capture" / "objects.json");
+  const std::set<int> plain = {idOf(names, "floor"), idOf(names, "walls"), idOf(names, "wallpaper_wall")};
+  double hiddenShare = 0, hiddenDisagree = 0, openDisagree = 0;
+  size_t hiddenTexels = 0, openTexels = 0;
+  for (size_t t = 0; t < map.texelCount(); ++t) {
+    const int x = static_cast<int>(t % map.resolution()), y = static_cast<int>(t / map.resolution());
+    if (!map.covered(t) || coverage.at(x, y)[0] < 5 || !plain.count(atlas.faceObject[map.triangle(t)])) continue;
+    const Vec3 p = map.point(atlas, t), n = map.normal(atlas, t);
+    int seen = 0, hidden = 0;
+    for (const Frame& f : frames)
+      if (observe(prepared, f.camera, p, n)) ++seen, hidden += !observe(truth, f.camera, p, n);
+    if (seen < 5) continue;
+    const double share = static_cast<double>(hidden) / seen;
+    const float disagree = agreement.at(x, y)[1];
+    if (hidden == 0) {
+      openDisagree += disagree, ++openTexels;
+    } else if (share <= 0.5) {  // a minority: the median is still the surface's
+      hiddenShare += share, hiddenDisagree += disagree, ++hiddenTexels;
+    }
+  }
+  ASSERT_GT(hiddenTexels, 20u);
+  ASSERT_GT(openTexels, 1000u);
+  hiddenShare /= hiddenTexels, hiddenDisagree /= hiddenTexels, openDisagree /= openTexels;
+  EXPECT_GT(hiddenDisagree, 0.6 * hiddenShare) << "hidden share " << hiddenShare;
+  RecordProperty("hidden_share", std::to_string(hiddenShare));
+  RecordProperty("hidden_disagree", std::to_string(hiddenDisagree));
+  RecordProperty("open_disagree", std::to_string(openDisagree));
+  EXPECT_LT(openDisagree, 0.05);
+}
+
+// Each texel takes the first evidence that applies; objects say what their materials rest on.
+TEST(Confidence, EachTexelTakesTheFirstEvidenceThatApplies) {
+  const fs::path dir = roomWithoutItsSofa();
+  const Workspace w(dir / "work");
+  const TexelSpace space(w, 256);
+  const Appearance appearance = loadSceneFile(dir / "capture" / "gt" / "scene.json").appearance;
+  ASSERT_EQ(appearance.objectCount(), w.mesh.objectCount);
+  const std::map<int, std::string> names = readObjectNames(dir / "capture" / "objects.json");
+  const int wallpaper = idOf(names, "wallpaper_wall"), table = idOf(names, "table"), walls = idOf(names, "walls"),
+            floor = idOf(names, "floor"), panel = idOf(names, "ceiling_light_a");
+  ObjectRoles roles(appearance.objectCount());
+  roles.highlight[table] = 1;
+  roles.roughnessAtLeast[walls] = 0.6f;
+  std::vector<float> error(3 * space.map.texelCount(), 0.01f);
+  for (size_t t = 0; t < space.map.texelCount(); ++t)
+    if (space.map.covered(t) && space.objectOf(t, w.mesh) == wallpaper) error[3 * t + 1] = 0.2f;
+  Image agreement = readImage(w.dir / "agreement.exr");
+  const TexelConfidence c = texelConfidence(w, space, appearance, roles, agreement, error);
+
+  size_t wallpaperUncertain = 0, panelMeasured = 0, panelTexels = 0;
+  for (size_t t = 0; t < space.map.texelCount(); ++t) {
+    if (!space.map.covered(t)) {
+      EXPECT_EQ(c.evidence[t], 255);
+      continue;
+    }
+    const int x = static_cast<int>(t % 256), y = static_cast<int>(t / 256), o = space.objectOf(t, w.mesh);
+    const float observations = w.coverageOf(t, 256), disagree = agreement.at(x, y)[1];
+    const auto e = static_cast<TexelEvidence>(c.evidence[t]);
+    EXPECT_EQ(c.channels.at(x, y)[0], observations);
+    if (observations == 0) {
+      EXPECT_EQ(e, TexelEvidence::Unseen);
+    } else if (appearance.isEmissive(o)) {  // HDR frames: the panels unclipped
+      ++panelTexels, panelMeasured += e == TexelEvidence::LightMeasured;
+    } else if (observations < kFewObservations) {
+      EXPECT_EQ(e, TexelEvidence::Few);
+    } else if (disagree > kDisagreeShare) {
+      EXPECT_EQ(e, TexelEvidence::Disagree);
+    } else if (o == wallpaper) {
+      wallpaperUncertain += e == TexelEvidence::Uncertain;
+      EXPECT_EQ(e, TexelEvidence::Uncertain);
+    } else {
+      EXPECT_EQ(e, TexelEvidence::Measured);
+    }
+  }
+  EXPECT_GT(wallpaperUncertain, 100u);
+  EXPECT_GT(panelTexels, 20u);
+  EXPECT_EQ(panelMeasured, panelTexels);
+  EXPECT_GT(c.summary["all"]["disagree"].get<double>(), 0.0);  // around where the sofa stood
+  const Json& objects = c.summary["objects"];
+  EXPECT_EQ(objects[table]["materials_from"], "highlights");
+  EXPECT_EQ(objects[walls]["materials_from"]["absence_of_highlights"]["roughness_at_least"].get<float>(), 0.6f);
+  EXPECT_EQ(objects[floor]["materials_from"], "none (kept at its prior)");
+  EXPECT_FALSE(objects[panel].contains("materials_from"));
+
+  // A panel whose observations all clip is a light seen only saturated.
+  for (size_t i = 2; i < agreement.rgb.size(); i += 3) agreement.rgb[i] = 1.0f;
+  const TexelConfidence clipped = texelConfidence(w, space, appearance, roles, agreement, error);
+  for (size_t t = 0; t < space.map.texelCount(); ++t)
+    if (space.map.covered(t) && appearance.isEmissive(space.objectOf(t, w.mesh)) && w.coverageOf(t, 256) > 0)
+      EXPECT_EQ(static_cast<TexelEvidence>(clipped.evidence[t]), TexelEvidence::LightSaturated);
+}

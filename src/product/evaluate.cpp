@@ -323,6 +323,7 @@ struct AlbedoPixel {
   int object = -1;
   Color albedo = Color::Zero();
   Vec2 uv = Vec2::Zero();
+  float depth = 0;  // along the ray
 };
 
 std::vector<AlbedoPixel> albedoView(const Scene& scene, const Appearance& appearance, const Camera& camera) {
@@ -334,7 +335,7 @@ std::vector<AlbedoPixel> albedoView(const Scene& scene, const Appearance& appear
       const std::optional<SurfaceHit> hit = scene.intersect(camera.position, *dir);
       if (!hit) continue;
       AlbedoPixel& p = view[static_cast<size_t>(y) * camera.width + x];
-      p.object = hit->object, p.uv = hit->uv, p.albedo = appearance.albedoAt(hit->object, hit->uv);
+      p.object = hit->object, p.uv = hit->uv, p.albedo = appearance.albedoAt(hit->object, hit->uv), p.depth = hit->t;
     }
   });
   return view;
@@ -345,6 +346,10 @@ std::vector<AlbedoPixel> albedoView(const Scene& scene, const Appearance& appear
 Json AlbedoViewComparison::toJson() const {
   return {{"pixels", pixels}, {"mae", mae}, {"psnr", psnr}, {"objects", perObject}};
 }
+
+// Two meshes meet a ray on the same surface when their depths differ by less than this, in metres
+// and as a share of the depth (a scan's noise is millimetres; a missing object moves it by its size).
+constexpr float kSameSurface = 0.02f;
 
 AlbedoViewComparison compareAlbedoViews(const SceneDescription& fit, const SceneDescription* truth,
                                         const std::vector<Frame>& views, const Image* coverage, int minObservations,
@@ -384,6 +389,8 @@ AlbedoViewComparison compareAlbedoViews(const SceneDescription& fit, const Scene
         for (int dy = -1; dy <= 1 && interior; ++dy)
           for (int dx = -1; dx <= 1; ++dx) interior &= seen[i + dy * cam.width + dx].object == object;
         if (!interior) continue;
+        if (truth && std::abs(f[i].depth - t[i].depth) > std::max(kSameSurface, kSameSurface * t[i].depth))
+          continue;  // the two meshes meet the ray on different surfaces: an object one of them lacks
         if (coverage) {
           const Vec2 uv = f[i].uv;
           const int cx = std::clamp(static_cast<int>(uv.x() * coverage->width), 0, coverage->width - 1);

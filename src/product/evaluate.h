@@ -108,7 +108,8 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
 // (Frame::albedo, what the renderer that made the frames shaded with), else the truth's albedo where
 // the ray meets the truth's mesh. The meshes may differ (a displaced or incomplete scan). A pixel
 // counts when one object is seen there and in its 8 neighbours (an edge mixes objects, and a mesh off
-// by a few millimetres moves them), that object is not a light, and, with `coverage`, the fit's
+// by a few millimetres moves them), that object is not a light, with a truth both meshes meet the ray
+// within 2 cm (or 2%) of each other (not where one lacks an object), and, with `coverage`, the fit's
 // texel there was observed at least `minObservations` times. Objects are the truth's when `truth` is
 // given, else the fit's. This is the measure a capture with an albedo pass is judged by.
 struct AlbedoViewComparison {

@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+
 #include "capture/capture_folder.h"
 #include "capture/frame_image.h"
 #include "capture/objects.h"
@@ -71,6 +73,16 @@ void writeObjectNames(const fs::path& capture, const MeshData& mesh, const fs::p
   writeJson(out / "objects.json", Json{{"objects", objects}});
 }
 
+// The names of the mesh's object ids (for `absent`): objects.json's, else the mesh file's.
+std::vector<std::string> objectNamesOf(const fs::path& capture, const MeshData& mesh) {
+  if (!pathExists(capture / "objects.json")) return mesh.objectNames;
+  const int32_t objects = mesh.faceObject.empty() ? 1 : 1 + *std::max_element(mesh.faceObject.begin(), mesh.faceObject.end());
+  std::vector<std::string> names(static_cast<size_t>(objects));
+  for (const auto& [id, name] : readObjectNames(capture / "objects.json"))
+    if (id >= 0 && id < objects) names[static_cast<size_t>(id)] = name;
+  return names;
+}
+
 // Everything but the checks that need the frames' pixels, which writeDegraded makes as it goes.
 void checkInputs(const DegradeOptions& o) {
   checkOutputFolder(o);
@@ -101,7 +113,7 @@ DegradeSummary writeDegraded(const DegradeOptions& o, const Capture& source, con
     ++summary.framesWritten;
   }
   writeTransforms(o.out / "transforms.json", written, source.exactPoses && !o.spec.pose);
-  const double largestVertexOffset = writeFlawedMesh(o.spec, mesh, o.out, o.seed);
+  const double largestVertexOffset = writeFlawedMesh(o.spec, mesh, objectNamesOf(o.capture, mesh), o.out, o.seed);
   if (o.spec.segmentation) writeObjectNames(o.capture, mesh, o.out);
   summary.heldOutCopied = copyHeldOut(o.capture, o.out);
   writeJson(o.out / "gt" / "imperfections.json", imperfectionsJson(o.spec, o.seed, plan, largestVertexOffset));

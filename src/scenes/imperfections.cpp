@@ -17,7 +17,7 @@
 namespace relume {
 namespace {
 
-constexpr const char* kKeys = "pose, bracket, wb, exposure-drift, noise, ldr, mesh, segmentation, missing";
+constexpr const char* kKeys = "pose, bracket, wb, exposure-drift, noise, ldr, mesh, segmentation, missing, absent";
 
 // Bounds beyond which a value is a typo, not a camera (SI units).
 constexpr double kMaxPoseMetres = 1.0, kMaxPoseDegrees = 45.0;
@@ -123,6 +123,10 @@ void parseItem(ImperfectionSpec& s, std::string_view key, std::string_view value
   } else if (key == "missing") {
     s.missingPercent =
         numberIn(key, "percentage", values(key, value, 1, 1, "one percentage")[0], 0, kMaxMissingPercent);
+  } else if (key == "absent") {
+    if (value.empty() || value.find_first_of(", ") != std::string_view::npos)
+      fail("imperfection 'absent': '{}' must be one object's name", value);
+    s.absentObject = std::string(value);
   } else {
     fail("imperfection '{}' is unknown (keys: {})", key, kKeys);
   }
@@ -217,6 +221,7 @@ std::string toString(const ImperfectionSpec& s) {
   if (s.meshNoise) items.push_back(fmt::format("mesh={}{}", s.meshNoise->value, s.meshNoise->unit));
   if (!s.segmentation) items.push_back("segmentation=none");
   if (s.missingPercent) items.push_back(fmt::format("missing={}", *s.missingPercent));
+  if (!s.absentObject.empty()) items.push_back("absent=" + s.absentObject);
   return fmt::format("{}", fmt::join(items, ";"));
 }
 
@@ -300,12 +305,22 @@ Frame writeFlawedFrame(const ImperfectionSpec& spec, const FrameImperfection& fr
   return f;
 }
 
-double writeFlawedMesh(const ImperfectionSpec& spec, MeshData mesh, const std::filesystem::path& folder,
-                       uint64_t seed) {
+double writeFlawedMesh(const ImperfectionSpec& spec, MeshData mesh, const std::vector<std::string>& objectNames,
+                       const std::filesystem::path& folder, uint64_t seed) {
   double largestOffset = 0;
-  if (spec.meshNoise) {
-    writePly(folder / "gt" / "mesh_clean.ply", mesh);
-    largestOffset = displaceVertices(mesh, *spec.meshNoise, seed);
+  if (spec.meshNoise || !spec.absentObject.empty()) writePly(folder / "gt" / "mesh_clean.ply", mesh);
+  if (spec.meshNoise) largestOffset = displaceVertices(mesh, *spec.meshNoise, seed);
+  if (!spec.absentObject.empty()) {
+    const auto named = std::find(objectNames.begin(), objectNames.end(), spec.absentObject);
+    if (named == objectNames.end())
+      fail("imperfection 'absent': the scene has no object '{}' (objects: {})", spec.absentObject,
+           fmt::join(objectNames, ", "));
+    const int32_t absent = static_cast<int32_t>(named - objectNames.begin());
+    size_t kept = 0;
+    for (size_t f = 0; f < mesh.triangles.size(); ++f)
+      if (mesh.faceObject[f] != absent)
+        mesh.triangles[kept] = mesh.triangles[f], mesh.faceObject[kept] = mesh.faceObject[f], ++kept;
+    mesh.triangles.resize(kept), mesh.faceObject.resize(kept);
   }
   if (!spec.segmentation) mesh.faceObject.clear(), mesh.objectNames.clear();
   writePly(folder / "mesh.ply", mesh);
@@ -336,6 +351,7 @@ Json imperfectionsJson(const ImperfectionSpec& s, uint64_t seed, const std::vect
                       {"largest_offset_m", largestVertexOffset},
                       {"true_mesh", "gt/mesh_clean.ply"}};
   parsed["segmentation"] = s.segmentation;
+  if (!s.absentObject.empty()) parsed["absent_object"] = s.absentObject;
   if (s.missingPercent) parsed["missing_percent"] = *s.missingPercent;
   Json list = Json::array(), leftOut = Json::array();
   for (const FrameImperfection& f : frames) {

@@ -57,11 +57,12 @@ struct ImperfectionSpec {
   std::optional<Length> meshNoise;       // every vertex of mesh.ply moved by at most this
   bool segmentation = true;              // false: no objects.json, no object ids in mesh.ply
   std::optional<double> missingPercent;  // this share of the training frames left out
+  std::string absentObject;              // this object left out of mesh.ply (a scan that missed it); "": none
   bool operator==(const ImperfectionSpec&) const = default;
 };
 
 // "key=value;key=value...", keys pose, bracket, wb, exposure-drift, noise, ldr, mesh, segmentation,
-// missing (docs/user/commands.md#imperfect-captures). An empty spec has no flaw. Throws a
+// missing, absent (docs/user/commands.md#imperfect-captures). An empty spec has no flaw. Throws a
 // one-line relume::Error naming the key and what is allowed.
 ImperfectionSpec parseImperfections(std::string_view spec);
 // The canonical spec: parseImperfections(toString(s)) == s.
@@ -95,10 +96,11 @@ double displaceVertices(MeshData& mesh, const Length& noise, uint64_t seed);
 Frame writeFlawedFrame(const ImperfectionSpec& spec, const FrameImperfection& frame, uint64_t seed,
                        const std::filesystem::path& exrPath, Image radiance);
 // A capture's mesh.ply in `folder` as a scanner would give it: with mesh noise the vertices
-// displaced (the given mesh kept as gt/mesh_clean.ply), without segmentation no object ids.
-// Returns the largest vertex offset.
-double writeFlawedMesh(const ImperfectionSpec& spec, MeshData mesh, const std::filesystem::path& folder,
-                       uint64_t seed);
+// displaced, with an absent object its faces left out (either way the given mesh kept as
+// gt/mesh_clean.ply), without segmentation no object ids. `objectNames` name the mesh's object ids.
+// Returns the largest vertex offset. Throws relume::Error naming an absent object the mesh lacks.
+double writeFlawedMesh(const ImperfectionSpec& spec, MeshData mesh, const std::vector<std::string>& objectNames,
+                       const std::filesystem::path& folder, uint64_t seed);
 
 // gt/imperfections.json: the spec (as written and as values) and every training frame's truth.
 Json imperfectionsJson(const ImperfectionSpec& spec, uint64_t seed, const std::vector<FrameImperfection>& frames,

@@ -407,9 +407,10 @@ namespace {
 double writeCaptureMesh(const SynthCaptureOptions& o, const SceneDescription& gt) {
   MeshData capMesh = gt.mesh.toData();
   if (!o.withUv) capMesh.uvs.clear();
-  if (!o.imperfections || !o.imperfections->meshNoise)
+  if (!o.imperfections || (!o.imperfections->meshNoise && o.imperfections->absentObject.empty()))
     std::filesystem::remove(o.out / "gt" / "mesh_clean.ply");  // an earlier capture's
-  if (o.imperfections) return writeFlawedMesh(*o.imperfections, std::move(capMesh), o.out, o.seed);
+  if (o.imperfections)
+    return writeFlawedMesh(*o.imperfections, std::move(capMesh), gt.appearance.names, o.out, o.seed);
   writePly(o.out / "mesh.ply", capMesh);
   return 0;
 }

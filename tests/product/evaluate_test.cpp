@@ -172,6 +172,24 @@ TEST(Evaluate, ADisplacedMeshIsScoredAndADifferentOneRefused) {
   EXPECT_THROW(compareWithTruth(p.fit, p.truth, p.coverage, {}), Error);
 }
 
+// Where the fit's mesh lacks an object, the views compare nothing: its surfaces behind are not the
+// object's.
+TEST(Evaluate, PixelsWhereTheFitsMeshLacksAnObjectAreLeftOut) {
+  Pair p = roomPair();
+  const std::vector<Frame> views = roomViews();
+  const AlbedoViewComparison whole = compareAlbedoViews(p.fit, &p.truth, views, nullptr, 5);
+  TriangleMesh& fm = p.fit.mesh;
+  const int shelf = idOf(p.fit.appearance, "shelf");
+  size_t kept = 0;
+  for (size_t f = 0; f < fm.triangles.size(); ++f)
+    if (fm.faceObject[f] != shelf) fm.triangles[kept] = fm.triangles[f], fm.faceObject[kept] = fm.faceObject[f], ++kept;
+  fm.triangles.resize(kept), fm.faceObject.resize(kept);
+  const AlbedoViewComparison without = compareAlbedoViews(p.fit, &p.truth, views, nullptr, 5);
+  EXPECT_LT(without.pixels, whole.pixels) << whole.perObject.dump();
+  EXPECT_EQ(without.mae, 0.0);
+  for (const Json& row : without.perObject) EXPECT_NE(row["name"], "shelf");
+}
+
 namespace {
 struct Rendered {
   SceneDescription desc;

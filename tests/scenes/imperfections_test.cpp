@@ -10,6 +10,7 @@
 #include <iterator>
 
 #include "capture/frame_image.h"
+#include "capture/objects.h"
 #include "capture/transforms.h"
 #include "core/error.h"
 #include "scenes/degrade.h"
@@ -56,7 +57,7 @@ TEST(ImperfectSpec, ParsesTheExample) {
 TEST(ImperfectSpec, RoundTripsThroughToString) {
   for (const char* spec : {"", "pose=1cm,0.3deg", "pose=0.5mm,0.001rad", "pose=1e-05m,0deg", "bracket=-1.5,0,1.5",
                            "bracket=2", "wb=0.03;exposure-drift=0.2", "noise=1000,0.002", "noise=100000000000,0.5",
-                           "ldr=16", "mesh=5mm", "segmentation=none", "missing=12.5",
+                           "ldr=16", "mesh=5mm", "segmentation=none", "missing=12.5", "absent=sofa",
                            "pose=1cm,0.3deg;bracket=-1.5,0,1.5;wb=0.03;exposure-drift=0.1;noise=1000,0.002;ldr=8;"
                            "mesh=5mm;segmentation=none;missing=9"}) {
     const ImperfectionSpec s = parseImperfections(spec);
@@ -102,6 +103,7 @@ TEST(ImperfectSpec, EveryMalformedSpecIsAOneLineErrorNamingTheKey) {
       {"segmentation=some", "'segmentation': 'some' is not allowed (only 'none')"},
       {"missing=99", "'missing': percentage is 99, must be in [0, 95]"},
       {"missing=9%", "'missing': percentage '9%' is not a number"},
+      {"absent=sofa,cube", "'absent': 'sofa,cube' must be one object's name"},
       {"=3", "imperfection '' is unknown"},
       {"wb=0.1\nldr=8", "control character 0x0a at byte 6"},
   };
@@ -296,6 +298,25 @@ TEST_F(ImperfectCapture, MeshVerticesMoveAtMostTheGivenDistanceTogetherAndTheSeg
               1e-6);
 }
 
+TEST_F(ImperfectCapture, AnAbsentObjectLeavesTheMeshAndStaysInTheTruth) {
+  const fs::path clean = write("clean", std::nullopt), cap = write("absent", "absent=tall_box;mesh=5mm");
+  const MeshData a = readPly(clean / "mesh.ply"), b = readPly(cap / "mesh.ply");
+  int box = -1;
+  for (const auto& [id, name] : readObjectNames(cap / "objects.json")) box = name == "tall_box" ? id : box;
+  const size_t boxFaces = static_cast<size_t>(std::count(a.faceObject.begin(), a.faceObject.end(), box));
+  EXPECT_GT(boxFaces, 0u);
+  EXPECT_EQ(b.triangles.size(), a.triangles.size() - boxFaces);
+  EXPECT_EQ(std::count(b.faceObject.begin(), b.faceObject.end(), box), 0);
+  EXPECT_EQ(bytesOf(cap / "gt" / "mesh_clean.ply"), bytesOf(clean / "mesh.ply"));
+  EXPECT_EQ(readJson(cap / "gt" / "imperfections.json")["parsed"]["absent_object"], "tall_box");
+  try {
+    write("absent_unknown", "absent=piano");
+    FAIL() << "an object the scene lacks";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("no object 'piano' (objects: white, red, "), std::string::npos) << e.what();
+  }
+}
+
 TEST_F(ImperfectCapture, MissingFramesAreLeftOutAndListedInTheTruth) {
   const fs::path clean = write("clean", std::nullopt), cap = write("missing", "missing=50");
   const Json truth = readJson(cap / "gt" / "imperfections.json");
@@ -357,7 +378,7 @@ TEST_F(ImperfectCapture, DegradingTheCleanCaptureWritesWhatSynthImperfectWrites)
   for (const std::string spec :
        {"pose=1cm,0.3deg;bracket=-1.5,0,1.5;wb=0.03;exposure-drift=0.1;noise=1000,0.002;ldr=8;mesh=5mm;"
         "segmentation=none;missing=25",
-        "pose=2mm,0.1deg;wb=0.05;noise=500,0.001;mesh=1cm"}) {
+        "pose=2mm,0.1deg;wb=0.05;noise=500,0.001;mesh=1cm;absent=tall_box"}) {
     const auto direct = filesOf(write("direct", spec));
     DegradeOptions o;
     o.capture = clean, o.out = root / "degraded", o.spec = parseImperfections(spec), o.seed = 7;

@@ -37,6 +37,15 @@ const char* texelEvidenceName(TexelEvidence e);
 // agreement.exr).
 inline constexpr float kAgreementRatio = 1.5f;
 inline constexpr float kFewObservations = 5;   // eval scores the albedo from this many on
+
+// How far an observation is from its texel's median `m`: the largest over channels of
+// |log((c + e) / (m + e))|, e a tenth of m's luminance, so that colour counts (a red sofa before a
+// brown floor of its brightness) and a channel far darker than the others does not turn its noise
+// into disagreement. It disagrees beyond log(kAgreementRatio).
+inline float observationDeviation(const Color& observed, const Color& median) {
+  const float e = std::max(0.1f * luminance(median), 1e-12f);
+  return ((observed.max(0.0f) + e) / (median.max(0.0f) + e)).log().abs().maxCoeff();
+}
 inline constexpr float kDisagreeShare = 0.25f;
 inline constexpr float kUncertainAlbedo = 0.05f;
 inline constexpr float kSaturatedShare = 0.95f;  // as clipped_light_scale's "seen only saturated"

@@ -96,6 +96,10 @@ struct TruthComparison {
   Json toJson() const;
 };
 
+// Why `fit`'s triangles are not `truth`'s (their count, or a triangle moved by more than half its
+// size; vertices moved by a scan's noise are the same triangles); "" when they are.
+std::string differentTriangles(const TriangleMesh& fit, const TriangleMesh& truth);
+
 // `coverage`: prepare's coverage.exr (observations per texel over the fit's atlas).
 // The two meshes must have the same triangles in the same order (the fit's atlas mesh re-uses
 // the capture's triangles); the truth may have its own uv layout.

@@ -4,13 +4,49 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <cmath>
 
+#include "core/error.h"
 #include "core/random_streams.h"
 #include "core/rng.h"
+#include "product/confidence.h"
+#include "product/frame_gains.h"
 #include "product/light_evidence.h"
 #include "sampling/samplers.h"
 
 namespace relume {
+
+FitBatches::FitBatches(const FitConfig& c, const Workspace& w) : c_(c), w_(w) {
+  if (!c_.dropDisagreeing) return;
+  median_ = readImage(w_.dir / "albedo_init.exr");
+  if (median_.width != w_.initResolution || median_.height != w_.initResolution)
+    fail("{}: albedo_init.exr is {}x{}, expected {}^2", w_.dir.string(), median_.width, median_.height,
+         w_.initResolution);
+  // prepare divided the frames by its gains before the median where frame_gains auto would estimate them.
+  if (resolveFrameGains(FrameGainMode::Auto, w_.frames, *w_.store, w_.kept) != FrameGainMode::None)
+    gains_ = w_.consistencyGains();
+}
+
+void FitBatches::dropDisagreeing(const TexelSpace& space, Batch& b) const {
+  const int perInit = space.resolution / w_.initResolution;
+  const float threshold = std::log(kAgreementRatio);
+  const FrameStore& store = *w_.store;
+  std::vector<uint8_t> keep(b.rays.size(), 1);
+  tbb::parallel_for(size_t{0}, b.rays.size(), [&](size_t j) {
+    const uint32_t texel = b.texel[b.slot[j]];
+    if (w_.coverageOf(texel, space.resolution) < kFewObservations) return;  // no consensus to disagree with
+    const BatchRay& r = b.rays[j];
+    const FrameStats& s = store.stats(b.frame[j]);
+    if ((r.reference >= s.clipHigh).any() || (r.reference <= s.clipLow).all()) return;  // a bound, not a value
+    const int x = static_cast<int>(texel % space.resolution) / perInit,
+              y = static_cast<int>(texel / space.resolution) / perInit;
+    const Color observed = gains_.empty() ? r.reference : Color(r.reference / gains_[b.frame[j]]);
+    keep[j] = observationDeviation(observed, median_.at(x, y)) <= threshold;
+  });
+  const size_t before = b.rays.size();
+  b.keepRays([&](size_t j) { return keep[j] != 0; });
+  b.stats.disagreeing += before - b.rays.size();
+}
 
 Batch FitBatches::sample(const TexelSpace& space, uint64_t iteration, RayFootprint footprint,
                          const BatchFocus& focus) const {
@@ -19,6 +55,7 @@ Batch FitBatches::sample(const TexelSpace& space, uint64_t iteration, RayFootpri
         .sample(c_.seed, iteration, c_.imageRays, *w_.scene, footprint, c_.samplesPerRay);
   const TextureSpaceSampler sampler(*w_.scene, space.map, space.sampleable, w_.vis, w_.trainingFrames());
   Batch b = sampler.sample(c_.seed, iteration, {c_.batchTexels, c_.framesPerTexel, footprint, c_.samplesPerRay});
+  if (c_.dropDisagreeing) dropDisagreeing(space, b);
   auto add = [&](const std::vector<uint32_t>& texels, int count, RayFootprint fp, uint64_t stream) {
     if (texels.empty() || count == 0) return;
     const TextureSpaceSampler focused(*w_.scene, space.map, texels, w_.vis, w_.trainingFrames());

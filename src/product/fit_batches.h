@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "io/image.h"
 #include "params/parameters.h"
 #include "product/fit_config.h"
 #include "product/fit_workspace.h"
@@ -22,7 +23,8 @@ struct BatchFocus {
 
 class FitBatches {
  public:
-  FitBatches(const FitConfig& c, const Workspace& w) : c_(c), w_(w) {}
+  // With drop_disagreeing, reads prepare's median (albedo_init.exr) and the gains it divided by.
+  FitBatches(const FitConfig& c, const Workspace& w);
 
   // The uniform batch of `iteration`, then the focused texels; every connection traced
   // samples_per_ray times.
@@ -41,8 +43,13 @@ class FitBatches {
   BatchFocus emissionFocus(const TexelSpace& space, const std::vector<uint8_t>& emitter) const;
 
  private:
+  // Leaves out of `b` the rays whose reference disagrees with its texel's median (drop_disagreeing).
+  void dropDisagreeing(const TexelSpace& space, Batch& b) const;
+
   const FitConfig& c_;
   const Workspace& w_;
+  Image median_;             // prepare's per-texel median radiance at the init resolution (drop_disagreeing)
+  std::vector<Color> gains_;  // per frame, what prepare divided its pixels by before the median
 };
 
 // Whether connection `r` sees a light reflected: the mirror direction about the geometric

@@ -163,6 +163,11 @@ struct FitConfig {
   // are ruled out and the roughness takes the middle of the rest (light_decisions.h); false = kept
   // at the init.
   bool highlightAbsence = true;
+  // The uniform batch leaves out a ray whose reference disagrees with its texel's median beyond
+  // prepare's agreement ratio, on texels seen at least 5 times (product/confidence.h): the mesh is
+  // not where the frame saw the surface (a missing object, a misregistered edge). The material and
+  // emission batches keep theirs (a highlight disagrees too).
+  bool dropDisagreeing = false;
   bool emitterParameterisation = true, medianInit = true, coarseToFine = true, emissionTextures = true;
   float initWhitePoint = 0.8f;  // the median init's 95th-percentile texel becomes this albedo; 0 = off
   // Photometry (product/frame_gains.h): per-frame gains estimated with the reconstruction.

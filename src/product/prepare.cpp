@@ -376,12 +376,10 @@ ConsistencyGains consistencyGains(TexelObservations& observations, const TexelMa
   return g;
 }
 
-// How the frames agree on each texel (agreement.exr, at the init resolution). An observation's
-// deviation is the largest over channels of |log((c + e) / (m + e))| from the texel's init value m
-// (the median), with e a tenth of m's luminance, so that colour counts (a red sofa before a brown
-// floor of its brightness) and a channel far darker than the others does not turn its noise into
-// disagreement. R: the mean deviation of the texel's unclipped observations; G: the share of them
-// beyond a factor kAgreementRatio (a misregistered edge, an object the mesh lacks, a highlight);
+// How the frames agree on each texel (agreement.exr, at the init resolution), each observation's
+// deviation from the texel's init value (the median) measured by observationDeviation. R: the mean
+// deviation of the texel's unclipped observations; G: the share of them beyond a factor
+// kAgreementRatio (a misregistered edge, an object the mesh lacks, a highlight);
 // B: the share of all its observations clipped (a channel at the frame's ceiling, or every channel
 // at its floor). 0 where no frame saw the texel. Returns medians over observed texels (prepare.json).
 Json agreementPass(TexelObservations& observations, const FrameStore& store, const Image& init,
@@ -397,9 +395,8 @@ Json agreementPass(TexelObservations& observations, const FrameStore& store, con
       ++clipped[t];
       return;
     }
-    const Color m = init.at(static_cast<int>(t % init.width), static_cast<int>(t / init.width));
-    const float e = std::max(0.1f * luminance(m), 1e-12f);
-    const float d = ((radiance(f, c).max(0.0f) + e) / (m + e)).log().abs().maxCoeff();
+    const float d =
+        observationDeviation(radiance(f, c), init.at(static_cast<int>(t % init.width), static_cast<int>(t / init.width)));
     deviation[t] += d, disagree[t] += d > threshold, ++unclipped[t];
   });
   Image out(init.width, init.height);

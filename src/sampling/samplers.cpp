@@ -12,13 +12,14 @@ namespace relume {
 
 void SamplerStats::add(const SamplerStats& o) {
   slots += o.slots, candidates += o.candidates, notSeen += o.notSeen, firstHitElsewhere += o.firstHitElsewhere;
-  masked += o.masked, rays += o.rays;
+  masked += o.masked, disagreeing += o.disagreeing, rays += o.rays;
 }
 
 Json SamplerStats::toJson() const {
   return {{"slots", slots},      {"candidates", candidates},
           {"not_seen", notSeen}, {"first_hit_elsewhere", firstHitElsewhere},
-          {"masked", masked},    {"rays", rays}};
+          {"masked", masked},    {"disagreeing", disagreeing},
+          {"rays", rays}};
 }
 
 void Batch::append(const Batch& other) {

@@ -33,6 +33,7 @@ struct SamplerStats {
   size_t notSeen = 0;            // outside the image, edge-on, occluded
   size_t firstHitElsewhere = 0;  // the camera ray first hits another surface (grazing, self-occlusion)
   size_t masked = 0;             // reference pixel masked (NaN/Inf in the input)
+  size_t disagreeing = 0;        // left out: the reference disagrees with its texel's other frames
   size_t rays = 0;               // training rays produced
   void add(const SamplerStats& o);
   Json toJson() const;
@@ -48,6 +49,15 @@ struct Batch {
   SamplerStats stats;
   // Appends another texture-space batch: its slots follow this batch's (texel.size() of them).
   void append(const Batch& other);
+  // Keeps the rays for which keep(ray index) holds, in order (their slots unchanged).
+  template <typename Keep>
+  void keepRays(Keep keep) {
+    size_t n = 0;
+    for (size_t j = 0; j < rays.size(); ++j)
+      if (keep(j)) rays[n] = rays[j], slot[n] = slot[j], object[n] = object[j], frame[n] = frame[j], ++n;
+    rays.resize(n), slot.resize(n), object.resize(n), frame.resize(n);
+    stats.rays = n;
+  }
 };
 
 // What a training ray is compared with. A frame's pixel is the average of the radiance over its

@@ -14,6 +14,8 @@ Json readJson(const std::filesystem::path& path) {
     return Json::parse(text);
   } catch (const Json::parse_error& e) {
     fail("{}: malformed JSON at byte {}", path.string(), e.byte);
+  } catch (const Json::exception& e) {  // a number beyond double's range: out_of_range, not parse_error
+    fail("{}: malformed JSON: {}", path.string(), e.what());
   }
 }
 

@@ -62,6 +62,19 @@ TEST(HostileFiles, DirectoryWhereAFileIsExpectedIsNamed) {
   expectEveryReaderRejects(dir / "mesh.ply", "is a directory");
 }
 
+// A number beyond double's range is nlohmann's out_of_range, not a parse error: still a one-line
+// error naming the file (found by fuzzing frame_gains.json).
+TEST(HostileFiles, JsonNumberBeyondDoubleIsAnErrorNamingTheFile) {
+  const fs::path file = freshDir("relume_json_overflow") / "gains.json";
+  std::ofstream(file) << R"({"frames": [{"frame": 1, "gain": [1e2238, 1, 1]}]})";
+  try {
+    (void)readJson(file);
+    FAIL() << "read";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(file.string() + ": malformed JSON"), std::string::npos) << e.what();
+  }
+}
+
 TEST(AtomicFile, TemporariesOfDeadWritersAreRemovedOthersKept) {
   const fs::path dir = freshDir("relume_stale_tmp");
   // pid_max is at most 2^22 on Linux, so pid 999999999 never runs.

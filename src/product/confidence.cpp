@@ -11,7 +11,8 @@ namespace {
 
 Json materialEvidence(const ObjectRoles& roles, int o) {
   if (roles.highlight[o]) return "highlights";
-  if (roles.roughnessAtLeast[o] >= 0) return {{"absence_of_highlights", {{"roughness_at_least", roles.roughnessAtLeast[o]}}}};
+  if (roles.roughnessAtLeast[o] >= 0)
+    return {{"absence_of_highlights", {{"roughness_at_least", roles.roughnessAtLeast[o]}}}};
   return "none (kept at its prior)";
 }
 

@@ -25,7 +25,8 @@ struct FitProgress {
 // frames.json holds `frames` (the frame gains, FrameGains::toJson, and the refined poses);
 // albedo_stderr.exr (and a .png preview, white at 0.1) the albedo's standard error per texel when
 // `albedoError` is not empty: 1, the albedo's whole range, where it is unknown (texels no frame
-// saw, light sources' albedo, which is not fitted), 0 off the surface.
+// saw, light sources' albedo, which is not fitted), 0 off the surface; confidence.{exr,png,json}
+// each texel's evidence (product/confidence.h) from prepare's coverage and agreement.
 std::filesystem::path writeFitResult(const Workspace& w, const Appearance& appearance, const TexelSpace& space,
                                      const ObjectRoles& roles, const FitConfig& c, const Json& frames,
                                      const FitProgress& progress, std::span<const float> albedoError);

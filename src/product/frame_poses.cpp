@@ -66,7 +66,8 @@ void FramePoses::refine(Workspace& w, const Appearance& model, const Render& ren
   spdlog::info(
       "fit: poses refined after {}: {} frames aligned (median step {:.2f} mm, {:.3f} deg), {} unchanged, {} failed, "
       "{:.1f} s",
-      round, aligned, 1e3 * medianOf(moved), medianOf(turned), entries.size() - aligned - failed, failed, timer.seconds());
+      round, aligned, 1e3 * medianOf(moved), medianOf(turned), entries.size() - aligned - failed, failed,
+      timer.seconds());
 }
 
 void FramePoses::serialise(CheckpointIo& io, Workspace& w) {

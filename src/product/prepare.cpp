@@ -395,8 +395,8 @@ Json agreementPass(TexelObservations& observations, const FrameStore& store, con
       ++clipped[t];
       return;
     }
-    const float d =
-        observationDeviation(radiance(f, c), init.at(static_cast<int>(t % init.width), static_cast<int>(t / init.width)));
+    const Color median = init.at(static_cast<int>(t % init.width), static_cast<int>(t / init.width));
+    const float d = observationDeviation(radiance(f, c), median);
     deviation[t] += d, disagree[t] += d > threshold, ++unclipped[t];
   });
   Image out(init.width, init.height);

@@ -242,7 +242,8 @@ std::string figure(const std::string& file, const std::string& caption) {
 // shares of its texels by evidence and what its materials rest on.
 std::string confidenceSection(const fs::path& work, const fs::path& out) {
   const fs::path picture = work / "result" / "confidence.png", summaryFile = work / "result" / "confidence.json";
-  if (!pathExists(picture) || !pathExists(summaryFile)) return "<p>No confidence texture (a fit before it existed).</p>";
+  if (!pathExists(picture) || !pathExists(summaryFile))
+    return "<p>No confidence texture (a fit before it existed).</p>";
   copyFileOver(picture, out / "confidence.png");
   const Json summary = readJson(summaryFile);
   std::string legend, header, rows;
@@ -271,9 +272,9 @@ std::string confidenceSection(const fs::path& work, const fs::path& out) {
   const Json& t = summary.at("thresholds");
   return figure("confidence.png", "evidence per texel: " + legend) +
          fmt::format("<p>unseen: no frame saw it; few: under {:g} observations; disagree: over {:.0f}% of its "
-                     "observations beyond a factor {:g} of its median (the mesh is not where the frames saw the surface, "
-                     "or a highlight); uncertain: a standard error over {:g}; light saturated: over {:.0f}% of its "
-                     "observations clipped, its emission inferred.</p>",
+                     "observations beyond a factor {:g} of its median (the mesh is not where the frames saw the "
+                     "surface, or a highlight); uncertain: a standard error over {:g}; light saturated: over "
+                     "{:.0f}% of its observations clipped, its emission inferred.</p>",
                      t.at("few_observations").get<double>(), 100 * t.at("disagree_share").get<double>(),
                      t.at("agreement_ratio").get<double>(),
                      t.at("uncertain_albedo").get<double>(), 100 * t.at("saturated_share").get<double>()) +

@@ -76,7 +76,8 @@ void writeObjectNames(const fs::path& capture, const MeshData& mesh, const fs::p
 // The names of the mesh's object ids (for `absent`): objects.json's, else the mesh file's.
 std::vector<std::string> objectNamesOf(const fs::path& capture, const MeshData& mesh) {
   if (!pathExists(capture / "objects.json")) return mesh.objectNames;
-  const int32_t objects = mesh.faceObject.empty() ? 1 : 1 + *std::max_element(mesh.faceObject.begin(), mesh.faceObject.end());
+  const int32_t objects =
+      mesh.faceObject.empty() ? 1 : 1 + *std::max_element(mesh.faceObject.begin(), mesh.faceObject.end());
   std::vector<std::string> names(static_cast<size_t>(objects));
   for (const auto& [id, name] : readObjectNames(capture / "objects.json"))
     if (id >= 0 && id < objects) names[static_cast<size_t>(id)] = name;

@@ -25,9 +25,10 @@ int idOf(const std::map<int, std::string>& names, const std::string& name) {
   return -1;
 }
 
-// The room prepared from a mesh without its sofa; the whole mesh is kept as DIR/truth_mesh.ply.
-fs::path roomWithoutItsSofa() {
-  return preparedCapture("confidence_no_sofa", room256(), 256, [](const fs::path& capture) {
+// The room prepared from a mesh without its sofa; the whole mesh is kept as DIR/truth_mesh.ply. Each
+// test names its own folder (CTest runs them in parallel processes).
+fs::path roomWithoutItsSofa(const std::string& name) {
+  return preparedCapture(name, room256(), 256, [](const fs::path& capture) {
     MeshData m = readPly(capture / "mesh.ply");
     writePly(capture.parent_path() / "truth_mesh.ply", m);
     const int sofa = idOf(readObjectNames(capture / "objects.json"), "sofa");
@@ -44,7 +45,7 @@ fs::path roomWithoutItsSofa() {
 // Texels whose observations partly show the missing sofa (the share the truth's mesh hides) disagree
 // in about that share; texels nothing hides agree.
 TEST(Confidence, AnObjectTheMeshLacksMakesTheFramesDisagreeWhereItHidesTheSurface) {
-  const fs::path dir = roomWithoutItsSofa();
+  const fs::path dir = roomWithoutItsSofa("confidence_agreement");
   const fs::path work = dir / "work";
   const TriangleMesh atlas = loadMesh(work / "atlas_mesh.ply");
   const Scene prepared(atlas), truth(loadMesh(dir / "truth_mesh.ply"));
@@ -83,7 +84,7 @@ TEST(Confidence, AnObjectTheMeshLacksMakesTheFramesDisagreeWhereItHidesTheSurfac
 
 // Each texel takes the first evidence that applies; objects say what their materials rest on.
 TEST(Confidence, EachTexelTakesTheFirstEvidenceThatApplies) {
-  const fs::path dir = roomWithoutItsSofa();
+  const fs::path dir = roomWithoutItsSofa("confidence_evidence");
   const Workspace w(dir / "work");
   const TexelSpace space(w, 256);
   const Appearance appearance = loadSceneFile(dir / "capture" / "gt" / "scene.json").appearance;
@@ -147,7 +148,7 @@ TEST(Confidence, EachTexelTakesTheFirstEvidenceThatApplies) {
 // and walls and most frames see those: where the sofa hides a texel from most frames, the sofa is
 // its median and nothing disagrees (nor does it matter much: few views see that surface).
 TEST(Confidence, DroppedRaysAreTheOnesThatSawWhatTheMeshLacks) {
-  const fs::path dir = roomWithoutItsSofa();
+  const fs::path dir = roomWithoutItsSofa("confidence_dropped");
   const Workspace w(dir / "work");
   const TexelSpace space(w, 256);
   const Scene truth(loadMesh(dir / "truth_mesh.ply"));

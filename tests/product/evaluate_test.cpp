@@ -112,7 +112,8 @@ TEST(Evaluate, AlbedoInTheViewsIsComparedPixelByPixelOnObjectsInteriors) {
   ASSERT_GT(same.pixels, 1000u);
   EXPECT_EQ(same.mae, 0.0);
   EXPECT_LT(same.pixels, 3u * 46 * 34);  // edges and the lights are left out
-  for (const Json& row : same.perObject) EXPECT_EQ(row["name"].get<std::string>().rfind("ceiling_light", 0), std::string::npos);
+  for (const Json& row : same.perObject)
+    EXPECT_EQ(row["name"].get<std::string>().rfind("ceiling_light", 0), std::string::npos);
 
   for (float& v : p.fit.appearance.albedo.rgb) v += 0.1f;
   const AlbedoViewComparison brighter = compareAlbedoViews(p.fit, &p.truth, views, &p.coverage, 5);

@@ -41,8 +41,7 @@ Color texelEvidenceColour(TexelEvidence e) {
       Color(1.0f, 1.0f, 1.0f),   // light measured: white
       Color(0.4f, 0.65f, 1.0f),  // light saturated: light blue
   };
-  const Color& c = srgb[static_cast<size_t>(e)];
-  return {srgbToLinear(c[0]), srgbToLinear(c[1]), srgbToLinear(c[2])};
+  return srgb[static_cast<size_t>(e)];
 }
 
 TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, const Appearance& appearance,
@@ -57,7 +56,7 @@ TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, con
   CHECK(albedoError.empty() || albedoError.size() == 3 * texels);
   TexelConfidence c;
   c.channels = Image(res, res);
-  c.evidence.assign(texels, 255);
+  c.evidence.assign(texels, kOffSurface);
   const int objects = appearance.objectCount();
   std::vector<std::array<size_t, kTexelEvidenceKinds>> counts(objects + 1, std::array<size_t, kTexelEvidenceKinds>{});
   for (size_t t = 0; t < texels; ++t) {
@@ -110,9 +109,11 @@ TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, con
 Image confidencePicture(const TexelConfidence& c, int resolution) {
   Image out(resolution, resolution);
   for (size_t t = 0; t < c.evidence.size(); ++t)
-    if (c.evidence[t] != 255)
+    if (c.evidence[t] != kOffSurface) {
+      const Color s = texelEvidenceColour(static_cast<TexelEvidence>(c.evidence[t]));
       out.set(static_cast<int>(t % resolution), static_cast<int>(t / resolution),
-              texelEvidenceColour(static_cast<TexelEvidence>(c.evidence[t])));
+              Color(srgbToLinear(s[0]), srgbToLinear(s[1]), srgbToLinear(s[2])));
+    }
   return out;
 }
 

@@ -31,6 +31,7 @@ namespace relume {
 
 enum class TexelEvidence : uint8_t { Unseen, Few, Disagree, Uncertain, Measured, LightMeasured, LightSaturated };
 inline constexpr int kTexelEvidenceKinds = 7;
+inline constexpr uint8_t kOffSurface = 255;  // TexelConfidence::evidence of a texel off the surface
 const char* texelEvidenceName(TexelEvidence e);
 
 // An observation disagrees with its texel beyond this factor of the texel's median (prepare's
@@ -55,7 +56,7 @@ struct TexelConfidence {
   // (1 where unknown, 0 with none computed), B the share of observations that disagree; 0 off the
   // surface.
   Image channels;
-  std::vector<uint8_t> evidence;  // per texel a TexelEvidence; 255 off the surface
+  std::vector<uint8_t> evidence;  // per texel a TexelEvidence, or kOffSurface
   Json summary;                   // shares of each kind by texel count, overall and per object
 };
 
@@ -67,6 +68,6 @@ TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, con
 
 // One colour per kind (the report's legend gives them): black off the surface.
 Image confidencePicture(const TexelConfidence& c, int resolution);
-Color texelEvidenceColour(TexelEvidence e);  // linear
+Color texelEvidenceColour(TexelEvidence e);  // sRGB in [0, 1] (the picture stores it linear)
 
 }  // namespace relume

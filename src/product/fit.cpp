@@ -248,8 +248,7 @@ std::unique_ptr<TexelSpace> Fit::resume(const Checkpoint& ck, size_t stageCount,
 
 // Prepare's median radiance per texel (albedo_init.exr), at `space`'s resolution.
 std::vector<float> Fit::medianRadiance(const TexelSpace& space) const {
-  const Image init = readImage(w_.dir / "albedo_init.exr");
-  if (init.width != w_.initResolution) fail("{}: albedo_init.exr has the wrong size", w_.dir.string());
+  const Image init = w_.medianRadiance();
   std::vector<float> v(init.rgb.begin(), init.rgb.end());
   if (space.resolution == w_.initResolution) return v;
   const TexelMap initMap(w_.mesh, w_.initResolution);

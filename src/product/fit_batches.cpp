@@ -18,10 +18,7 @@ namespace relume {
 
 FitBatches::FitBatches(const FitConfig& c, const Workspace& w) : c_(c), w_(w) {
   if (!c_.dropDisagreeing) return;
-  median_ = readImage(w_.dir / "albedo_init.exr");
-  if (median_.width != w_.initResolution || median_.height != w_.initResolution)
-    fail("{}: albedo_init.exr is {}x{}, expected {}^2", w_.dir.string(), median_.width, median_.height,
-         w_.initResolution);
+  median_ = w_.medianRadiance();
   // prepare divided the frames by its gains before the median where frame_gains auto would estimate them.
   if (resolveFrameGains(FrameGainMode::Auto, w_.frames, *w_.store, w_.kept) != FrameGainMode::None)
     gains_ = w_.consistencyGains();

@@ -100,6 +100,13 @@ std::vector<std::vector<uint32_t>> TexelSpace::sampleableByObject(const Triangle
   return texels;
 }
 
+Image Workspace::medianRadiance() const {
+  const Image init = readImage(dir / "albedo_init.exr");
+  if (init.width != initResolution || init.height != initResolution)
+    fail("{}: albedo_init.exr is {}x{}, expected {}^2", dir.string(), init.width, init.height, initResolution);
+  return init;
+}
+
 std::vector<Color> Workspace::consistencyGains() const {
   const fs::path file = dir / "frame_gains.json";
   if (!pathExists(file)) fail("{}: missing; rerun `relume prepare`", file.string());

@@ -9,6 +9,7 @@
 
 #include "capture/frame_store.h"
 #include "capture/transforms.h"
+#include "io/image.h"
 #include "io/json.h"
 #include "sampling/samplers.h"
 #include "sampling/visibility.h"
@@ -41,6 +42,8 @@ struct Workspace {
   TrainingFrames trainingFrames() const { return {&frames, store.get(), kept}; }
   // Per frame, the gains prepare found in the frames' agreement (frame_gains.json; 1 where none).
   std::vector<Color> consistencyGains() const;
+  // Prepare's median radiance per texel at the init resolution (albedo_init.exr).
+  Image medianRadiance() const;
   // The resolution the frames resolve: the smallest prepared resolution whose texel is no larger
   // than the median footprint on the surface of the pixels of `batch`'s rays.
   int resolvedResolution(const Batch& batch) const;

@@ -251,8 +251,8 @@ std::string confidenceSection(const fs::path& work, const fs::path& out) {
     const auto e = static_cast<TexelEvidence>(k);
     const Color c = texelEvidenceColour(e);
     legend += fmt::format("<span style=\"background:rgb({},{},{});padding:0 0.6em\">&nbsp;</span> {} &nbsp; ",
-                          std::lround(255 * linearToSrgb(c[0])), std::lround(255 * linearToSrgb(c[1])),
-                          std::lround(255 * linearToSrgb(c[2])), texelEvidenceName(e));
+                          std::lround(255 * c[0]), std::lround(255 * c[1]), std::lround(255 * c[2]),
+                          texelEvidenceName(e));
     header += fmt::format("<th>{}</th>", texelEvidenceName(e));
   }
   const auto shareCells = [](const Json& row) {

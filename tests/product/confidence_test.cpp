@@ -104,7 +104,7 @@ TEST(Confidence, EachTexelTakesTheFirstEvidenceThatApplies) {
   size_t wallpaperUncertain = 0, panelMeasured = 0, panelTexels = 0;
   for (size_t t = 0; t < space.map.texelCount(); ++t) {
     if (!space.map.covered(t)) {
-      EXPECT_EQ(c.evidence[t], 255);
+      EXPECT_EQ(c.evidence[t], kOffSurface);
       continue;
     }
     const int x = static_cast<int>(t % 256), y = static_cast<int>(t / 256), o = space.objectOf(t, w.mesh);

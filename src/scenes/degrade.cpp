@@ -131,8 +131,12 @@ DegradeSummary degradeCapture(const DegradeOptions& o) {
   const Capture source = readCapture(o.capture);
   std::vector<Camera> walk;
   for (const Frame& f : source.frames) walk.push_back(f.camera);
-  const std::vector<FrameImperfection> plan = planFrameImperfections(o.spec, walk, o.seed);
   const MeshData mesh = readMesh(findCaptureMesh(o.capture));
+  const std::vector<uint8_t> showsUnseen =
+      o.spec.unseenObject.empty()
+          ? std::vector<uint8_t>{}
+          : camerasShowing(mesh, namedObject("unseen", o.spec.unseenObject, objectNamesOf(o.capture, mesh)), walk);
+  const std::vector<FrameImperfection> plan = planFrameImperfections(o.spec, walk, o.seed, showsUnseen);
   try {
     return writeDegraded(o, source, mesh, plan);
   } catch (...) {

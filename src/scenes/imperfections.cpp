@@ -7,17 +7,21 @@
 #include <numeric>
 
 #include <fmt/ranges.h>
+#include <tbb/parallel_for.h>
 
+#include "core/check.h"
 #include "core/error.h"
 #include "core/random_streams.h"
 #include "core/rng.h"
 #include "core/warp.h"
 #include "io/image.h"
+#include "scene/mesh.h"
+#include "scene/scene.h"
 
 namespace relume {
 namespace {
 
-constexpr const char* kKeys = "pose, bracket, wb, exposure-drift, noise, ldr, mesh, segmentation, missing, absent";
+constexpr const char* kKeys = "pose, bracket, wb, exposure-drift, noise, ldr, mesh, segmentation, missing, absent, unseen";
 
 // Bounds beyond which a value is a typo, not a camera (SI units).
 constexpr double kMaxPoseMetres = 1.0, kMaxPoseDegrees = 45.0;
@@ -127,6 +131,10 @@ void parseItem(ImperfectionSpec& s, std::string_view key, std::string_view value
     if (value.empty() || value.find_first_of(", ") != std::string_view::npos)
       fail("imperfection 'absent': '{}' must be one object's name", value);
     s.absentObject = std::string(value);
+  } else if (key == "unseen") {
+    if (value.find_first_of(", ") != std::string_view::npos)
+      fail("imperfection 'unseen': '{}' must be one object's name", value);
+    s.unseenObject = std::string(value);
   } else {
     fail("imperfection '{}' is unknown (keys: {})", key, kKeys);
   }
@@ -222,19 +230,44 @@ std::string toString(const ImperfectionSpec& s) {
   if (!s.segmentation) items.push_back("segmentation=none");
   if (s.missingPercent) items.push_back(fmt::format("missing={}", *s.missingPercent));
   if (!s.absentObject.empty()) items.push_back("absent=" + s.absentObject);
+  if (!s.unseenObject.empty()) items.push_back("unseen=" + s.unseenObject);
   return fmt::format("{}", fmt::join(items, ";"));
 }
 
+int32_t namedObject(std::string_view key, const std::string& name, const std::vector<std::string>& objectNames) {
+  const auto named = std::find(objectNames.begin(), objectNames.end(), name);
+  if (named == objectNames.end())
+    fail("imperfection '{}': the scene has no object '{}' (objects: {})", key, name, fmt::join(objectNames, ", "));
+  return static_cast<int32_t>(named - objectNames.begin());
+}
+
+std::vector<uint8_t> camerasShowing(const MeshData& mesh, int32_t object, const std::vector<Camera>& cameras) {
+  const Scene scene(buildMesh(mesh, "the capture's mesh"));
+  std::vector<uint8_t> shows(cameras.size(), 0);
+  tbb::parallel_for(size_t{0}, cameras.size(), [&](size_t i) {
+    const Camera& c = cameras[i];
+    for (int y = 0; y < c.height && !shows[i]; ++y)
+      for (int x = 0; x < c.width && !shows[i]; ++x)
+        if (const auto dir = c.rayDirection(Vec2(x + 0.5f, y + 0.5f)))
+          if (const auto hit = scene.intersect(c.position, *dir)) shows[i] = hit->object == object;
+  });
+  return shows;
+}
+
 std::vector<FrameImperfection> planFrameImperfections(const ImperfectionSpec& spec, const std::vector<Camera>& walk,
-                                                      uint64_t seed) {
+                                                      uint64_t seed, const std::vector<uint8_t>& showsUnseen) {
   const int n = static_cast<int>(walk.size());
+  CHECK(showsUnseen.empty() || showsUnseen.size() == walk.size());
   const std::vector<int> leftOut =
       spec.missingPercent ? leftOutFrames(*spec.missingPercent, n, seed) : std::vector<int>{};
   std::vector<FrameImperfection> frames(n);
+  int kept = 0;
   for (int i = 0; i < n; ++i) {
     FrameImperfection& f = frames[i];
     f.index = i;
-    f.leftOut = std::binary_search(leftOut.begin(), leftOut.end(), i);
+    f.showsUnseen = !showsUnseen.empty() && showsUnseen[i];
+    f.leftOut = std::binary_search(leftOut.begin(), leftOut.end(), i) || f.showsUnseen;
+    kept += !f.leftOut;
     f.truePose = f.writtenPose = walk[i];
     if (spec.pose) {
       Pcg32 rng = frameStream(seed, RandomStream::SynthPose, i);
@@ -253,6 +286,9 @@ std::vector<FrameImperfection> planFrameImperfections(const ImperfectionSpec& sp
       f.exposureDrift = static_cast<float>(std::exp(*spec.exposureDrift * gaussian(rng)));
     }
   }
+  if (n > 0 && kept == 0)
+    fail("imperfection 'unseen={}': every one of the {} training frames that 'missing' keeps shows it",
+         spec.unseenObject, n);
   return frames;
 }
 
@@ -311,11 +347,7 @@ double writeFlawedMesh(const ImperfectionSpec& spec, MeshData mesh, const std::v
   if (spec.meshNoise || !spec.absentObject.empty()) writePly(folder / "gt" / "mesh_clean.ply", mesh);
   if (spec.meshNoise) largestOffset = displaceVertices(mesh, *spec.meshNoise, seed);
   if (!spec.absentObject.empty()) {
-    const auto named = std::find(objectNames.begin(), objectNames.end(), spec.absentObject);
-    if (named == objectNames.end())
-      fail("imperfection 'absent': the scene has no object '{}' (objects: {})", spec.absentObject,
-           fmt::join(objectNames, ", "));
-    const int32_t absent = static_cast<int32_t>(named - objectNames.begin());
+    const int32_t absent = namedObject("absent", spec.absentObject, objectNames);
     size_t kept = 0;
     for (size_t f = 0; f < mesh.triangles.size(); ++f)
       if (mesh.faceObject[f] != absent)
@@ -352,6 +384,7 @@ Json imperfectionsJson(const ImperfectionSpec& s, uint64_t seed, const std::vect
                       {"true_mesh", "gt/mesh_clean.ply"}};
   parsed["segmentation"] = s.segmentation;
   if (!s.absentObject.empty()) parsed["absent_object"] = s.absentObject;
+  if (!s.unseenObject.empty()) parsed["unseen_object"] = s.unseenObject;
   if (s.missingPercent) parsed["missing_percent"] = *s.missingPercent;
   Json list = Json::array(), leftOut = Json::array();
   for (const FrameImperfection& f : frames) {
@@ -360,6 +393,7 @@ Json imperfectionsJson(const ImperfectionSpec& s, uint64_t seed, const std::vect
                                  f.truePose.rotation.cast<double>().transpose());
     list.push_back({{"index", f.index},
                     {"left_out", f.leftOut},
+                    {"shows_unseen", f.showsUnseen},
                     {"true_transform_matrix", cameraToWorldJson(f.truePose)},
                     {"written_transform_matrix", cameraToWorldJson(f.writtenPose)},
                     {"position_error_m", moved},

@@ -58,11 +58,12 @@ struct ImperfectionSpec {
   bool segmentation = true;              // false: no objects.json, no object ids in mesh.ply
   std::optional<double> missingPercent;  // this share of the training frames left out
   std::string absentObject;              // this object left out of mesh.ply (a scan that missed it); "": none
+  std::string unseenObject;  // every training frame that shows this object left out (a light no frame shows)
   bool operator==(const ImperfectionSpec&) const = default;
 };
 
 // "key=value;key=value...", keys pose, bracket, wb, exposure-drift, noise, ldr, mesh, segmentation,
-// missing, absent (docs/user/commands.md#imperfect-captures). An empty spec has no flaw. Throws a
+// missing, absent, unseen (docs/user/commands.md#imperfect-captures). An empty spec has no flaw. Throws a
 // one-line relume::Error naming the key and what is allowed.
 ImperfectionSpec parseImperfections(std::string_view spec);
 // The canonical spec: parseImperfections(toString(s)) == s.
@@ -72,6 +73,7 @@ std::string toString(const ImperfectionSpec& spec);
 struct FrameImperfection {
   int index = 0;          // in the clean capture's walk (its image keeps this number)
   bool leftOut = false;   // not in the capture
+  bool showsUnseen = false;  // it shows the `unseen` object (and is left out for it)
   Camera truePose;        // where the frame was rendered from
   Camera writtenPose;     // what transforms.json says
   float exposure = 1.0f;  // 2^stop, recorded in transforms.json when bracketing
@@ -80,9 +82,15 @@ struct FrameImperfection {
   float exposureDrift = 1.0f;          // scalar gain, not recorded
 };
 
-// One entry per camera of the training walk. Throws relume::Error if `missing` leaves no frame.
+// The id `objectNames` gives object `name` (for `key`); throws relume::Error naming the objects.
+int32_t namedObject(std::string_view key, const std::string& name, const std::vector<std::string>& objectNames);
+// Per camera: whether the first surface one of its pixel centres sees on `mesh` is object `object`.
+std::vector<uint8_t> camerasShowing(const MeshData& mesh, int32_t object, const std::vector<Camera>& cameras);
+
+// One entry per camera of the training walk; `showsUnseen` (per camera, empty without `unseen`):
+// camerasShowing the unseen object. Throws relume::Error if `missing` and `unseen` leave no frame.
 std::vector<FrameImperfection> planFrameImperfections(const ImperfectionSpec& spec, const std::vector<Camera>& walk,
-                                                      uint64_t seed);
+                                                      uint64_t seed, const std::vector<uint8_t>& showsUnseen = {});
 // Turns a rendered radiance image into what the sensor records, in place: times exposure, drift and
 // white balance, then shot and read noise, then clamped at 0 (and at 1 for ldr frames).
 void applySensor(const ImperfectionSpec& spec, const FrameImperfection& frame, uint64_t seed, Image& image);

@@ -429,10 +429,19 @@ void writeObjectNames(const SynthCaptureOptions& o, const Appearance& a) {
 }  // namespace
 
 int writeSynthCapture(const SynthCaptureOptions& o) {
-  if (o.imperfections)  // a spec that leaves no frame fails before anything is written
-    (void)planFrameImperfections(*o.imperfections, std::vector<Camera>(o.frames), o.seed);
   const SynthScene synth = makeSynthScene(o.kind, o.atlasResolution, o.scanTriangles);
   const SceneDescription& gt = synth.scene;
+  // The training frames' flaws, planned before anything is written (a spec that leaves no frame fails).
+  std::vector<FrameImperfection> plan;
+  if (o.imperfections) {
+    std::vector<Camera> walk = synthCameraPath(o.kind, o.frames, o.width, o.height, 0.0);
+    for (Camera& cam : walk) cam.filter = o.pixelFilter;
+    const std::string& unseen = o.imperfections->unseenObject;
+    const std::vector<uint8_t> showsUnseen =
+        unseen.empty() ? std::vector<uint8_t>{}
+                       : camerasShowing(gt.mesh.toData(), namedObject("unseen", unseen, gt.appearance.names), walk);
+    plan = planFrameImperfections(*o.imperfections, walk, o.seed, showsUnseen);
+  }
   createDirectories(o.out / "gt");
   saveSceneFile(o.out / "gt" / "scene.json", gt);
   const double largestVertexOffset = writeCaptureMesh(o, gt);
@@ -446,7 +455,6 @@ int writeSynthCapture(const SynthCaptureOptions& o) {
   int rendered = 0;
   const int testWidth = o.testWidth > 0 ? o.testWidth : o.width,
             testHeight = o.testHeight > 0 ? o.testHeight : o.height;
-  std::vector<FrameImperfection> plan;
   for (const auto& [folder, json, count, phase, spp, width, height] :
        {std::tuple{"images", "transforms.json", o.frames, 0.0, o.spp, o.width, o.height},
         std::tuple{"test", "transforms_test.json", o.testFrames, 0.5, o.testSpp, testWidth, testHeight}}) {
@@ -457,7 +465,6 @@ int writeSynthCapture(const SynthCaptureOptions& o) {
     // Only the training frames have flaws: the held-out ones are the judge.
     const bool training = std::string(folder) == "images";
     const ImperfectionSpec* flaws = training && o.imperfections ? &*o.imperfections : nullptr;
-    if (flaws) plan = planFrameImperfections(*flaws, cams, o.seed);
     Progress progress(training ? "synth frames" : "synth held-out", cams.size());
     for (size_t i = 0; i < cams.size(); ++i) {
       const std::filesystem::path exrPath = o.out / folder / fmt::format("frame_{:04d}.exr", i);

@@ -13,6 +13,8 @@
 #include "capture/objects.h"
 #include "capture/transforms.h"
 #include "core/error.h"
+#include "io/json.h"
+#include "io/mesh_data.h"
 #include "scenes/degrade.h"
 #include "scenes/synth.h"
 
@@ -57,7 +59,7 @@ TEST(ImperfectSpec, ParsesTheExample) {
 TEST(ImperfectSpec, RoundTripsThroughToString) {
   for (const char* spec : {"", "pose=1cm,0.3deg", "pose=0.5mm,0.001rad", "pose=1e-05m,0deg", "bracket=-1.5,0,1.5",
                            "bracket=2", "wb=0.03;exposure-drift=0.2", "noise=1000,0.002", "noise=100000000000,0.5",
-                           "ldr=16", "mesh=5mm", "segmentation=none", "missing=12.5", "absent=sofa",
+                           "ldr=16", "mesh=5mm", "segmentation=none", "missing=12.5", "absent=sofa", "unseen=light",
                            "pose=1cm,0.3deg;bracket=-1.5,0,1.5;wb=0.03;exposure-drift=0.1;noise=1000,0.002;ldr=8;"
                            "mesh=5mm;segmentation=none;missing=9"}) {
     const ImperfectionSpec s = parseImperfections(spec);
@@ -104,6 +106,7 @@ TEST(ImperfectSpec, EveryMalformedSpecIsAOneLineErrorNamingTheKey) {
       {"missing=99", "'missing': percentage is 99, must be in [0, 95]"},
       {"missing=9%", "'missing': percentage '9%' is not a number"},
       {"absent=sofa,cube", "'absent': 'sofa,cube' must be one object's name"},
+      {"unseen=light b", "'unseen': 'light b' must be one object's name"},
       {"=3", "imperfection '' is unknown"},
       {"wb=0.1\nldr=8", "control character 0x0a at byte 6"},
   };
@@ -314,6 +317,71 @@ TEST_F(ImperfectCapture, AnAbsentObjectLeavesTheMeshAndStaysInTheTruth) {
     FAIL() << "an object the scene lacks";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("no object 'piano' (objects: white, red, "), std::string::npos) << e.what();
+  }
+}
+
+// Cameras placed to see the Cornell box's light (looking up at it from above the tall box's top) and
+// not to (looking down at the floor, or at the tall box's top from above it).
+TEST(CamerasShowing, SeeAnObjectWhereAPixelCentreSeesItFirst) {
+  const SynthScene cornell = makeSynthScene(SynthSceneKind::Cornell, 64, 0);
+  const std::vector<std::string>& names = cornell.scene.appearance.names;
+  auto looking = [](const Vec3& at, float upDown) {
+    Camera c;
+    c.width = 32, c.height = 24, c.fx = c.fy = 20, c.cx = 16, c.cy = 12;
+    c.position = at;
+    // Forward along +-y (world up/down); x right.
+    c.rotation.col(0) = Vec3(1, 0, 0);
+    c.rotation.col(2) = Vec3(0, upDown, 0);
+    c.rotation.col(1) = c.rotation.col(2).cross(c.rotation.col(0));
+    return c;
+  };
+  const std::vector<Camera> cameras = {looking(Vec3(1.0f, 1.3f, 1.0f), 1), looking(Vec3(1.0f, 1.0f, 1.0f), -1),
+                                       looking(Vec3(0.62f, 1.5f, 0.78f), -1)};
+  const std::vector<uint8_t> light =
+      camerasShowing(cornell.scene.mesh.toData(), namedObject("unseen", "light", names), cameras);
+  EXPECT_EQ(light, (std::vector<uint8_t>{1, 0, 0}));
+  const std::vector<uint8_t> box =
+      camerasShowing(cornell.scene.mesh.toData(), namedObject("unseen", "tall_box", names), cameras);
+  EXPECT_EQ(box, (std::vector<uint8_t>{0, 1, 1}));
+  EXPECT_THROW((void)namedObject("unseen", "lamp", names), Error);
+}
+
+// The frames that show the unseen object are left out and say so in the truth; the others are the
+// clean capture's. When every frame shows it, nothing is written and the error says why.
+TEST_F(ImperfectCapture, FramesShowingAnUnseenObjectAreLeftOut) {
+  const fs::path clean = write("clean", std::nullopt);
+  const Capture c = readTransforms(clean / "transforms.json");
+  std::vector<Camera> walk;
+  for (const Frame& f : c.frames) walk.push_back(f.camera);
+  const MeshData mesh = readPly(clean / "mesh.ply");
+  const std::vector<std::string> names = {"white", "red", "green", "light", "tall_box", "short_box"};
+  int tried = 0;
+  for (const std::string& object : names) {
+    const std::vector<uint8_t> shows = camerasShowing(mesh, namedObject("unseen", object, names), walk);
+    const int showing = static_cast<int>(std::count(shows.begin(), shows.end(), 1));
+    if (showing == 0 || showing == 4) continue;
+    ++tried;
+    const fs::path cap = write("unseen", "unseen=" + object);
+    const Json truth = readJson(cap / "gt" / "imperfections.json");
+    EXPECT_EQ(truth["parsed"]["unseen_object"], object);
+    EXPECT_EQ(readTransforms(cap / "transforms.json").frames.size(), static_cast<size_t>(4 - showing)) << object;
+    for (int i = 0; i < 4; ++i) {
+      EXPECT_EQ(truth["frames"][i]["shows_unseen"].get<bool>(), shows[i] != 0) << object << " " << i;
+      EXPECT_EQ(truth["frames"][i]["left_out"].get<bool>(), shows[i] != 0) << object << " " << i;
+      const fs::path image = cap / "images" / fmt::format("frame_{:04d}.exr", i);
+      ASSERT_EQ(fs::exists(image), !shows[i]) << object << " " << i;
+      if (!shows[i]) EXPECT_EQ(bytesOf(image), bytesOf(c.frames[i].image)) << object << " " << i;
+    }
+  }
+  EXPECT_GT(tried, 0) << "no object is in some frames and not in others";
+  const std::vector<uint8_t> white = camerasShowing(mesh, 0, walk);
+  ASSERT_EQ(std::count(white.begin(), white.end(), 1), 4);  // the floor, ceiling and back wall are in every frame
+  try {
+    write("unseen_everywhere", "unseen=white");
+    FAIL() << "no frame left";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("'unseen=white': every one of the 4 training frames"), std::string::npos)
+        << e.what();
   }
 }
 

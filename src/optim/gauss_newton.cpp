@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
@@ -34,6 +35,10 @@ bool GaussNewtonState::stepEntry(size_t i, std::span<float> x, std::span<const f
 float GaussNewtonState::standardError(size_t i, float bound) const {
   if (!tracksSpread() || residualSquare[i] < 0.0f || !(curvature[i] > 0.0f)) return -1.0f;
   return std::min(std::sqrt(residualSquare[i] * weightSquare[i]) / curvature[i], bound);
+}
+
+float GaussNewtonState::unbounded(size_t i) const {
+  return steps[i] > 0 && curvature[i] > 0.0f ? numerator[i] / curvature[i] : std::numeric_limits<float>::quiet_NaN();
 }
 
 size_t GaussNewtonState::step(std::span<float> x, std::span<const float> g, std::span<const float> h, float lo,

@@ -43,6 +43,9 @@ class GaussNewtonState {
   // it is further off, while the formula divides by a curvature that a texel seen with next to no
   // sensitivity leaves near 0); negative when unknown (no spread tracked, or no visit yet).
   float standardError(size_t i, float bound) const;
+  // Entry i's least-squares value without the bounds the steps project onto (numerator / curvature):
+  // above hi where the frames ask for more than the domain allows; NaN where nothing was seen.
+  float unbounded(size_t i) const;
   // One step on x with gradient g and curvature sample h, then projection onto [lo, hi].
   // Returns the entries updated. (The fit steps through stepTexels; this is its reference.)
   size_t step(std::span<float> x, std::span<const float> g, std::span<const float> h, float lo, float hi,

@@ -1,5 +1,6 @@
 #include "product/confidence.h"
 
+#include <algorithm>
 #include <array>
 
 #include "core/check.h"
@@ -8,6 +9,26 @@
 
 namespace relume {
 namespace {
+
+// Whether texel t's albedo fit asks for more than albedo 1 in some channel, beyond its noise
+// (TexelEvidence::UnderLit); with no standard errors, by the excess alone.
+bool asksBeyondOne(const SettledAlbedo& s, size_t t) {
+  if (s.unbounded.empty()) return false;
+  for (size_t i = 3 * t; i < 3 * t + 3; ++i) {
+    const float u = s.unbounded[i], se = s.unboundedError.empty() ? 0.0f : s.unboundedError[i];
+    if (u > 1 + kUnderLitExcess && se >= 0 && u - 1 > kUnderLitErrors * se) return true;
+  }
+  return false;
+}
+
+// Of texel t's observed radiance `seen`, what albedo 1 under the fitted lights leaves unexplained:
+// per channel seen (1 - 1/u), u its unbounded albedo where above 1.
+Color missingRadiance(const SettledAlbedo& s, size_t t, const Color& seen) {
+  Color m = Color::Zero();
+  for (int k = 0; k < 3; ++k)
+    if (const float u = s.unbounded[3 * t + k]; u > 1) m[k] = seen[k] * (1 - 1 / u);
+  return m;
+}
 
 Json materialEvidence(const ObjectRoles& roles, int o) {
   if (roles.highlight[o]) return "highlights";
@@ -23,6 +44,7 @@ const char* texelEvidenceName(TexelEvidence e) {
     case TexelEvidence::Unseen: return "unseen";
     case TexelEvidence::Few: return "few";
     case TexelEvidence::Disagree: return "disagree";
+    case TexelEvidence::UnderLit: return "under_lit";
     case TexelEvidence::Uncertain: return "uncertain";
     case TexelEvidence::Measured: return "measured";
     case TexelEvidence::LightMeasured: return "light_measured";
@@ -36,6 +58,7 @@ Color texelEvidenceColour(TexelEvidence e) {
       Color(0.3f, 0.3f, 0.3f),   // unseen: grey
       Color(0.85f, 0.1f, 0.1f),  // few: red
       Color(0.8f, 0.2f, 0.85f),  // disagree: magenta
+      Color(0.2f, 0.9f, 0.95f),  // under-lit: cyan
       Color(1.0f, 0.6f, 0.1f),   // uncertain: orange
       Color(0.2f, 0.7f, 0.3f),   // measured: green
       Color(1.0f, 1.0f, 1.0f),   // light measured: white
@@ -46,19 +69,24 @@ Color texelEvidenceColour(TexelEvidence e) {
 
 TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, const Appearance& appearance,
                                 const ObjectRoles& roles, const std::optional<Image>& agreement,
-                                std::span<const float> albedoError) {
+                                const SettledAlbedo& settled, const std::optional<Image>& median) {
   const int res = space.resolution, perInit = res / w.initResolution;
   CHECK(perInit >= 1 && res % w.initResolution == 0);
   if (agreement && (agreement->width != w.initResolution || agreement->height != w.initResolution))
     fail("{}: agreement.exr is {}x{}, expected {}^2", w.dir.string(), agreement->width, agreement->height,
          w.initResolution);
   const size_t texels = space.map.texelCount();
-  CHECK(albedoError.empty() || albedoError.size() == 3 * texels);
+  CHECK(settled.standardError.empty() || settled.standardError.size() == 3 * texels);
+  CHECK(settled.unbounded.empty() || (settled.unbounded.size() == 3 * texels && median));
+  CHECK(settled.unboundedError.empty() || settled.unboundedError.size() == settled.unbounded.size());
+  CHECK(!median || (median->width == w.initResolution && median->height == w.initResolution));
   TexelConfidence c;
   c.channels = Image(res, res);
   c.evidence.assign(texels, kOffSurface);
   const int objects = appearance.objectCount();
   std::vector<std::array<size_t, kTexelEvidenceKinds>> counts(objects + 1, std::array<size_t, kTexelEvidenceKinds>{});
+  std::vector<double> seenSum(objects + 1, 0.0), missingSum(objects + 1, 0.0);  // luminance over texels
+  std::vector<Eigen::Vector3d> missingAt(objects + 1, Eigen::Vector3d::Zero());  // sum of missing x point
   for (size_t t = 0; t < texels; ++t) {
     if (!space.map.covered(t)) continue;
     const int x = static_cast<int>(t % res), y = static_cast<int>(t / res);
@@ -66,15 +94,26 @@ TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, con
     const float observations = w.coverageOf(t, res);
     const Color agrees = agreement ? agreement->at(x / perInit, y / perInit) : Color::Zero();
     float error = 0;
-    if (!albedoError.empty())
-      for (int k = 0; k < 3; ++k) error = std::max(error, albedoError[3 * t + k] < 0 ? 1.0f : albedoError[3 * t + k]);
+    if (!settled.standardError.empty())
+      for (size_t i = 3 * t; i < 3 * t + 3; ++i) error = std::max(error, settled.error(i));
     TexelEvidence e = TexelEvidence::Measured;
     if (observations <= 0) e = TexelEvidence::Unseen;
     else if (appearance.isEmissive(o))
       e = agrees[2] >= kSaturatedShare ? TexelEvidence::LightSaturated : TexelEvidence::LightMeasured;
     else if (observations < kFewObservations) e = TexelEvidence::Few;
     else if (agrees[1] > kDisagreeShare) e = TexelEvidence::Disagree;
+    else if (asksBeyondOne(settled, t)) e = TexelEvidence::UnderLit;
     else if (error > kUncertainAlbedo) e = TexelEvidence::Uncertain;
+    if (median && observations > 0 && !appearance.isEmissive(o)) {
+      const Color seen = median->at(x / perInit, y / perInit).max(0.0f);
+      const double missing = e == TexelEvidence::UnderLit ? luminance(missingRadiance(settled, t, seen)) : 0.0;
+      seenSum[o] += luminance(seen), seenSum[objects] += luminance(seen);
+      missingSum[o] += missing, missingSum[objects] += missing;
+      if (missing > 0) {
+        const Eigen::Vector3d at = missing * space.map.point(w.mesh, t).cast<double>();
+        missingAt[o] += at, missingAt[objects] += at;
+      }
+    }
     c.evidence[t] = static_cast<uint8_t>(e);
     c.channels.set(x, y, Color(observations, error, agrees[1]));
     ++counts[o][static_cast<size_t>(e)], ++counts[objects][static_cast<size_t>(e)];
@@ -87,22 +126,42 @@ TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, con
       if (n[k]) j[texelEvidenceName(static_cast<TexelEvidence>(k))] = static_cast<double>(n[k]) / total;
     return j;
   };
-  Json perObject = Json::array();
+  const auto share = [](double part, double whole) { return whole > 0 ? part / whole : 0.0; };
+  const auto centre = [&](int o) {
+    const Eigen::Vector3d c = missingAt[o] / std::max(missingSum[o], 1e-300);
+    return Json::array({c.x(), c.y(), c.z()});
+  };
+  Json perObject = Json::array(), unplaced = Json::array();
   for (int o = 0; o < objects; ++o) {
     Json row = shares(counts[o]);
     row["id"] = o, row["name"] = appearance.names[o];
     if (!appearance.isEmissive(o)) row["materials_from"] = materialEvidence(roles, o);
     perObject.push_back(row);
+    if (missingSum[o] > 0)
+      unplaced.push_back({{"id", o},
+                          {"name", appearance.names[o]},
+                          {"share_of_observed", share(missingSum[o], seenSum[objects])},
+                          {"share_of_its_own", share(missingSum[o], seenSum[o])},
+                          {"centre", centre(o)}});
   }
+  std::sort(unplaced.begin(), unplaced.end(), [](const Json& a, const Json& b) {
+    return a.at("share_of_observed").get<double>() > b.at("share_of_observed").get<double>();
+  });
   c.summary = {{"all", shares(counts[objects])},
                {"thresholds",
                 {{"agreement_ratio", kAgreementRatio},
                  {"few_observations", kFewObservations},
                  {"disagree_share", kDisagreeShare},
                  {"uncertain_albedo", kUncertainAlbedo},
-                 {"saturated_share", kSaturatedShare}}},
+                 {"saturated_share", kSaturatedShare},
+                 {"under_lit_excess", kUnderLitExcess},
+                 {"under_lit_errors", kUnderLitErrors}}},
                {"agreement", agreement.has_value()},
                {"objects", perObject}};
+  if (!settled.unbounded.empty())
+    c.summary["unplaced_light"] = {{"share_of_observed", share(missingSum[objects], seenSum[objects])},
+                                   {"centre", centre(objects)},
+                                   {"objects", unplaced}};
   return c;
 }
 

@@ -7,6 +7,12 @@
 //                     kAgreementRatio of their median (agreement.exr): the mesh is not where the
 //                     frames saw the surface (a misregistered edge, an object the mesh lacks), or a
 //                     highlight;
+//   under-lit         the frames show more than it could return with albedo 1 under the fitted lights
+//                     (the albedo fit without its bounds exceeds 1 by kUnderLitExcess and by
+//                     kUnderLitErrors standard errors in some channel): lit by light no light
+//                     source of the fit supplies (a lamp seen only from behind, a window outside
+//                     every frame); its albedo is too bright and the missing light is not in the
+//                     scene, so a relit render lacks it;
 //   uncertain         its albedo's standard error exceeds kUncertainAlbedo in a channel;
 //   measured          none of the above;
 // and on light sources, whose albedo is not fitted:
@@ -29,8 +35,17 @@
 
 namespace relume {
 
-enum class TexelEvidence : uint8_t { Unseen, Few, Disagree, Uncertain, Measured, LightMeasured, LightSaturated };
-inline constexpr int kTexelEvidenceKinds = 7;
+enum class TexelEvidence : uint8_t {
+  Unseen,
+  Few,
+  Disagree,
+  UnderLit,
+  Uncertain,
+  Measured,
+  LightMeasured,
+  LightSaturated
+};
+inline constexpr int kTexelEvidenceKinds = 8;
 inline constexpr uint8_t kOffSurface = 255;  // TexelConfidence::evidence of a texel off the surface
 const char* texelEvidenceName(TexelEvidence e);
 
@@ -50,6 +65,18 @@ inline float observationDeviation(const Color& observed, const Color& median) {
 inline constexpr float kDisagreeShare = 0.25f;
 inline constexpr float kUncertainAlbedo = 0.05f;
 inline constexpr float kSaturatedShare = 0.95f;  // as clipped_light_scale's "seen only saturated"
+inline constexpr float kUnderLitExcess = 0.05f;
+inline constexpr float kUnderLitErrors = 3.0f;
+
+// What the settled albedo fit knows of each albedo entry beyond its value (3 per texel; each
+// vector empty when not computed: the albedo stepped by Adam, or a fit before it existed).
+struct SettledAlbedo {
+  std::vector<float> standardError;   // negative where unknown
+  std::vector<float> unbounded;       // the least-squares value without the [0, 1] bounds; NaN where unknown
+  std::vector<float> unboundedError;  // its standard error (before albedo_smoothing, which lowers the albedo's)
+  // Entry i's standard error, 1 (the albedo's whole range) where it is unknown.
+  float error(size_t i) const { return standardError[i] < 0 ? 1.0f : standardError[i]; }
+};
 
 struct TexelConfidence {
   // Per texel at the albedo's resolution: R observations, G the albedo's largest standard error
@@ -57,14 +84,21 @@ struct TexelConfidence {
   // surface.
   Image channels;
   std::vector<uint8_t> evidence;  // per texel a TexelEvidence, or kOffSurface
-  Json summary;                   // shares of each kind by texel count, overall and per object
+  // Shares of each kind by texel count, overall and per object, and the light no light source
+  // supplies: per under-lit texel 1 - 1/u of its observed radiance (u the luminance of its
+  // unbounded albedo), summed over texels (of one area each) as a share of all the reflectors'
+  // observed radiance (prepare's median per texel), with the centre of where it falls (the mean
+  // of the texels' points weighted by it). It is a lower bound: the missing light is counted only
+  // where it lifts a texel beyond what albedo 1 returns.
+  Json summary;
 };
 
 // `agreement`: prepare's agreement.exr (init resolution; absent from older work folders, and then
-// nothing counts as disagreeing); `albedoError` the fit's per entry (empty: none).
+// nothing counts as disagreeing); `median`: prepare's median radiance (init resolution; needed
+// with `settled.unbounded`).
 TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, const Appearance& appearance,
                                 const ObjectRoles& roles, const std::optional<Image>& agreement,
-                                std::span<const float> albedoError);
+                                const SettledAlbedo& settled, const std::optional<Image>& median);
 
 // One colour per kind (the report's legend gives them): black off the surface.
 Image confidencePicture(const TexelConfidence& c, int resolution);

@@ -91,7 +91,7 @@ class Fit {
     Json frames = gains_.toJson(w_.frames);
     if (poses_.refined()) frames["poses"] = poses_.toJson(w_.frames);
     return writeFitResult(w_, appearance_, space, roles_, c_, frames,
-                          {globalIteration_, lastLoss_, stats_, peakMemory_}, albedoError_);
+                          {globalIteration_, lastLoss_, stats_, peakMemory_}, settled_);
   }
 
   FitConfig c_;
@@ -110,7 +110,7 @@ class Fit {
   FramePoses poses_;
   bool refinePoses_;
   SamplerStats stats_;
-  std::vector<float> albedoError_;      // the settled albedo's standard error per entry (empty: none)
+  SettledAlbedo settled_;               // the settled albedo's standard errors and unbounded values
   std::optional<LightSampler> lights_;  // by the current emission; each iteration's shares the last's tables
   size_t lightSamplerBytesPeak_ = 0;    // the most lights_->bytes() has been
   float radianceScale_ = 1e-6f;
@@ -435,14 +435,17 @@ void Fit::refinePoses(const std::string& after) {
   poses_.refine(w_, appearance_, render, gains_, s, c_.unalignedFrames == UnalignedFrames::Drop, after);
 }
 
-// The settled albedo's standard errors, and with albedo_smoothing the albedo smoothed by them
-// (optim/texel_smoothing.h) on the texels whose albedo is fitted.
+// The settled albedo's standard errors and unbounded values, and with albedo_smoothing the albedo
+// smoothed by them (optim/texel_smoothing.h) on the texels whose albedo is fitted.
 void Fit::settleAlbedoError(const TexelSpace& space) {
   const ParamGroup albedo = paramGroups(appearance_).front();
   CHECK(albedo.kind == ParamKind::Albedo);
-  albedoError_ = optimiser_.albedoStandardError(albedo.hi - albedo.lo);
+  settled_.unbounded = optimiser_.albedoUnbounded();
+  if (settled_.unbounded.size() != appearance_.albedo.rgb.size()) settled_.unbounded.clear();  // not this albedo's
+  settled_.standardError = optimiser_.albedoStandardError(albedo.hi - albedo.lo);
+  settled_.unboundedError = settled_.unbounded.empty() ? std::vector<float>{} : settled_.standardError;
   if (c_.albedoSmoothing == AlbedoSmoothing::None) return;
-  if (albedoError_.empty()) {
+  if (settled_.standardError.empty()) {
     spdlog::info("fit: albedo_smoothing {} skipped: the albedo step ({}) has no standard errors",
                  enumName(c_.albedoSmoothing), enumName(c_.albedoStep));
     return;
@@ -455,17 +458,17 @@ void Fit::settleAlbedoError(const TexelSpace& space) {
       c_.albedoSmoothing == AlbedoSmoothing::Albedo ? std::vector<float>{} : medianRadiance(space);
   TexelSmoothingSettings settings;
   settings.radius = c_.albedoSmoothingRadius;
-  SmoothedTexels s = smoothTexels(space.map, w_.mesh, appearance_.albedo.rgb, albedoError_, eligible, guide, settings);
+  SmoothedTexels s = smoothTexels(space.map, w_.mesh, appearance_.albedo.rgb, settled_.standardError, eligible, guide, settings);
   for (float& v : s.values) v = std::clamp(v, albedo.lo, albedo.hi);
   auto median = [](std::vector<float> e) {  // of the known errors (-1: unknown)
     std::erase_if(e, [](float x) { return x < 0; });
     return medianOf(std::move(e));
   };
   spdlog::info("fit: albedo smoothed ({}, radius {}) on {} texels; median standard error {:.4f} -> {:.4f}",
-               enumName(c_.albedoSmoothing), c_.albedoSmoothingRadius, s.smoothed, median(albedoError_),
+               enumName(c_.albedoSmoothing), c_.albedoSmoothingRadius, s.smoothed, median(settled_.standardError),
                median(s.standardError));
   appearance_.albedo.rgb = std::move(s.values);
-  albedoError_ = std::move(s.standardError);
+  settled_.standardError = std::move(s.standardError);
 }
 
 void Fit::appendMetrics(const Json& j) const {
@@ -479,10 +482,13 @@ void Fit::serialiseState(CheckpointIo& io) {
   std::vector<ParamGroup> groups = paramGroups(appearance_);
   for (ParamGroup& g : groups) io.array(g.name() + ".values", g.values);
   optimiser_.serialise(io, groups, appearance_.albedo.rgb.size());
-  if (io.optional("albedo.standard_error", !albedoError_.empty())) {
-    if (!io.writing()) albedoError_.resize(appearance_.albedo.rgb.size());
-    io.array("albedo.standard_error", albedoError_);
-  }
+  for (auto& [name, values] : {std::pair{"albedo.standard_error", &settled_.standardError},
+                                std::pair{"albedo.unbounded", &settled_.unbounded},
+                                std::pair{"albedo.unbounded_error", &settled_.unboundedError}})
+    if (io.optional(name, !values->empty())) {
+      if (!io.writing()) values->resize(appearance_.albedo.rgb.size());
+      io.array(name, *values);
+    }
   roles_.serialise(io);
   gains_.serialise(io);
   poses_.serialise(io, w_);

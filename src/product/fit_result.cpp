@@ -15,7 +15,7 @@ namespace fs = std::filesystem;
 
 fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const TexelSpace& space,
                         const ObjectRoles& roles, const FitConfig& c, const Json& frames,
-                        const FitProgress& progress, std::span<const float> albedoError) {
+                        const FitProgress& progress, const SettledAlbedo& settled) {
   const fs::path result = w.dir / "result", staging = w.dir / "result.partial";
   removeAll(staging);
   createDirectories(staging);
@@ -24,12 +24,12 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
   Image albedo(space.resolution, space.resolution);
   albedo.rgb = appearance.albedo.rgb;
   writePng(staging / "albedo.png", albedo);
-  if (!albedoError.empty()) {
-    CHECK(albedoError.size() == albedo.rgb.size());
+  if (!settled.standardError.empty()) {
+    CHECK(settled.standardError.size() == albedo.rgb.size());
     Image error(space.resolution, space.resolution);
     for (size_t t = 0; t < space.map.texelCount(); ++t)
       for (size_t c = 3 * t; c < 3 * t + 3; ++c)
-        error.rgb[c] = !space.map.covered(t) ? 0.0f : albedoError[c] < 0 ? 1.0f : albedoError[c];
+        error.rgb[c] = space.map.covered(t) ? settled.error(c) : 0.0f;
     writeExr(staging / "albedo_stderr.exr", error);
     writePng(staging / "albedo_stderr.png", error, 10.0f);
   }
@@ -37,10 +37,17 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
   const TexelConfidence confidence =
       texelConfidence(w, space, appearance, roles,
                       pathExists(agreementFile) ? std::optional<Image>(readImage(agreementFile)) : std::nullopt,
-                      albedoError);
+                      settled, settled.unbounded.empty() ? std::nullopt : std::optional<Image>(w.medianRadiance()));
   writeExr(staging / "confidence.exr", confidence.channels);
   writePng(staging / "confidence.png", confidencePicture(confidence, space.resolution));
   writeJson(staging / "confidence.json", confidence.summary);
+  if (const Json u = confidence.summary.value("unplaced_light", Json()); u.is_object() && !u.at("objects").empty()) {
+    const Json& top = u.at("objects").front();
+    spdlog::warn(
+        "fit: at least {:.1f}% of the radiance the frames show on reflectors is more than albedo 1 returns under the "
+        "fitted lights, most on object {} ({}): a light no frame shows lights them (result/confidence.json)",
+        100 * u.at("share_of_observed").get<double>(), top.at("id").get<int>(), top.at("name").get<std::string>());
+  }
   Json materials = Json::array();
   std::vector<size_t> observed(appearance.objectCount(), 0), total(appearance.objectCount(), 0);
   for (size_t t = 0; t < space.map.texelCount(); ++t)

@@ -2,11 +2,11 @@
 // textures, materials.json, lights.json, frames.json), and the bytes it holds by part.
 #pragma once
 #include <filesystem>
-#include <span>
 
 #include "adjoint/solver.h"
 #include "io/json.h"
 #include "params/gradients.h"
+#include "product/confidence.h"
 #include "product/fit_config.h"
 #include "product/fit_workspace.h"
 #include "product/group_optimiser.h"
@@ -24,12 +24,12 @@ struct FitProgress {
 // Writes WORK/result/ atomically (WORK/result.partial/, then renamed); returns its path.
 // frames.json holds `frames` (the frame gains, FrameGains::toJson, and the refined poses);
 // albedo_stderr.exr (and a .png preview, white at 0.1) the albedo's standard error per texel when
-// `albedoError` is not empty: 1, the albedo's whole range, where it is unknown (texels no frame
-// saw, light sources' albedo, which is not fitted), 0 off the surface; confidence.{exr,png,json}
-// each texel's evidence (product/confidence.h) from prepare's coverage and agreement.
+// `settled` has them: 1, the albedo's whole range, where it is unknown (texels no frame saw, light
+// sources' albedo, which is not fitted), 0 off the surface; confidence.{exr,png,json} each texel's
+// evidence (product/confidence.h) from prepare's coverage, agreement and median radiance.
 std::filesystem::path writeFitResult(const Workspace& w, const Appearance& appearance, const TexelSpace& space,
                                      const ObjectRoles& roles, const FitConfig& c, const Json& frames,
-                                     const FitProgress& progress, std::span<const float> albedoError);
+                                     const FitProgress& progress, const SettledAlbedo& settled);
 
 // Bytes the fit holds, by part, once a stage's buffers are allocated; "total" leaves out the
 // frame cache, a mapping of frames.bin of which only the pages the sampler touches are resident.

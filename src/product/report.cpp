@@ -237,6 +237,22 @@ std::string figure(const std::string& file, const std::string& caption) {
   return fmt::format("<figure><img class=\"tex\" src=\"{}\"><figcaption>{}</figcaption></figure>", file, caption);
 }
 
+// The light no light source of the fit supplies (confidence.json's unplaced_light), when there is any.
+std::string unplacedLightParagraph(const Json& summary) {
+  const Json u = summary.value("unplaced_light", Json());
+  if (!u.is_object() || u.at("objects").empty()) return "";
+  std::string objects;
+  for (const Json& o : u.at("objects"))
+    objects += fmt::format("{}{} ({:.1f}% of its own)", objects.empty() ? "" : ", ", html(o.at("name").get<std::string>()),
+                           100 * o.at("share_of_its_own").get<double>());
+  return fmt::format(
+      "<p><b>Light the fit cannot place:</b> at least {:.1f}% of the radiance the frames show on reflectors is more "
+      "than they return with albedo 1 under the fitted lights: {}. A light no frame shows (a lamp seen only "
+      "from behind, a window outside every frame) lights them; their albedo is too bright there and a relit "
+      "render lacks that light.</p>",
+      100 * u.at("share_of_observed").get<double>(), objects);
+}
+
 // Where the reconstruction rests on what the frames showed and where it is guessed
 // (result/confidence.*, product/confidence.h): the picture with its legend, and per object the
 // shares of its texels by evidence and what its materials rest on.
@@ -273,11 +289,15 @@ std::string confidenceSection(const fs::path& work, const fs::path& out) {
   return figure("confidence.png", "evidence per texel: " + legend) +
          fmt::format("<p>unseen: no frame saw it; few: under {:g} observations; disagree: over {:.0f}% of its "
                      "observations beyond a factor {:g} of its median (the mesh is not where the frames saw the "
-                     "surface, or a highlight); uncertain: a standard error over {:g}; light saturated: over "
-                     "{:.0f}% of its observations clipped, its emission inferred.</p>",
+                     "surface, or a highlight); under-lit: brighter than albedo 1 returns under the fitted lights "
+                     "(by over {:g} and {:g} standard errors), lit by a light the fit does not have; uncertain: a "
+                     "standard error over {:g}; light saturated: over {:.0f}% of its observations clipped, its "
+                     "emission inferred.</p>",
                      t.at("few_observations").get<double>(), 100 * t.at("disagree_share").get<double>(),
-                     t.at("agreement_ratio").get<double>(),
-                     t.at("uncertain_albedo").get<double>(), 100 * t.at("saturated_share").get<double>()) +
+                     t.at("agreement_ratio").get<double>(), t.value("under_lit_excess", 0.0),
+                     t.value("under_lit_errors", 0.0), t.at("uncertain_albedo").get<double>(),
+                     100 * t.at("saturated_share").get<double>()) +
+         unplacedLightParagraph(summary) +
          "<table><tr><th>id</th><th>name</th><th>texels</th>" + header + "<th>materials from</th></tr>" +
          "<tr><td></td><td>all</td>" + shareCells(summary.at("all")) + "<td></td></tr>" + rows + "</table>";
 }

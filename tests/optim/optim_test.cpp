@@ -214,6 +214,22 @@ TEST(GaussNewton, StandardErrorIsTheSpreadOfTheEstimate) {
   EXPECT_GT(faint.standardError(0, INFINITY), 1e4f);
 }
 
+// A texel that shows I = 1.5 X + C asks for albedo 1.5: the steps hold it at the bound 1, the
+// unbounded value is 1.5 (the confidence's under-lit test reads it); unknown before any visit.
+TEST(GaussNewton, UnboundedIsTheFitBeyondTheBounds) {
+  const float a = 1.5f, C = 0.05f, X = 0.8f, I = a * X + C;
+  GaussNewtonState s(2);
+  EXPECT_TRUE(std::isnan(s.unbounded(0)));
+  std::vector<float> x = {0.5f, 0.5f};
+  for (int k = 0; k < 20; ++k) {
+    const std::vector<float> g = {(x[0] * X + C - I) * X, 0.0f}, h = {X * X, 0.0f};
+    s.step(x, g, h, 0.0f, 1.0f, GaussNewtonSettings{});
+  }
+  EXPECT_FLOAT_EQ(x[0], 1.0f);
+  EXPECT_NEAR(s.unbounded(0), a, 1e-5f);
+  EXPECT_TRUE(std::isnan(s.unbounded(1)));  // never visited
+}
+
 // A texture-sized state is stepped by both cores in chunks: every entry must come out as if it
 // were stepped alone, and the count of updated entries must add up across the chunks.
 TEST(GaussNewton, ATextureSizedStepIsEachEntryStepAlone) {

@@ -98,8 +98,19 @@ TEST(Confidence, EachTexelTakesTheFirstEvidenceThatApplies) {
   std::vector<float> error(3 * space.map.texelCount(), 0.01f);
   for (size_t t = 0; t < space.map.texelCount(); ++t)
     if (space.map.covered(t) && space.objectOf(t, w.mesh) == wallpaper) error[3 * t + 1] = 0.2f;
+  // The floor asks for albedo 1.3 (lit by light no light source supplies); the wallpaper too, in
+  // green, but within three of its standard errors (0.2) of 1; the rest for 0.5.
+  std::vector<float> unbounded(3 * space.map.texelCount(), 0.5f);
+  for (size_t t = 0; t < space.map.texelCount(); ++t) {
+    if (!space.map.covered(t)) continue;
+    const int o = space.objectOf(t, w.mesh);
+    if (o == floor) unbounded[3 * t] = unbounded[3 * t + 1] = unbounded[3 * t + 2] = 1.3f;
+    if (o == wallpaper) unbounded[3 * t + 1] = 1.3f;
+  }
+  const SettledAlbedo settled{error, unbounded, error};
+  const Image median = w.medianRadiance();
   Image agreement = readImage(w.dir / "agreement.exr");
-  const TexelConfidence c = texelConfidence(w, space, appearance, roles, agreement, error);
+  const TexelConfidence c = texelConfidence(w, space, appearance, roles, agreement, settled, median);
 
   size_t wallpaperUncertain = 0, panelMeasured = 0, panelTexels = 0;
   for (size_t t = 0; t < space.map.texelCount(); ++t) {
@@ -119,6 +130,8 @@ TEST(Confidence, EachTexelTakesTheFirstEvidenceThatApplies) {
       EXPECT_EQ(e, TexelEvidence::Few);
     } else if (disagree > kDisagreeShare) {
       EXPECT_EQ(e, TexelEvidence::Disagree);
+    } else if (o == floor) {
+      EXPECT_EQ(e, TexelEvidence::UnderLit);
     } else if (o == wallpaper) {
       wallpaperUncertain += e == TexelEvidence::Uncertain;
       EXPECT_EQ(e, TexelEvidence::Uncertain);
@@ -135,13 +148,37 @@ TEST(Confidence, EachTexelTakesTheFirstEvidenceThatApplies) {
   EXPECT_EQ(objects[walls]["materials_from"]["absence_of_highlights"]["roughness_at_least"].get<float>(), 0.6f);
   EXPECT_EQ(objects[floor]["materials_from"], "none (kept at its prior)");
   EXPECT_FALSE(objects[panel].contains("materials_from"));
+  // The floor's measured texels are under-lit and miss 1 - 1/1.3 of what they show; it is the only
+  // object that misses light.
+  double floorSeen = 0, allSeen = 0, floorMissing = 0;
+  size_t floorUnderLit = 0;
+  for (size_t t = 0; t < space.map.texelCount(); ++t) {
+    const int x = static_cast<int>(t % 256), y = static_cast<int>(t / 256);
+    if (!space.map.covered(t) || w.coverageOf(t, 256) <= 0 || appearance.isEmissive(space.objectOf(t, w.mesh)))
+      continue;
+    const double seen = luminance(median.at(x / (256 / w.initResolution), y / (256 / w.initResolution)).max(0.0f));
+    allSeen += seen;
+    if (space.objectOf(t, w.mesh) != floor) continue;
+    floorSeen += seen;
+    if (static_cast<TexelEvidence>(c.evidence[t]) == TexelEvidence::UnderLit)
+      floorMissing += seen * (1 - 1 / 1.3), ++floorUnderLit;
+  }
+  EXPECT_GT(floorUnderLit, 100u);
+  const Json& unplaced = c.summary["unplaced_light"];
+  ASSERT_EQ(unplaced["objects"].size(), 1u);
+  EXPECT_EQ(unplaced["objects"][0]["id"], floor);
+  EXPECT_NEAR(unplaced["objects"][0]["share_of_its_own"].get<double>(), floorMissing / floorSeen, 1e-4);
+  EXPECT_NEAR(unplaced["share_of_observed"].get<double>(), floorMissing / allSeen, 1e-4);
+  EXPECT_EQ(unplaced["share_of_observed"], unplaced["objects"][0]["share_of_observed"]);
 
   // A panel whose observations all clip is a light seen only saturated.
   for (size_t i = 2; i < agreement.rgb.size(); i += 3) agreement.rgb[i] = 1.0f;
-  const TexelConfidence clipped = texelConfidence(w, space, appearance, roles, agreement, error);
-  for (size_t t = 0; t < space.map.texelCount(); ++t)
-    if (space.map.covered(t) && appearance.isEmissive(space.objectOf(t, w.mesh)) && w.coverageOf(t, 256) > 0)
+  const TexelConfidence clipped = texelConfidence(w, space, appearance, roles, agreement, settled, median);
+  for (size_t t = 0; t < space.map.texelCount(); ++t) {
+    if (space.map.covered(t) && appearance.isEmissive(space.objectOf(t, w.mesh)) && w.coverageOf(t, 256) > 0) {
       EXPECT_EQ(static_cast<TexelEvidence>(clipped.evidence[t]), TexelEvidence::LightSaturated);
+    }
+  }
 }
 
 // drop_disagreeing leaves out rays whose frames saw the missing sofa where the mesh has the floor

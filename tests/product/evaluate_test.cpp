@@ -98,7 +98,11 @@ TEST(Evaluate, TrueObjectsAreComparedWithTheFitsObjectsOverTheirFaces) {
 namespace {
 std::vector<Frame> roomViews() {
   std::vector<Frame> views;
-  for (const Camera& c : synthCameraPath(SynthSceneKind::Room, 3, 48, 36, 0.25)) views.push_back(Frame{c});
+  for (const Camera& c : synthCameraPath(SynthSceneKind::Room, 3, 48, 36, 0.25)) {
+    Frame f;
+    f.camera = c;
+    views.push_back(f);
+  }
   return views;
 }
 }  // namespace

@@ -23,7 +23,6 @@ double LightEvidence::unexplainedShare() const { return observed > 0 ? excess / 
 
 void LightEvidence::addObserved(const Color& radiance, const Eigen::Array<bool, 3, 1>& clipped) {
   const double I = luminance(radiance);
-  saturatedRays += clipped.any();
   observed += I, observedSquares += I * I, observedColor += radiance;
   for (int c = 0; c < 3; ++c)
     if (!clipped[c]) unclippedColor[c] += radiance[c], ++unclippedRays[c];

@@ -60,7 +60,6 @@ inline bool onlySaturated(uint64_t saturated, uint64_t rays) {
 // Sums over one object's rays; means and errors derived below.
 struct LightEvidence {
   uint64_t rays = 0;
-  uint64_t saturatedRays = 0;  // whose reference is saturated in some channel: I is only a lower bound
   double observed = 0;         // sum of I
   Color observedColor = Color::Zero();
   double reflector = 0;                  // sum of B
@@ -89,7 +88,9 @@ struct LightEvidence {
   void addObserved(const Color& radiance, const Eigen::Array<bool, 3, 1>& clipped);
 
   double meanObserved() const { return rays ? observed / rays : 0.0; }
-  bool seenOnlySaturated() const { return onlySaturated(saturatedRays, rays); }
+  // Rays whose reference is saturated in some channel: their I is only a lower bound.
+  uint64_t saturatedRays() const { return clippedRays.size(); }
+  bool seenOnlySaturated() const { return onlySaturated(saturatedRays(), rays); }
   Color meanObservedColor() const { return rays ? Color(observedColor / static_cast<float>(rays)) : Color::Zero(); }
   double meanReflector() const { return rays ? reflector / rays : 0.0; }
   double meanExcess() const { return rays ? excess / rays : 0.0; }

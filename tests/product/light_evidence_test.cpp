@@ -150,7 +150,7 @@ TEST_F(LightEvidenceTest, ALightSeenUnclippedInSomeFramesShowsItsEmission) {
   EXPECT_GT(hotspot.emission.minCoeff(), emission.maxCoeff());
   // Nothing clipped: the mean, exact.
   const LightEvidence all = gather(2.0f, 1);
-  EXPECT_EQ(all.saturatedRays, 0u);
+  EXPECT_EQ(all.saturatedRays(), 0u);
   EXPECT_FALSE(all.pixelEmission(16).lowerBound);
   EXPECT_TRUE(all.pixelEmission(16).emission.isApprox(all.meanObservedColor(), 1e-5f));
 }
@@ -316,7 +316,7 @@ TEST(LightDecisions, ACandidateSeenOnlySaturatedIsJudgedByItsFloor) {
       const double I = observed + (j % 2 ? 1 : -1) * spread, x = I - reflector;
       ++e.rays, e.observed += I, e.observedSquares += I * I, e.reflector += reflector, e.excess += x,
           e.excessSquares += x * x, e.mirrorResidualSquares += 100 * I * I;
-      e.saturatedRays += saturated && j % 20 != 0;  // 95% clip
+      if (saturated && j % 20 != 0) e.clippedRays.push_back({Color::Constant(I), {true, true, true}});  // 95% clip
     }
     return e;
   };
@@ -362,7 +362,7 @@ TEST(LightDecisions, ACandidateSeenOnlySaturatedIsJudgedByItsFloor) {
   EXPECT_EQ(v[5].verdict, LightVerdict::Reflector) << v[5].why;
   EXPECT_NE(v[5].why.find("median"), std::string::npos) << v[5].why;
   // 94% clipped is not "only saturated".
-  ev[0].saturatedRays = 94;
+  ev[0].clippedRays.resize(94);
   EXPECT_EQ(decideLights(ev, candidate, LightTestSettings{}, emitting)[0].verdict, LightVerdict::Reflector);
 }
 

@@ -30,6 +30,43 @@ Color missingRadiance(const SettledAlbedo& s, size_t t, const Color& seen) {
   return m;
 }
 
+// Per object (and over all, at index `objects`): the observed radiance of its reflector texels,
+// what the fitted lights leave unexplained of it, and where (the missing radiance times the point).
+struct UnplacedTally {
+  explicit UnplacedTally(int objects)
+      : all(objects), seen(objects + 1, 0.0), missing(objects + 1, 0.0), at(objects + 1, Eigen::Vector3d::Zero()) {}
+  void add(int o, double seenHere, double missingHere, const Vec3& point) {
+    for (int i : {o, all}) {
+      seen[i] += seenHere, missing[i] += missingHere;
+      at[i] += missingHere * point.cast<double>();
+    }
+  }
+  static double share(double part, double whole) { return whole > 0 ? part / whole : 0.0; }
+  Json centre(int i) const {
+    const Eigen::Vector3d c = at[i] / std::max(missing[i], 1e-300);
+    return Json::array({c.x(), c.y(), c.z()});
+  }
+  // confidence.json's unplaced_light: overall, and the objects with some, largest first.
+  Json toJson(const std::vector<std::string>& names) const {
+    Json objects = Json::array();
+    for (int o = 0; o < all; ++o)
+      if (missing[o] > 0)
+        objects.push_back({{"id", o},
+                           {"name", names[o]},
+                           {"share_of_observed", share(missing[o], seen[all])},
+                           {"share_of_its_own", share(missing[o], seen[o])},
+                           {"centre", centre(o)}});
+    std::sort(objects.begin(), objects.end(), [](const Json& a, const Json& b) {
+      return a.at("share_of_observed").get<double>() > b.at("share_of_observed").get<double>();
+    });
+    return {{"share_of_observed", share(missing[all], seen[all])}, {"centre", centre(all)}, {"objects", objects}};
+  }
+
+  int all;
+  std::vector<double> seen, missing;  // luminance, summed over texels (of one area each)
+  std::vector<Eigen::Vector3d> at;
+};
+
 Json materialEvidence(const ObjectRoles& roles, int o) {
   if (roles.highlight[o]) return "highlights";
   if (roles.roughnessAtLeast[o] >= 0)
@@ -85,8 +122,7 @@ TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, con
   c.evidence.assign(texels, kOffSurface);
   const int objects = appearance.objectCount();
   std::vector<std::array<size_t, kTexelEvidenceKinds>> counts(objects + 1, std::array<size_t, kTexelEvidenceKinds>{});
-  std::vector<double> seenSum(objects + 1, 0.0), missingSum(objects + 1, 0.0);  // luminance over texels
-  std::vector<Eigen::Vector3d> missingAt(objects + 1, Eigen::Vector3d::Zero());  // sum of missing x point
+  UnplacedTally unplaced(objects);
   for (size_t t = 0; t < texels; ++t) {
     if (!space.map.covered(t)) continue;
     const int x = static_cast<int>(t % res), y = static_cast<int>(t / res);
@@ -107,12 +143,7 @@ TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, con
     if (median && observations > 0 && !appearance.isEmissive(o)) {
       const Color seen = median->at(x / perInit, y / perInit).max(0.0f);
       const double missing = e == TexelEvidence::UnderLit ? luminance(missingRadiance(settled, t, seen)) : 0.0;
-      seenSum[o] += luminance(seen), seenSum[objects] += luminance(seen);
-      missingSum[o] += missing, missingSum[objects] += missing;
-      if (missing > 0) {
-        const Eigen::Vector3d at = missing * space.map.point(w.mesh, t).cast<double>();
-        missingAt[o] += at, missingAt[objects] += at;
-      }
+      unplaced.add(o, luminance(seen), missing, missing > 0 ? space.map.point(w.mesh, t) : Vec3::Zero());
     }
     c.evidence[t] = static_cast<uint8_t>(e);
     c.channels.set(x, y, Color(observations, error, agrees[1]));
@@ -126,27 +157,13 @@ TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, con
       if (n[k]) j[texelEvidenceName(static_cast<TexelEvidence>(k))] = static_cast<double>(n[k]) / total;
     return j;
   };
-  const auto share = [](double part, double whole) { return whole > 0 ? part / whole : 0.0; };
-  const auto centre = [&](int o) {
-    const Eigen::Vector3d c = missingAt[o] / std::max(missingSum[o], 1e-300);
-    return Json::array({c.x(), c.y(), c.z()});
-  };
-  Json perObject = Json::array(), unplaced = Json::array();
+  Json perObject = Json::array();
   for (int o = 0; o < objects; ++o) {
     Json row = shares(counts[o]);
     row["id"] = o, row["name"] = appearance.names[o];
     if (!appearance.isEmissive(o)) row["materials_from"] = materialEvidence(roles, o);
     perObject.push_back(row);
-    if (missingSum[o] > 0)
-      unplaced.push_back({{"id", o},
-                          {"name", appearance.names[o]},
-                          {"share_of_observed", share(missingSum[o], seenSum[objects])},
-                          {"share_of_its_own", share(missingSum[o], seenSum[o])},
-                          {"centre", centre(o)}});
   }
-  std::sort(unplaced.begin(), unplaced.end(), [](const Json& a, const Json& b) {
-    return a.at("share_of_observed").get<double>() > b.at("share_of_observed").get<double>();
-  });
   c.summary = {{"all", shares(counts[objects])},
                {"thresholds",
                 {{"agreement_ratio", kAgreementRatio},
@@ -158,10 +175,7 @@ TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, con
                  {"under_lit_errors", kUnderLitErrors}}},
                {"agreement", agreement.has_value()},
                {"objects", perObject}};
-  if (!settled.unbounded.empty())
-    c.summary["unplaced_light"] = {{"share_of_observed", share(missingSum[objects], seenSum[objects])},
-                                   {"centre", centre(objects)},
-                                   {"objects", unplaced}};
+  if (!settled.unbounded.empty()) c.summary["unplaced_light"] = unplaced.toJson(appearance.names);
   return c;
 }
 

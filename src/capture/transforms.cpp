@@ -181,6 +181,8 @@ void writeTransforms(const std::filesystem::path& path, const std::vector<Frame>
     f["p2"] = c.distortion.p2;
     f["k3"] = c.distortion.k3;
     if (fr.exposureRecorded || fr.exposure != 1.0f) f["exposure"] = fr.exposure;
+    if (fr.clipLow != Frame{}.clipLow) f["clip_low"] = fr.clipLow;
+    if (fr.clipHigh != Frame{}.clipHigh) f["clip_high"] = fr.clipHigh;
     const Mat3 gl = c.rotationToOpenGL();
     Json m = Json::array();
     for (int r = 0; r < 3; ++r) m.push_back({gl(r, 0), gl(r, 1), gl(r, 2), c.position[r]});

@@ -5,6 +5,7 @@
 #include "capture/frame_image.h"
 #include "capture/transforms.h"
 #include "core/error.h"
+#include "io/json.h"
 
 using namespace relume;
 namespace fs = std::filesystem;
@@ -74,6 +75,15 @@ TEST(Transforms, RoundTripThroughWriter) {
   const Capture filtered = readTransforms(dir / "rt_filter.json");
   EXPECT_EQ(filtered.frames[1].camera.filter, f.camera.filter);
   EXPECT_EQ(filtered.frames[2].camera.filter, g.camera.filter);
+  // Clip levels survive it; the defaults (none) are not written.
+  g.clipLow = 0.01f, g.clipHigh = 3.5f;
+  writeTransforms(dir / "rt_clip.json", {f, g});
+  const Capture clipped = readTransforms(dir / "rt_clip.json");
+  EXPECT_FLOAT_EQ(clipped.frames[1].clipLow, 0.01f);
+  EXPECT_FLOAT_EQ(clipped.frames[1].clipHigh, 3.5f);
+  EXPECT_EQ(clipped.frames[0].clipLow, Frame{}.clipLow);
+  EXPECT_EQ(clipped.frames[0].clipHigh, Frame{}.clipHigh);
+  EXPECT_EQ(readJson(dir / "rt_clip.json")["frames"][0].count("clip_high"), 0u);
 }
 
 TEST(Transforms, ExactPosesIsABoolean) {

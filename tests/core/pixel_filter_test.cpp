@@ -85,7 +85,9 @@ TEST(PixelFilter, SamplesFollowTheFilter) {
       chi2Uniform += (n / double(bins) - expected) * (n / double(bins) - expected) / expected;
     }
     EXPECT_LT(chi2, 58.3) << f.name() << " width " << f.width();
-    if (f.type() != PixelFilterType::Box) EXPECT_GT(chi2Uniform, 1000.0) << f.name();
+    if (f.type() != PixelFilterType::Box) {
+      EXPECT_GT(chi2Uniform, 1000.0) << f.name();
+    }
   }
 }
 

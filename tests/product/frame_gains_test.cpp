@@ -38,7 +38,7 @@ const std::vector<Color> kTruth = {Color(1.3f, 1.0f, 0.9f), Color(0.7f, 0.72f, 0
                                    Color(2.0f, 1.9f, 2.1f)};
 
 FrameGains fitted(FrameGainMode mode, int reference, std::vector<Color> truth = kTruth) {
-  GainScene scene{truth};
+  GainScene scene{truth, {}, {}, {}, {}};
   FrameGains gains(mode, truth.size(), {0, 1, 2, 3}, reference, 0.9f);
   for (uint64_t it = 0; it < 300; ++it) {
     scene.draw(it, 4000);
@@ -83,13 +83,13 @@ TEST(FrameGains, ExposureGainsAreOneScalarPerFrame) {
 // Rays carry their frame's gain; without estimation every gain stays 1.
 TEST(FrameGains, ApplySetsEachRaysGain) {
   FrameGains none(FrameGainMode::None, 2, {0, 1}, -1, 0.9f);
-  GainScene scene{{Color::Constant(2.0f), Color::Constant(0.5f)}};
+  GainScene scene{{Color::Constant(2.0f), Color::Constant(0.5f)}, {}, {}, {}, {}};
   scene.draw(0, 100);
   none.update(scene.rays, scene.frameOf, scene.objectOf, {}, scene.estimates);
   none.apply(scene.rays, scene.frameOf);
   for (const BatchRay& r : scene.rays) EXPECT_TRUE(r.gain.isApprox(Color::Ones()));
   const FrameGains rgb = fitted(FrameGainMode::Rgb, -1);
-  GainScene other{kTruth};
+  GainScene other{kTruth, {}, {}, {}, {}};
   other.draw(1, 50);
   rgb.apply(other.rays, other.frameOf);
   for (size_t j = 0; j < other.rays.size(); ++j) EXPECT_EQ(other.rays[j].gain[1], rgb.gain(other.frameOf[j])[1]);
@@ -98,7 +98,7 @@ TEST(FrameGains, ApplySetsEachRaysGain) {
 // A checkpoint holds the gains and their evidence: a fit resumed from it updates them exactly as
 // the uninterrupted one does.
 TEST(FrameGains, ACheckpointContinuesThemExactly) {
-  GainScene scene{kTruth};
+  GainScene scene{kTruth, {}, {}, {}, {}};
   FrameGains whole(FrameGainMode::Rgb, 4, {0, 1, 2, 3}, -1, 0.9f);
   for (uint64_t it = 0; it < 20; ++it) {
     scene.draw(it, 500);

@@ -21,6 +21,41 @@ bool asksBeyondOne(const SettledAlbedo& s, size_t t) {
   return false;
 }
 
+// The surfaces of the light sources, to tell texels beside one (BesideLights::near).
+class BesideLights {
+ public:
+  BesideLights(const Workspace& w, const Appearance& a) : w_(w) {
+    for (size_t f = 0; f < w.mesh.triangles.size(); ++f)
+      if (a.isEmissive(w.mesh.faceObject[f])) {
+        Eigen::AlignedBox3f box;
+        for (int k = 0; k < 3; ++k) box.extend(w.mesh.positions[w.mesh.triangles[f][k]]);
+        faces_.push_back({f, box});
+      }
+  }
+  // Whether p lies within kMixedFootprints pixel footprints (at the median distance of the kept
+  // frames' cameras) of a light source's surface: the pixels that see it mix in the light's
+  // radiance (the pixel filter, the rays' bilinear lookup), so it looks brighter than any albedo
+  // returns with no light missing (a halo around each ceiling panel).
+  bool near(const Vec3& p) const {
+    if (faces_.empty()) return false;
+    std::vector<float> footprint;
+    for (uint32_t k : w_.kept) footprint.push_back((p - w_.frames[k].camera.position).norm() / w_.frames[k].camera.fx);
+    const float margin = kMixedFootprints * medianOf(std::move(footprint));
+    for (const auto& [f, box] : faces_) {
+      if (box.exteriorDistance(p) > margin) continue;
+      const Eigen::Vector3i& v = w_.mesh.triangles[f];
+      const Vec3 q = closestPointOnTriangle(p, w_.mesh.positions[v[0]], w_.mesh.positions[v[1]], w_.mesh.positions[v[2]]);
+      if ((p - q).norm() <= margin) return true;
+    }
+    return false;
+  }
+
+ private:
+  static constexpr float kMixedFootprints = 4;
+  const Workspace& w_;
+  std::vector<std::pair<size_t, Eigen::AlignedBox3f>> faces_;
+};
+
 // Of texel t's observed radiance `seen`, what albedo 1 under the fitted lights leaves unexplained:
 // per channel seen (1 - 1/u), u its unbounded albedo where above 1.
 Color missingRadiance(const SettledAlbedo& s, size_t t, const Color& seen) {
@@ -123,6 +158,7 @@ TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, con
   const int objects = appearance.objectCount();
   std::vector<std::array<size_t, kTexelEvidenceKinds>> counts(objects + 1, std::array<size_t, kTexelEvidenceKinds>{});
   UnplacedTally unplaced(objects);
+  const BesideLights lights(w, appearance);
   for (size_t t = 0; t < texels; ++t) {
     if (!space.map.covered(t)) continue;
     const int x = static_cast<int>(t % res), y = static_cast<int>(t / res);
@@ -138,7 +174,7 @@ TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, con
       e = agrees[2] >= kSaturatedShare ? TexelEvidence::LightSaturated : TexelEvidence::LightMeasured;
     else if (observations < kFewObservations) e = TexelEvidence::Few;
     else if (agrees[1] > kDisagreeShare) e = TexelEvidence::Disagree;
-    else if (asksBeyondOne(settled, t)) e = TexelEvidence::UnderLit;
+    else if (asksBeyondOne(settled, t) && !lights.near(space.map.point(w.mesh, t))) e = TexelEvidence::UnderLit;
     else if (error > kUncertainAlbedo) e = TexelEvidence::Uncertain;
     if (median && observations > 0 && !appearance.isEmissive(o)) {
       const Color seen = median->at(x / perInit, y / perInit).max(0.0f);

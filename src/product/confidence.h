@@ -9,10 +9,11 @@
 //                     highlight;
 //   under-lit         the frames show more than it could return with albedo 1 under the fitted lights
 //                     (the albedo fit without its bounds exceeds 1 by kUnderLitExcess and by
-//                     kUnderLitErrors standard errors in some channel): lit by light no light
-//                     source of the fit supplies (a lamp seen only from behind, a window outside
-//                     every frame); its albedo is too bright and the missing light is not in the
-//                     scene, so a relit render lacks it;
+//                     kUnderLitErrors standard errors in some channel), and not within three
+//                     pixel footprints of a light source (whose radiance the pixels there mix
+//                     in): lit by light no light source of the fit supplies (a lamp seen only
+//                     from behind, a window outside every frame); its albedo is too bright and the
+//                     missing light is not in the scene, so a relit render lacks it;
 //   uncertain         its albedo's standard error exceeds kUncertainAlbedo in a channel;
 //   measured          none of the above;
 // and on light sources, whose albedo is not fitted:
@@ -67,6 +68,10 @@ inline constexpr float kUncertainAlbedo = 0.05f;
 inline constexpr float kSaturatedShare = 0.95f;  // as clipped_light_scale's "seen only saturated"
 inline constexpr float kUnderLitExcess = 0.05f;
 inline constexpr float kUnderLitErrors = 3.0f;
+// From this share of the observed radiance on, the fit warns of light it cannot place and the
+// report says so. Measured (docs/notes/2026-11-27-lights-no-frame-shows.md): clean captures
+// 0.00002 (room) and 0.001 (lounge), one light in no frame 0.021 and 0.023.
+inline constexpr double kUnplacedLightNotice = 0.005;
 
 // What the settled albedo fit knows of each albedo entry beyond its value (3 per texel; each
 // vector empty when not computed: the albedo stepped by Adam, or a fit before it existed).

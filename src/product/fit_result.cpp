@@ -41,7 +41,8 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
   writeExr(staging / "confidence.exr", confidence.channels);
   writePng(staging / "confidence.png", confidencePicture(confidence, space.resolution));
   writeJson(staging / "confidence.json", confidence.summary);
-  if (const Json u = confidence.summary.value("unplaced_light", Json()); u.is_object() && !u.at("objects").empty()) {
+  if (const Json u = confidence.summary.value("unplaced_light", Json());
+      u.is_object() && u.at("share_of_observed").get<double>() >= kUnplacedLightNotice) {
     const Json& top = u.at("objects").front();
     spdlog::warn(
         "fit: at least {:.1f}% of the radiance the frames show on reflectors is more than albedo 1 returns under the "

@@ -240,7 +240,7 @@ std::string figure(const std::string& file, const std::string& caption) {
 // The light no light source of the fit supplies (confidence.json's unplaced_light), when there is any.
 std::string unplacedLightParagraph(const Json& summary) {
   const Json u = summary.value("unplaced_light", Json());
-  if (!u.is_object() || u.at("objects").empty()) return "";
+  if (!u.is_object() || u.at("share_of_observed").get<double>() < kUnplacedLightNotice) return "";
   std::string objects;
   for (const Json& o : u.at("objects"))
     objects += fmt::format("{}{} ({:.1f}% of its own)", objects.empty() ? "" : ", ", html(o.at("name").get<std::string>()),

@@ -392,8 +392,8 @@ CommandTable registerCommands(CLI::App& app) {
   CLI::Option* imperfectOption = synth->add_option(
       "--imperfect", *imperfect,
       "a hand-held camera's flaws in the training frames, truth in gt/imperfections.json: KEY=VALUE;... with keys "
-      "pose=D,A bracket=E1,E2,.. wb=S exposure-drift=S noise=F,R ldr=8|16 mesh=D segmentation=none missing=P absent=NAME unseen=NAME "
-      "(docs/user/commands.md#imperfect-captures)");
+      "pose=D,A bracket=E1,E2,.. wb=S exposure-drift=S noise=F,R ldr=8|16 mesh=D segmentation=none missing=P "
+      "absent=NAME unseen=NAME (docs/user/commands.md#imperfect-captures)");
   table[synth] = [=] {
     synthArgs->kind = parseSynthScene(*synthScene);
     synthArgs->pixelFilter = PixelFilter::parseSpec(*synthFilter);

@@ -44,8 +44,8 @@ class BesideLights {
     for (const auto& [f, box] : faces_) {
       if (box.exteriorDistance(p) > margin) continue;
       const Eigen::Vector3i& v = w_.mesh.triangles[f];
-      const Vec3 q = closestPointOnTriangle(p, w_.mesh.positions[v[0]], w_.mesh.positions[v[1]], w_.mesh.positions[v[2]]);
-      if ((p - q).norm() <= margin) return true;
+      const std::vector<Vec3>& at = w_.mesh.positions;
+      if ((p - closestPointOnTriangle(p, at[v[0]], at[v[1]], at[v[2]])).norm() <= margin) return true;
     }
     return false;
   }

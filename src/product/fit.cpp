@@ -458,7 +458,8 @@ void Fit::settleAlbedoError(const TexelSpace& space) {
       c_.albedoSmoothing == AlbedoSmoothing::Albedo ? std::vector<float>{} : medianRadiance(space);
   TexelSmoothingSettings settings;
   settings.radius = c_.albedoSmoothingRadius;
-  SmoothedTexels s = smoothTexels(space.map, w_.mesh, appearance_.albedo.rgb, settled_.standardError, eligible, guide, settings);
+  SmoothedTexels s =
+      smoothTexels(space.map, w_.mesh, appearance_.albedo.rgb, settled_.standardError, eligible, guide, settings);
   for (float& v : s.values) v = std::clamp(v, albedo.lo, albedo.hi);
   auto median = [](std::vector<float> e) {  // of the known errors (-1: unknown)
     std::erase_if(e, [](float x) { return x < 0; });

@@ -237,14 +237,17 @@ std::string figure(const std::string& file, const std::string& caption) {
   return fmt::format("<figure><img class=\"tex\" src=\"{}\"><figcaption>{}</figcaption></figure>", file, caption);
 }
 
-// The light no light source of the fit supplies (confidence.json's unplaced_light), when there is any.
+// The light no light source of the fit supplies (confidence.json's unplaced_light), from
+// kUnplacedLightNotice on: the share, and the objects it falls on most (up to six).
 std::string unplacedLightParagraph(const Json& summary) {
   const Json u = summary.value("unplaced_light", Json());
   if (!u.is_object() || u.at("share_of_observed").get<double>() < kUnplacedLightNotice) return "";
   std::string objects;
-  for (const Json& o : u.at("objects"))
-    objects += fmt::format("{}{} ({:.1f}% of its own)", objects.empty() ? "" : ", ", html(o.at("name").get<std::string>()),
+  for (size_t k = 0; k < std::min<size_t>(6, u.at("objects").size()); ++k) {
+    const Json& o = u.at("objects")[k];
+    objects += fmt::format("{}{} ({:.1f}% of its own)", k ? ", " : "", html(o.at("name").get<std::string>()),
                            100 * o.at("share_of_its_own").get<double>());
+  }
   return fmt::format(
       "<p><b>Light the fit cannot place:</b> at least {:.1f}% of the radiance the frames show on reflectors is more "
       "than they return with albedo 1 under the fitted lights: {}. A light no frame shows (a lamp seen only "

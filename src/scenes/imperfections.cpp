@@ -21,7 +21,8 @@
 namespace relume {
 namespace {
 
-constexpr const char* kKeys = "pose, bracket, wb, exposure-drift, noise, ldr, mesh, segmentation, missing, absent, unseen";
+constexpr const char* kKeys =
+    "pose, bracket, wb, exposure-drift, noise, ldr, mesh, segmentation, missing, absent, unseen";
 
 // Bounds beyond which a value is a typo, not a camera (SI units).
 constexpr double kMaxPoseMetres = 1.0, kMaxPoseDegrees = 45.0;

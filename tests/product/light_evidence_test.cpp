@@ -316,7 +316,9 @@ TEST(LightDecisions, ACandidateSeenOnlySaturatedIsJudgedByItsFloor) {
       const double I = observed + (j % 2 ? 1 : -1) * spread, x = I - reflector;
       ++e.rays, e.observed += I, e.observedSquares += I * I, e.reflector += reflector, e.excess += x,
           e.excessSquares += x * x, e.mirrorResidualSquares += 100 * I * I;
-      if (saturated && j % 20 != 0) e.clippedRays.push_back({Color::Constant(I), {true, true, true}});  // 95% clip
+      if (saturated && j % 20 != 0) {  // 95% clip
+        e.clippedRays.push_back({Color::Constant(static_cast<float>(I)), {true, true, true}});
+      }
     }
     return e;
   };

@@ -7,8 +7,10 @@
 
 #include <cstdio>
 
+#include "io/input_file.h"
 #include "io/json.h"
 #include "product/fit.h"
+#include "product/report.h"
 #include "support/prepared_capture.h"
 #include "support/small_fit_config.h"
 
@@ -22,6 +24,13 @@ Json unplacedLight(const fs::path& dir) {
   c.checkpointEvery = 1000;
   runFit(dir / "work", c, false);
   return readJson(dir / "work" / "result" / "confidence.json").at("unplaced_light");
+}
+
+// Whether the fit's report speaks of light it cannot place.
+bool reportSaysSo(const fs::path& dir) {
+  ReportOptions o;
+  o.frames = 1, o.spp = 1;
+  return readRegularFile(writeFitReport(dir / "work", o), "report").find("Light the fit cannot place") != std::string::npos;
 }
 
 Eigen::Vector3d vec(const Json& j) { return {j[0].get<double>(), j[1].get<double>(), j[2].get<double>()}; }
@@ -45,4 +54,6 @@ TEST(UnplacedLight, ALightNoFrameShowsIsReportedWhereItsLightFalls) {
   const Eigen::Vector3d at = vec(hidden.at("centre"));
   const Eigen::Vector2d plan(at.x(), at.z()), b(3.45, 2.43), a(1.65, 1.83);
   EXPECT_LT((plan - b).norm(), (plan - a).norm()) << at.transpose();
+  EXPECT_TRUE(reportSaysSo(unseen));
+  EXPECT_FALSE(reportSaysSo(clean));
 }

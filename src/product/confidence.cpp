@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <functional>
 
 #include "core/check.h"
 #include "core/error.h"
@@ -10,16 +11,6 @@
 namespace relume {
 namespace {
 
-// Whether texel t's albedo fit asks for more than albedo 1 in some channel, beyond its noise
-// (TexelEvidence::UnderLit); with no standard errors, by the excess alone.
-bool asksBeyondOne(const SettledAlbedo& s, size_t t) {
-  if (s.unbounded.empty()) return false;
-  for (size_t i = 3 * t; i < 3 * t + 3; ++i) {
-    const float u = s.unbounded[i], se = s.unboundedError.empty() ? 0.0f : s.unboundedError[i];
-    if (u > 1 + kUnderLitExcess && se >= 0 && u - 1 > kUnderLitErrors * se) return true;
-  }
-  return false;
-}
 
 // The surfaces of the light sources, to tell texels beside one (BesideLights::near).
 class BesideLights {
@@ -56,12 +47,12 @@ class BesideLights {
   std::vector<std::pair<size_t, Eigen::AlignedBox3f>> faces_;
 };
 
-// Of texel t's observed radiance `seen`, what albedo 1 under the fitted lights leaves unexplained:
+// Of a texel's observed radiance `seen`, what albedo 1 under the fitted lights leaves unexplained:
 // per channel seen (1 - 1/u), u its unbounded albedo where above 1.
-Color missingRadiance(const SettledAlbedo& s, size_t t, const Color& seen) {
+Color missingRadiance(const float* unbounded, const Color& seen) {
   Color m = Color::Zero();
   for (int k = 0; k < 3; ++k)
-    if (const float u = s.unbounded[3 * t + k]; u > 1) m[k] = seen[k] * (1 - 1 / u);
+    if (const float u = unbounded[k]; u > 1) m[k] = seen[k] * (1 - 1 / u);
   return m;
 }
 
@@ -111,6 +102,49 @@ Json materialEvidence(const ObjectRoles& roles, int o) {
 
 }  // namespace
 
+const float* SettledAlbedo::unboundedBeyondOne(uint32_t t) const {
+  const auto it = std::lower_bound(beyondOne.begin(), beyondOne.end(), t);
+  if (it == beyondOne.end() || *it != t) return nullptr;
+  return &beyondOneAlbedo[3 * static_cast<size_t>(it - beyondOne.begin())];
+}
+
+void SettledAlbedo::findBeyondOne(const GaussNewtonState& newton, size_t texels, float bound) {
+  beyondOne.clear(), beyondOneAlbedo.clear();
+  beyondOneKnown = newton.size() == 3 * texels;
+  if (!beyondOneKnown) return;  // no Gauss-Newton fit of this albedo
+  for (size_t t = 0; t < texels; ++t) {
+    bool beyond = false;
+    for (size_t i = 3 * t; i < 3 * t + 3; ++i) {
+      const float u = newton.unbounded(i), se = newton.tracksSpread() ? newton.standardError(i, bound) : 0.0f;
+      beyond |= u > 1 + kUnderLitExcess && se >= 0 && u - 1 > kUnderLitErrors * se;
+    }
+    if (!beyond) continue;
+    beyondOne.push_back(static_cast<uint32_t>(t));
+    for (size_t i = 3 * t; i < 3 * t + 3; ++i) beyondOneAlbedo.push_back(newton.unbounded(i));
+  }
+}
+
+void SettledAlbedo::serialise(CheckpointIo& io, size_t texels, const std::filesystem::path& work) {
+  if (io.optional("albedo.standard_error", !standardError.empty())) {
+    if (!io.writing()) standardError.resize(3 * texels);
+    io.array("albedo.standard_error", standardError);
+  }
+  beyondOneKnown = io.optional("albedo.beyond_one_count", beyondOneKnown);
+  if (!beyondOneKnown) return;
+  uint64_t count = beyondOne.size();
+  io.single("albedo.beyond_one_count", count);
+  if (!io.writing()) {
+    if (count > texels)  // before the allocation it sizes
+      fail("{}: checkpoint's albedo.beyond_one_count {} exceeds the albedo's {} texels", work.string(), count, texels);
+    beyondOne.resize(count), beyondOneAlbedo.resize(3 * count);
+  }
+  io.array("albedo.beyond_one", beyondOne);
+  io.array("albedo.beyond_one_albedo", beyondOneAlbedo);
+  if (!std::is_sorted(beyondOne.begin(), beyondOne.end(), std::less_equal<>()) ||
+      (!beyondOne.empty() && beyondOne.back() >= texels))
+    fail("{}: checkpoint's albedo.beyond_one is not ascending texels of the albedo", work.string());
+}
+
 const char* texelEvidenceName(TexelEvidence e) {
   switch (e) {
     case TexelEvidence::Unseen: return "unseen";
@@ -149,8 +183,9 @@ TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, con
          w.initResolution);
   const size_t texels = space.map.texelCount();
   CHECK(settled.standardError.empty() || settled.standardError.size() == 3 * texels);
-  CHECK(settled.unbounded.empty() || (settled.unbounded.size() == 3 * texels && median));
-  CHECK(settled.unboundedError.empty() || settled.unboundedError.size() == settled.unbounded.size());
+  CHECK(!settled.beyondOneKnown || median);
+  CHECK(settled.beyondOne.empty() || (settled.beyondOne.back() < texels &&
+                                      settled.beyondOneAlbedo.size() == 3 * settled.beyondOne.size()));
   CHECK(!median || (median->width == w.initResolution && median->height == w.initResolution));
   TexelConfidence c;
   c.channels = Image(res, res);
@@ -174,11 +209,15 @@ TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, con
       e = agrees[2] >= kSaturatedShare ? TexelEvidence::LightSaturated : TexelEvidence::LightMeasured;
     else if (observations < kFewObservations) e = TexelEvidence::Few;
     else if (agrees[1] > kDisagreeShare) e = TexelEvidence::Disagree;
-    else if (asksBeyondOne(settled, t) && !lights.near(space.map.point(w.mesh, t))) e = TexelEvidence::UnderLit;
+    else if (settled.unboundedBeyondOne(static_cast<uint32_t>(t)) && !lights.near(space.map.point(w.mesh, t)))
+      e = TexelEvidence::UnderLit;
     else if (error > kUncertainAlbedo) e = TexelEvidence::Uncertain;
     if (median && observations > 0 && !appearance.isEmissive(o)) {
       const Color seen = median->at(x / perInit, y / perInit).max(0.0f);
-      const double missing = e == TexelEvidence::UnderLit ? luminance(missingRadiance(settled, t, seen)) : 0.0;
+      const double missing =
+          e == TexelEvidence::UnderLit
+              ? luminance(missingRadiance(settled.unboundedBeyondOne(static_cast<uint32_t>(t)), seen))
+              : 0.0;
       unplaced.add(o, luminance(seen), missing, missing > 0 ? space.map.point(w.mesh, t) : Vec3::Zero());
     }
     c.evidence[t] = static_cast<uint8_t>(e);
@@ -211,7 +250,7 @@ TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, con
                  {"under_lit_errors", kUnderLitErrors}}},
                {"agreement", agreement.has_value()},
                {"objects", perObject}};
-  if (!settled.unbounded.empty()) c.summary["unplaced_light"] = unplaced.toJson(appearance.names);
+  if (settled.beyondOneKnown) c.summary["unplaced_light"] = unplaced.toJson(appearance.names);
   return c;
 }
 

@@ -29,7 +29,9 @@
 #include <vector>
 
 #include "io/image.h"
+#include "optim/gauss_newton.h"
 #include "io/json.h"
+#include "product/fit_checkpoint.h"
 #include "product/fit_workspace.h"
 #include "product/light_decisions.h"
 #include "scene/appearance.h"
@@ -73,14 +75,28 @@ inline constexpr float kUnderLitErrors = 3.0f;
 // 0.00002 (room) and 0.001 (lounge), one light in no frame 0.021 and 0.023.
 inline constexpr double kUnplacedLightNotice = 0.005;
 
-// What the settled albedo fit knows of each albedo entry beyond its value (3 per texel; each
-// vector empty when not computed: the albedo stepped by Adam, or a fit before it existed).
+// What the settled albedo fit knows beyond the albedo's values.
 struct SettledAlbedo {
-  std::vector<float> standardError;   // negative where unknown
-  std::vector<float> unbounded;       // the least-squares value without the [0, 1] bounds; NaN where unknown
-  std::vector<float> unboundedError;  // its standard error (before albedo_smoothing, which lowers the albedo's)
+  std::vector<float> standardError;  // per entry (3 per texel), negative where unknown; empty: none
+  // The texels whose least-squares albedo without the [0, 1] bounds exceeds 1 by kUnderLitExcess
+  // and kUnderLitErrors of its standard error (before albedo_smoothing, which lowers the albedo's)
+  // in some channel, ascending, with that unbounded albedo (3 per texel). A few percent of the
+  // texels at most, where a full texture of each would cost 400 MB at 4K.
+  // `beyondOneKnown` false: not computed (the albedo stepped by Adam, or a fit before it existed).
+  bool beyondOneKnown = false;
+  std::vector<uint32_t> beyondOne;
+  std::vector<float> beyondOneAlbedo;
+
   // Entry i's standard error, 1 (the albedo's whole range) where it is unknown.
   float error(size_t i) const { return standardError[i] < 0 ? 1.0f : standardError[i]; }
+  // Texel t's unbounded albedo when it is among beyondOne, else nullptr.
+  const float* unboundedBeyondOne(uint32_t t) const;
+  // beyondOne from the albedo's Gauss-Newton state (its unbounded values and standard errors,
+  // the latter at most `bound`); `texels` its entries' texel count.
+  void findBeyondOne(const GaussNewtonState& newton, size_t texels, float bound);
+  // To and from a fit's checkpoint (of `work`, named in errors), for an albedo of `texels` texels;
+  // a checkpoint without them reads as not computed.
+  void serialise(CheckpointIo& io, size_t texels, const std::filesystem::path& work);
 };
 
 struct TexelConfidence {
@@ -100,7 +116,7 @@ struct TexelConfidence {
 
 // `agreement`: prepare's agreement.exr (init resolution; absent from older work folders, and then
 // nothing counts as disagreeing); `median`: prepare's median radiance (init resolution; needed
-// with `settled.unbounded`).
+// when `settled.beyondOneKnown`).
 TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, const Appearance& appearance,
                                 const ObjectRoles& roles, const std::optional<Image>& agreement,
                                 const SettledAlbedo& settled, const std::optional<Image>& median);

@@ -440,10 +440,8 @@ void Fit::refinePoses(const std::string& after) {
 void Fit::settleAlbedoError(const TexelSpace& space) {
   const ParamGroup albedo = paramGroups(appearance_).front();
   CHECK(albedo.kind == ParamKind::Albedo);
-  settled_.unbounded = optimiser_.albedoUnbounded();
-  if (settled_.unbounded.size() != appearance_.albedo.rgb.size()) settled_.unbounded.clear();  // not this albedo's
+  settled_.findBeyondOne(optimiser_.albedoNewton(), appearance_.albedo.rgb.size() / 3, albedo.hi - albedo.lo);
   settled_.standardError = optimiser_.albedoStandardError(albedo.hi - albedo.lo);
-  settled_.unboundedError = settled_.unbounded.empty() ? std::vector<float>{} : settled_.standardError;
   if (c_.albedoSmoothing == AlbedoSmoothing::None) return;
   if (settled_.standardError.empty()) {
     spdlog::info("fit: albedo_smoothing {} skipped: the albedo step ({}) has no standard errors",
@@ -483,13 +481,7 @@ void Fit::serialiseState(CheckpointIo& io) {
   std::vector<ParamGroup> groups = paramGroups(appearance_);
   for (ParamGroup& g : groups) io.array(g.name() + ".values", g.values);
   optimiser_.serialise(io, groups, appearance_.albedo.rgb.size());
-  for (auto& [name, values] : {std::pair{"albedo.standard_error", &settled_.standardError},
-                                std::pair{"albedo.unbounded", &settled_.unbounded},
-                                std::pair{"albedo.unbounded_error", &settled_.unboundedError}})
-    if (io.optional(name, !values->empty())) {
-      if (!io.writing()) values->resize(appearance_.albedo.rgb.size());
-      io.array(name, *values);
-    }
+  settled_.serialise(io, appearance_.albedo.rgb.size() / 3, w_.dir);
   roles_.serialise(io);
   gains_.serialise(io);
   poses_.serialise(io, w_);

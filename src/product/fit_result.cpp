@@ -37,7 +37,7 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
   const TexelConfidence confidence =
       texelConfidence(w, space, appearance, roles,
                       pathExists(agreementFile) ? std::optional<Image>(readImage(agreementFile)) : std::nullopt,
-                      settled, settled.unbounded.empty() ? std::nullopt : std::optional<Image>(w.medianRadiance()));
+                      settled, settled.beyondOneKnown ? std::optional<Image>(w.medianRadiance()) : std::nullopt);
   writeExr(staging / "confidence.exr", confidence.channels);
   writePng(staging / "confidence.png", confidencePicture(confidence, space.resolution));
   writeJson(staging / "confidence.json", confidence.summary);

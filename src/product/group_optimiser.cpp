@@ -142,12 +142,6 @@ std::vector<float> GroupOptimiser::albedoStandardError(float bound) const {
   return e;
 }
 
-std::vector<float> GroupOptimiser::albedoUnbounded() const {
-  std::vector<float> u(newton_.size());
-  for (size_t i = 0; i < u.size(); ++i) u[i] = newton_.unbounded(i);
-  return u;
-}
-
 void GroupOptimiser::restartAfterLightChange() {
   newton_ = GaussNewtonState();
   adam_.erase("albedo");

@@ -58,9 +58,8 @@ class GroupOptimiser {
   // width `bound` (negative where unknown); empty without albedo_standard_error or before the
   // albedo has stepped.
   std::vector<float> albedoStandardError(float bound) const;
-  // Per albedo entry, the Gauss-Newton fit's value without the albedo's bounds (NaN where unknown);
-  // empty when the albedo steps by Adam or has not stepped.
-  std::vector<float> albedoUnbounded() const;
+  // The albedo's Gauss-Newton state (empty when the albedo steps by Adam or has not stepped).
+  const GaussNewtonState& albedoNewton() const { return newton_; }
   // Every group's state, for checkpoints (`groups` of the appearance being saved or restored).
   void serialise(CheckpointIo& io, std::span<ParamGroup> groups, size_t albedoEntries);
   double stateBytes() const;    // Adam moments and Gauss-Newton sums

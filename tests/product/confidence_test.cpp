@@ -5,8 +5,10 @@
 
 #include "capture/objects.h"
 #include "capture/transforms.h"
+#include "core/error.h"
 #include "io/image.h"
 #include "io/mesh_data.h"
+#include "optim/checkpoint.h"
 #include "product/confidence.h"
 #include "product/fit_batches.h"
 #include "sampling/visibility.h"
@@ -98,16 +100,23 @@ TEST(Confidence, EachTexelTakesTheFirstEvidenceThatApplies) {
   std::vector<float> error(3 * space.map.texelCount(), 0.01f);
   for (size_t t = 0; t < space.map.texelCount(); ++t)
     if (space.map.covered(t) && space.objectOf(t, w.mesh) == wallpaper) error[3 * t + 1] = 0.2f;
-  // The floor asks for albedo 1.3 (lit by light no light source supplies); the wallpaper too, in
-  // green, but within three of its standard errors (0.2) of 1; the rest for 0.5.
-  std::vector<float> unbounded(3 * space.map.texelCount(), 0.5f);
+  // The Gauss-Newton fit asks the floor for albedo 1.3 (lit by light no light source supplies),
+  // the wallpaper too in green but within three of its standard errors (0.2) of 1, the rest for 0.5.
+  GaussNewtonState newton(3 * space.map.texelCount(), true);
+  const auto fitted = [&](size_t i, float unbounded, float standardError) {
+    newton.numerator[i] = unbounded, newton.curvature[i] = 1, newton.steps[i] = 1;
+    newton.residualSquare[i] = standardError * standardError, newton.weightSquare[i] = 1;
+  };
   for (size_t t = 0; t < space.map.texelCount(); ++t) {
     if (!space.map.covered(t)) continue;
     const int o = space.objectOf(t, w.mesh);
-    if (o == floor) unbounded[3 * t] = unbounded[3 * t + 1] = unbounded[3 * t + 2] = 1.3f;
-    if (o == wallpaper) unbounded[3 * t + 1] = 1.3f;
+    for (size_t i = 3 * t; i < 3 * t + 3; ++i) fitted(i, o == floor ? 1.3f : 0.5f, 0.01f);
+    if (o == wallpaper) fitted(3 * t + 1, 1.3f, 0.2f);
   }
-  const SettledAlbedo settled{error, unbounded, error};
+  SettledAlbedo settled;
+  settled.standardError = error;
+  settled.findBeyondOne(newton, space.map.texelCount(), 1.0f);
+  ASSERT_TRUE(settled.beyondOneKnown);
   const Image median = w.medianRadiance();
   Image agreement = readImage(w.dir / "agreement.exr");
   const TexelConfidence c = texelConfidence(w, space, appearance, roles, agreement, settled, median);
@@ -234,4 +243,55 @@ TEST(Confidence, DroppedRaysAreTheOnesThatSawWhatTheMeshLacks) {
   EXPECT_GT(static_cast<double>(droppedSaw) / dropped, 20.0 * sawBefore / raysBefore)
       << "the dropped rays are not the ones that saw what the mesh lacks";
   EXPECT_LT(kept.stats.disagreeing, all.rays.size() / 50);
+}
+
+// The under-lit texels go through a checkpoint and come back; a checkpoint without them reads as
+// not computed; tampered ones are a one-line error naming the work folder.
+TEST(Confidence, SettledAlbedoThroughACheckpoint) {
+  SettledAlbedo s;
+  s.standardError = {0.1f, 0.2f, 0.3f, -1.0f, 0.5f, 0.6f};
+  s.beyondOneKnown = true;
+  s.beyondOne = {1};
+  s.beyondOneAlbedo = {1.2f, 1.3f, 1.4f};
+  Checkpoint ck;
+  CheckpointIo writer = CheckpointIo::writer(ck);
+  s.serialise(writer, 2, "WORK");
+  SettledAlbedo back;
+  CheckpointIo reader = CheckpointIo::reader(ck);
+  back.serialise(reader, 2, "WORK");
+  EXPECT_EQ(back.standardError, s.standardError);
+  EXPECT_TRUE(back.beyondOneKnown);
+  EXPECT_EQ(back.beyondOne, s.beyondOne);
+  EXPECT_EQ(back.beyondOneAlbedo, s.beyondOneAlbedo);
+  ASSERT_NE(back.unboundedBeyondOne(1), nullptr);
+  EXPECT_EQ(back.unboundedBeyondOne(1)[2], 1.4f);
+  EXPECT_EQ(back.unboundedBeyondOne(0), nullptr);
+
+  SettledAlbedo none;
+  Checkpoint empty;
+  CheckpointIo emptyReader = CheckpointIo::reader(empty);
+  none.serialise(emptyReader, 2, "WORK");
+  EXPECT_FALSE(none.beyondOneKnown);
+  EXPECT_TRUE(none.standardError.empty());
+
+  const auto errorReading = [](const Checkpoint& c, size_t texels) -> std::string {
+    SettledAlbedo r;
+    CheckpointIo io = CheckpointIo::reader(c);
+    try {
+      r.serialise(io, texels, "WORK");
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "";
+  };
+  Checkpoint repeated = ck;
+  repeated.put("albedo.beyond_one_count", std::vector<uint64_t>{2});
+  repeated.put("albedo.beyond_one", std::vector<uint32_t>{1, 1});
+  repeated.put("albedo.beyond_one_albedo", std::vector<float>(6, 1.2f));
+  EXPECT_NE(errorReading(repeated, 2).find("WORK: checkpoint's albedo.beyond_one is not ascending"),
+            std::string::npos);
+  Checkpoint tampered = ck;
+  tampered.put("albedo.beyond_one_count", std::vector<uint64_t>{5});
+  EXPECT_NE(errorReading(tampered, 2).find("albedo.beyond_one_count 5 exceeds the albedo's 2 texels"),
+            std::string::npos);
 }

@@ -11,7 +11,6 @@
 namespace relume {
 namespace {
 
-
 // The surfaces of the light sources, to tell texels beside one (BesideLights::near).
 class BesideLights {
  public:

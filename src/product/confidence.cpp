@@ -93,6 +93,9 @@ struct UnplacedTally {
 };
 
 Json materialEvidence(const ObjectRoles& roles, int o) {
+  if (roles.sharpLobe[o])
+    return {{"reflections_of_the_room",
+             {{"roughness_ruled_out", {roles.sharpBranch[3 * o], roles.sharpBranch[3 * o + 1]}}}}};
   if (roles.highlight[o]) return "highlights";
   if (roles.roughnessAtLeast[o] >= 0)
     return {{"absence_of_highlights", {{"roughness_at_least", roles.roughnessAtLeast[o]}}}};

@@ -136,6 +136,8 @@ Json TruthComparison::toJson() const {
   Json j = {{"albedo_texels", albedoTexels},       {"albedo_mae", albedoMae},
             {"albedo_psnr", albedoPsnr},           {"roughness_mae", roughnessMae},
             {"specular_mae", specularMae},         {"material_objects", materialObjects},
+            {"roughness_mae_all", roughnessMaeAll}, {"specular_mae_all", specularMaeAll},
+            {"opaque_objects", opaqueObjects},
             {"emitters_true", emittersTrue},       {"emitters_found", emittersFound},
             {"emitters_correct", emittersCorrect}, {"emission_rel_error", emissionRelError},
             {"albedo_psnr_8bit", albedoPsnr8},     {"roughness_psnr_8bit", roughnessPsnr8},
@@ -295,10 +297,11 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
     if (one < 0) row["fit_objects"] = cv.parts.size();
     if (const ObjectError& oe = objectError[obj]; oe.texels)
       row["albedo"] = {{"texels", oe.texels}, {"mae", oe.abs / oe.texels}, {"bias", oe.signedSum / oe.texels}};
-    if (materials && !trueEmitter) {
-      c.roughnessMae += std::abs(roughness - ta.roughness[obj]);
-      c.specularMae += std::abs(specular - ta.specular[obj]);
-      ++c.materialObjects;
+    if (!trueEmitter) {
+      const double roughnessError = std::abs(roughness - ta.roughness[obj]);
+      const double specularError = std::abs(specular - ta.specular[obj]);
+      c.roughnessMaeAll += roughnessError, c.specularMaeAll += specularError, ++c.opaqueObjects;
+      if (materials) c.roughnessMae += roughnessError, c.specularMae += specularError, ++c.materialObjects;
     }
     c.emittersTrue += trueEmitter, c.emittersCorrect += trueEmitter && fitEmitter;
     if (trueEmitter && fitEmitter) {
@@ -317,6 +320,7 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
     if (row[mostly] > 0 && !ta.isEmissive(mostly)) ++c.emittersFound;
   }
   if (c.materialObjects) c.roughnessMae /= c.materialObjects, c.specularMae /= c.materialObjects;
+  if (c.opaqueObjects) c.roughnessMaeAll /= c.opaqueObjects, c.specularMaeAll /= c.opaqueObjects;
   c.emissionRelError = found ? emissionErr / found : 1.0;
   return c;
 }
@@ -465,11 +469,12 @@ void runEvaluation(const EvalOptions& o) {
   fmt::print("views: PSNR {:.2f} dB, MSRE {:.4f} over {} frames\n", v.psnr, v.msre, v.framePsnr.size());
   if (t) {
     fmt::print(
-        "albedo: MAE {:.4f}, PSNR {:.2f} dB over {} texels; roughness MAE {:.3f}, specular MAE {:.3f}; emitters "
-        "{}/{} found ({} found in all), emission error {:.2f}% (roughness/specular over {} objects with observed "
-        "highlights)\n",
-        t->albedoMae, t->albedoPsnr, t->albedoTexels, t->roughnessMae, t->specularMae, t->emittersCorrect,
-        t->emittersTrue, t->emittersFound, 100 * t->emissionRelError, t->materialObjects);
+        "albedo: MAE {:.4f}, PSNR {:.2f} dB over {} texels; roughness MAE {:.3f}, specular MAE {:.3f} over {} objects "
+        "that are no light ({:.3f}, {:.3f} over the {} with observed highlights); emitters {}/{} found ({} found in "
+        "all), emission error {:.2f}%\n",
+        t->albedoMae, t->albedoPsnr, t->albedoTexels, t->roughnessMaeAll, t->specularMaeAll, t->opaqueObjects,
+        t->roughnessMae, t->specularMae, t->materialObjects, t->emittersCorrect, t->emittersTrue, t->emittersFound,
+        100 * t->emissionRelError);
     fmt::print(
         "peers' measures: albedo PSNR {:.2f} dB (8-bit sRGB maps), roughness PSNR {:.2f} dB (8-bit maps), emission IoU "
         "{:.3f}\n",

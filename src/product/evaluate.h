@@ -88,8 +88,13 @@ struct TruthComparison {
   // Peers' measures, over the same texels: PSNR of 8-bit sRGB albedo maps and of 8-bit roughness
   // maps (each texel its object's roughness), and the IoU of emitting texels (every covered texel).
   double albedoPsnr8 = 0, roughnessPsnr8 = 0, emissionIou = 0;
+  // Roughness and specular against the truth's: over the objects whose materials the fit took from
+  // observed highlights (`materialObjects`), and over every object that is no light in the truth
+  // (`opaqueObjects`), those without a highlight included.
   double roughnessMae = 0, specularMae = 0;
   int materialObjects = 0;
+  double roughnessMaeAll = 0, specularMaeAll = 0;
+  int opaqueObjects = 0;
   int emittersTrue = 0, emittersFound = 0, emittersCorrect = 0;
   double emissionRelError = 0;  // mean over true emitters found, mean over channels
   Json perObject = Json::array();

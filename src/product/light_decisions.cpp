@@ -30,6 +30,8 @@ ObjectRoles::ObjectRoles(int objects)
     : emitter(objects, 1),
       outOfModel(objects, 0),
       highlight(objects, 0),
+      sharpLobe(objects, 0),
+      sharpBranch(3 * static_cast<size_t>(objects), -1.0f),
       highlightPairs(objects, 0),
       highlightContrast(objects, 0.0),
       roughnessAtLeast(objects, -1.0f),
@@ -47,6 +49,10 @@ void ObjectRoles::serialise(CheckpointIo& io) {
   io.array("highlight_pairs", highlightPairs);
   io.array("highlight_contrast", highlightContrast);
   io.array("roughness_at_least", roughnessAtLeast);
+  if (io.optional("sharp_lobe", true)) {  // older checkpoints have no sharp branch
+    io.array("sharp_lobe", sharpLobe);
+    io.array("sharp_branch", sharpBranch);
+  }
   io.array("observed.sum", observedSum);
   io.array("observed.count", observedCount);
 }
@@ -440,7 +446,18 @@ void LightDecisions::decideHighlights(const TexelSpace& space, const FitBatches&
       spdlog::debug("fit: object {} ({}) rendered at each roughness:{}", o, a_.names[o], curve);
       r_.roughnessAtLeast[o] = r.atLeast;
       a_.roughness[o] = r.chosen;
-      outcome = r.roughestRuledOut
+      r_.sharpLobe[o] = c_.highlightSharpLobes && r.sharpBranch();
+      if (r_.sharpLobe[o]) {
+        r_.highlight[o] = 1;
+        const float branch[3] = {r.sharpBelow, r.roughAbove, a_.specular[o]};
+        std::copy(branch, branch + 3, r_.sharpBranch.begin() + 3 * o);
+      }
+      outcome = r_.sharpLobe[o]
+                    ? fmt::format("roughness/specular fitted from {:.2f}: the frames rule out ({:.2f}, {:.2f}) at "
+                                  "specular {:.2f}, and allow a lobe too sharp to have pointed at a light as well as a "
+                                  "rough one",
+                                  r.chosen, r.sharpBelow, r.roughAbove, a_.specular[o])
+              : r.roughestRuledOut
                     ? fmt::format("roughness 1: even the roughest renders {:+.1f}% at specular {:.2f}",
                                   100 * contrast.back(), a_.specular[o])
                     : fmt::format("roughness {:.2f}: a smoother lobe would have shown a highlight, ruled out below "
@@ -455,10 +472,31 @@ void LightDecisions::decideHighlights(const TexelSpace& space, const FitBatches&
         "-> {}",
         o, a_.names[o], evidence.texels(o), 100 * evidence.contrast(o), 100 * evidence.standardError(o), outcome);
   }
-  spdlog::info("fit: highlight test: {} objects fitted, {} bounded by the absence of one, in {:.1f} s",
-               std::count(r_.highlight.begin(), r_.highlight.end(), 1),
-               std::count_if(r_.roughnessAtLeast.begin(), r_.roughnessAtLeast.end(), [](float r) { return r >= 0; }),
-               timer.seconds());
+  const auto sharp = std::count(r_.sharpLobe.begin(), r_.sharpLobe.end(), 1);
+  spdlog::info(
+      "fit: highlight test: {} objects fitted ({} of them on the sharp branch), {} bounded by the absence of one, in "
+      "{:.1f} s",
+      std::count(r_.highlight.begin(), r_.highlight.end(), 1), sharp,
+      std::count_if(r_.roughnessAtLeast.begin(), r_.roughnessAtLeast.end(), [](float r) { return r >= 0; }) - sharp,
+      timer.seconds());
+}
+
+void keepSharpLobesTheFramesAllow(ObjectRoles& roles, Appearance& a) {
+  CHECK(roles.sharpLobe.size() == static_cast<size_t>(a.objectCount()));
+  for (int o = 0; o < a.objectCount(); ++o) {
+    if (!roles.sharpLobe[o]) continue;
+    const float roughness = a.roughness[o], sharpBelow = roles.sharpBranch[3 * o],
+                roughAbove = roles.sharpBranch[3 * o + 1];
+    const bool allowed = !(roughness > sharpBelow && roughness < roughAbove);
+    spdlog::info("fit: object {} ({}) ended at roughness {:.3f}, specular {:.3f} on the sharp branch: {}", o,
+                 a.names[o], roughness, a.specular[o],
+                 allowed ? (roughness <= sharpBelow ? "a sharp lobe, kept" : "a rough lobe, kept")
+                         : fmt::format("the frames rule out ({:.2f}, {:.2f}), so the rough branch's middle", sharpBelow,
+                                       roughAbove));
+    if (allowed) continue;
+    roles.sharpLobe[o] = 0, roles.highlight[o] = 0;
+    a.roughness[o] = 0.5f * (roles.roughnessAtLeast[o] + 1.0f), a.specular[o] = roles.sharpBranch[3 * o + 2];
+  }
 }
 
 }  // namespace relume

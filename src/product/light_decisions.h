@@ -23,6 +23,10 @@ struct ObjectRoles {
   std::vector<uint8_t> emitter;           // a light-source candidate, or a light once decided
   std::vector<uint8_t> outOfModel;        // excluded from emission and albedo (light_evidence.h)
   std::vector<uint8_t> highlight;         // roughness and specular fitted
+  std::vector<uint8_t> sharpLobe;         // fitted on the sharp branch of the absence (no highlight seen)
+  // Per object, 3 each, on the sharp branch: the open roughness interval the absence of a highlight
+  // rules out, and the specular it was tested at.
+  std::vector<float> sharpBranch;
   uint8_t refitEmission = 0;              // the re-decision changed the light sources: run emission_refit
   uint8_t clippedLights = 0;              // the first decision's lights include some seen only saturated
   uint8_t clippedScaleMoving = 0;         // their last scale moved them by more than its error
@@ -36,6 +40,11 @@ struct ObjectRoles {
   explicit ObjectRoles(int objects);
   void serialise(CheckpointIo& io);
 };
+
+// After the material stage: an object fitted on the sharp branch whose roughness ended where the
+// absence of a highlight rules out takes the rough branch's middle again, at the specular it was
+// tested at, and counts as bounded by the absence.
+void keepSharpLobesTheFramesAllow(ObjectRoles& roles, Appearance& a);
 
 class LightDecisions {
  public:
@@ -70,6 +79,9 @@ class LightDecisions {
   // a highlight bounds the roughness from below (roughnessFromAbsence: the roughnesses the fit
   // would render a brighter contrast at than the frames show are ruled out), and the roughness
   // takes the middle of what is left; elsewhere they keep their init and are reported unconstrained.
+  // Where the frames allow a lobe too sharp to have shown a light as well (the sharp branch,
+  // highlight_sharp_lobes), roughness and specular are fitted from that middle: the room's
+  // reflections in the object decide between the branches.
   void decideHighlights(const TexelSpace& space, const FitBatches& batches);
 
   // The emission stage's references, per object (the radiance-fraction test compares with them).

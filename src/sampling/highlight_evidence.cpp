@@ -63,6 +63,13 @@ RoughnessFromAbsence roughnessFromAbsence(double observed, double observedError,
   while (lowest > 0 && allowed(lowest - 1)) --lowest;
   r.atLeast = grid[lowest];
   r.chosen = 0.5f * (r.atLeast + 1.0f);
+  if (lowest == 0) return r;
+  size_t smoothestRuledOut = 0;
+  while (allowed(smoothestRuledOut)) ++smoothestRuledOut;
+  if (smoothestRuledOut > 0) {
+    r.sharpBelow = 0.5f * (grid[smoothestRuledOut - 1] + grid[smoothestRuledOut]);
+    r.roughAbove = 0.5f * (grid[lowest - 1] + grid[lowest]);
+  }
   return r;
 }
 

@@ -35,16 +35,25 @@ class HighlightEvidence {
 // model renders on the same connections with the object at each roughness of `grid` (ascending,
 // ending at the roughest, 1): a roughness is ruled out where its rendered contrast exceeds the
 // observed one by more than two standard errors of their difference (a highlight the frames would
-// have shown; a negative contrast counts as 0). What is kept is the run of allowed roughnesses
-// that reaches the roughest, [atLeast, 1] (a smoother lobe allowed below a ruled-out one points
-// its highlight away from the lights the frames show, which a rougher one would not). Nothing in
-// the frames prefers one roughness in it to another, and its middle is the choice whose worst
-// error over it is smallest. When even the roughest is ruled out (a contrast the model
-// cannot make as small as the frames' at this specular), the roughest is taken.
+// have shown; a negative contrast counts as 0). The run of allowed roughnesses that reaches the
+// roughest is [atLeast, 1]; nothing in the frames prefers one roughness in it to another, and its
+// middle (`chosen`) is the choice whose worst error over it is smallest. When even the roughest is
+// ruled out (a contrast the model cannot make as small as the frames' at this specular), the
+// roughest is taken.
+//
+// A smoother roughness allowed below the ruled-out ones is a second branch: a lobe so sharp that
+// it never pointed at a light from the frames' views (the frames' "with a light reflected" texels
+// see a light within about 10 degrees of the mirror direction, outside such a lobe). The absence
+// of a highlight cannot tell it from a rough lobe; the room's reflections can (fit.md). Then the
+// frames allow roughnesses below `sharpBelow` and above `roughAbove` (each half way between an
+// allowed and a ruled-out roughness of the grid) and rule out those between.
 struct RoughnessFromAbsence {
   float atLeast = 1;
   float chosen = 1;
   bool roughestRuledOut = false;
+  float sharpBelow = -1, roughAbove = -1;  // -1: no sharp branch
+  bool sharpBranch() const { return sharpBelow >= 0; }
+  bool rulesOut(float roughness) const { return roughness > sharpBelow && roughness < roughAbove; }
 };
 RoughnessFromAbsence roughnessFromAbsence(double observed, double observedError, std::span<const float> grid,
                                           std::span<const double> rendered, std::span<const double> renderedError);

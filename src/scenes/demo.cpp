@@ -121,6 +121,9 @@ void writeReport(const fs::path& out, const Json& s) {
   md += "| measure | value |\n| --- | --- |\n";
   md += fmt::format("| albedo MAE (texels observed >= 5 times) | {:.4f} |\n", s["albedo_mae"].get<double>());
   md += fmt::format("| albedo PSNR | {:.2f} dB |\n", s["albedo_psnr"].get<double>());
+  md += fmt::format("| roughness MAE / specular MAE ({} objects that are no light) | {:.3f} / {:.3f} |\n",
+                    t["opaque_objects"].get<int>(), s["roughness_mae_all"].get<double>(),
+                    s["specular_mae_all"].get<double>());
   md +=
       fmt::format("| roughness MAE / specular MAE ({} objects with observed highlights) | {:.3f} / {:.3f} |\n",
                   t["material_objects"].get<int>(), s["roughness_mae"].get<double>(), s["specular_mae"].get<double>());
@@ -232,6 +235,8 @@ Json runDemo(const DemoOptions& o) {
             {"albedo_psnr", tc.albedoPsnr},
             {"roughness_mae", tc.roughnessMae},
             {"specular_mae", tc.specularMae},
+            {"roughness_mae_all", tc.roughnessMaeAll},
+            {"specular_mae_all", tc.specularMaeAll},
             {"emitters_true", tc.emittersTrue},
             {"emitters_found", tc.emittersFound},
             {"emission_rel_error", tc.emissionRelError},

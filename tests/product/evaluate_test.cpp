@@ -53,6 +53,30 @@ TEST(Evaluate, PeersMeasuresAreExactOnTheTruthAndFallWithErrors) {
   EXPECT_LT(off.emissionIou, 0.8);
 }
 
+// Roughness and specular are scored over every object that is no light, and apart over those whose
+// materials the fit took from observed highlights: a fit wrong only where it saw no highlight
+// scores 0 on the second and not on the first.
+TEST(Evaluate, MaterialsAreScoredOnEveryObjectThatIsNoLight) {
+  Pair p = roomPair();
+  Appearance& a = p.fit.appearance;
+  const int table = idOf(a, "table"), walls = idOf(a, "walls");
+  a.roughness[walls] += 0.3f, a.specular[walls] -= 0.2f;
+  TruthOptions options;
+  options.highlightObserved.assign(a.objectCount(), 0);
+  options.highlightObserved[table] = 1;
+  const TruthComparison c = compareWithTruth(p.fit, p.truth, p.coverage, options);
+  const int lights = static_cast<int>(std::count_if(a.emission.begin(), a.emission.end(),
+                                                    [](const Color& e) { return e.maxCoeff() > 0; }));
+  ASSERT_EQ(lights, 2);
+  EXPECT_EQ(c.materialObjects, 1);
+  EXPECT_EQ(c.roughnessMae, 0.0);
+  EXPECT_EQ(c.specularMae, 0.0);
+  EXPECT_EQ(c.opaqueObjects, a.objectCount() - lights);
+  EXPECT_NEAR(c.roughnessMaeAll, 0.3 / c.opaqueObjects, 1e-6);
+  EXPECT_NEAR(c.specularMaeAll, 0.2 / c.opaqueObjects, 1e-6);
+  EXPECT_NEAR(c.toJson()["roughness_mae_all"].get<double>(), c.roughnessMaeAll, 1e-12);
+}
+
 // A fit on other objects than the truth's (a computed segmentation) is scored per true object over
 // its faces: materials weighted by area, a light found where the fit emits over half of it, and
 // the fit's lights on true reflectors counted as found but not correct.

@@ -75,6 +75,7 @@ TEST(RoughnessFromAbsence, RulesOutTheRoughnessesThatWouldHaveShownAHighlight) {
   EXPECT_FLOAT_EQ(r.atLeast, 0.6f);
   EXPECT_FLOAT_EQ(r.chosen, 0.8f);
   EXPECT_FALSE(r.roughestRuledOut);
+  EXPECT_FALSE(r.sharpBranch());  // the sharpest is ruled out too
   // Noisier frames (+-2%) no longer rule out 0.5: 0.04 - 0.005 is within 2 x 0.0201.
   const RoughnessFromAbsence noisy = roughnessFromAbsence(0.005, 0.02, grid, rendered, error);
   EXPECT_FLOAT_EQ(noisy.atLeast, 0.5f);
@@ -82,14 +83,32 @@ TEST(RoughnessFromAbsence, RulesOutTheRoughnessesThatWouldHaveShownAHighlight) {
   const RoughnessFromAbsence blind = roughnessFromAbsence(0.005, 1.0, grid, rendered, error);
   EXPECT_FLOAT_EQ(blind.atLeast, 0.1f);
   EXPECT_FLOAT_EQ(blind.chosen, 0.55f);
+  EXPECT_FALSE(blind.sharpBranch());
 }
 
-// A roughness allowed below one that is ruled out does not count: the interval reaches 1.
-TEST(RoughnessFromAbsence, KeepsOnlyTheIntervalThatReachesTheRoughest) {
+// The bound is the interval that reaches 1; a roughness allowed below one that is ruled out is the
+// sharp branch (a lobe that never pointed at a light), and what lies between is ruled out.
+TEST(RoughnessFromAbsence, KeepsTheIntervalThatReachesTheRoughestAndASharpBranch) {
   const std::vector<float> grid = {0.25f, 0.5f, 0.75f, 1.0f};
-  const std::vector<double> rendered = {0.0, 0.3, 0.0, 0.0};  // 0.25 allowed by noise, 0.5 not
+  const std::vector<double> rendered = {0.0, 0.3, 0.0, 0.0};  // 0.25 allowed, 0.5 not
   const std::vector<double> error(grid.size(), 0.01);
-  EXPECT_FLOAT_EQ(roughnessFromAbsence(0.0, 0.01, grid, rendered, error).atLeast, 0.75f);
+  const RoughnessFromAbsence branches = roughnessFromAbsence(0.0, 0.01, grid, rendered, error);
+  EXPECT_FLOAT_EQ(branches.atLeast, 0.75f);
+  EXPECT_FLOAT_EQ(branches.chosen, 0.875f);
+  ASSERT_TRUE(branches.sharpBranch());
+  EXPECT_FLOAT_EQ(branches.sharpBelow, 0.375f);
+  EXPECT_FLOAT_EQ(branches.roughAbove, 0.625f);
+  EXPECT_TRUE(branches.rulesOut(0.5f));
+  EXPECT_FALSE(branches.rulesOut(0.1f));
+  EXPECT_FALSE(branches.rulesOut(0.8f));
+  // Two ruled-out runs: everything from the smoothest ruled out to the rough branch is ruled out.
+  const std::vector<float> fine = {0.1f, 0.2f, 0.3f, 0.4f, 0.5f, 1.0f};
+  const std::vector<double> islands = {0.0, 0.3, 0.0, 0.3, 0.0, 0.0};
+  const RoughnessFromAbsence r2 = roughnessFromAbsence(0.0, 0.01, fine, islands, std::vector<double>(6, 0.01));
+  EXPECT_FLOAT_EQ(r2.atLeast, 0.5f);
+  EXPECT_FLOAT_EQ(r2.sharpBelow, 0.15f);
+  EXPECT_FLOAT_EQ(r2.roughAbove, 0.45f);
+  EXPECT_TRUE(r2.rulesOut(0.3f));
   // Even the roughest renders more than the frames show: taken as the roughest.
   const std::vector<double> bright(grid.size(), 0.5);
   const RoughnessFromAbsence r = roughnessFromAbsence(0.0, 0.01, grid, bright, error);

@@ -328,9 +328,7 @@ void LightDecisions::prune() {
 }
 
 namespace {
-// The roughnesses the absence of a highlight is tested at (roughnessFromAbsence), and the lobe
-// samples each connection draws at every one of them.
-constexpr std::array<float, 10> kAbsenceRoughness = {0.1f, 0.2f, 0.3f, 0.4f, 0.5f, 0.6f, 0.7f, 0.8f, 0.9f, 1.0f};
+// The lobe samples each connection draws at every roughness of kAbsenceRoughness.
 constexpr int kAbsenceLobeSamples = 16;
 
 // The light a connection's first surface reflects straight from the light sources through its
@@ -401,13 +399,26 @@ std::vector<std::array<float, kAbsenceRoughness.size()>> renderAtEachRoughness(c
 }
 }  // namespace
 
-void LightDecisions::decideHighlights(const TexelSpace& space, const FitBatches& batches) {
-  const Timer timer;
-  const int objects = a_.objectCount();
-  HighlightEvidence evidence(objects);
-  // What the fit renders on the same connections at each tested roughness (highlight_absence).
-  std::vector<HighlightEvidence> rendered;
-  if (c_.highlightAbsence) rendered.assign(kAbsenceRoughness.size(), HighlightEvidence(objects));
+HighlightProbe::HighlightProbe(int objects, bool render) : frames(objects) {
+  if (render) rendered.assign(kAbsenceRoughness.size(), HighlightEvidence(objects));
+}
+
+std::array<double, kAbsenceRoughness.size()> HighlightProbe::contrast(int o) const {
+  std::array<double, kAbsenceRoughness.size()> c{};
+  for (size_t k = 0; k < c.size(); ++k) c[k] = rendered[k].contrast(o);
+  return c;
+}
+
+std::array<double, kAbsenceRoughness.size()> HighlightProbe::error(int o) const {
+  std::array<double, kAbsenceRoughness.size()> e{};
+  for (size_t k = 0; k < e.size(); ++k) e[k] = rendered[k].standardError(o);
+  return e;
+}
+
+HighlightProbe LightDecisions::probeHighlights(const TexelSpace& space, const FitBatches& batches, bool render) const {
+  HighlightProbe p(a_.objectCount(), render);
+  HighlightEvidence& evidence = p.frames;
+  std::vector<HighlightEvidence>& rendered = p.rendered;
   for (uint64_t probe = 0; probe < kHighlightProbeBatches; ++probe) {
     Batch batch = batches.sample(space, (uint64_t{1} << 40) + probe, c_.rayFootprint);
     gains_.apply(batch.rays, batch.frame);
@@ -418,7 +429,7 @@ void LightDecisions::decideHighlights(const TexelSpace& space, const FitBatches&
       if (sawLight[j] >= 0) lum[j] = luminance(batch.rays[j].reference / batch.rays[j].gain);
     });
     evidence.addBatch(batch.slot, batch.object, lum, sawLight);
-    if (!c_.highlightAbsence) continue;
+    if (!render) continue;
     std::vector<int8_t> counted;
     const uint64_t stream = hashTuple({c_.seed, streamTag(RandomStream::HighlightAbsence), probe});
     const auto atEach = renderAtEachRoughness(*w_.scene, a_, batch, sawLight, lum, counted, stream);
@@ -428,6 +439,14 @@ void LightDecisions::decideHighlights(const TexelSpace& space, const FitBatches&
       rendered[k].addBatch(batch.slot, batch.object, atRoughness, counted);
     }
   }
+  return p;
+}
+
+void LightDecisions::decideHighlights(const TexelSpace& space, const FitBatches& batches) {
+  const Timer timer;
+  const int objects = a_.objectCount();
+  const HighlightProbe probe = probeHighlights(space, batches, c_.highlightAbsence);
+  const HighlightEvidence& evidence = probe.frames;
   for (int o = 0; o < objects; ++o) {
     r_.highlightPairs[o] = evidence.texels(o), r_.highlightContrast[o] = evidence.contrast(o);
     r_.highlight[o] = !r_.emitter[o] && evidence.observed(o, c_.highlightMinPairs, c_.highlightMinContrast);
@@ -435,9 +454,7 @@ void LightDecisions::decideHighlights(const TexelSpace& space, const FitBatches&
     r_.roughnessAtLeast[o] = -1;
     if (c_.highlightAbsence && !r_.highlight[o] && !r_.emitter[o] && !r_.outOfModel[o] &&
         evidence.texels(o) >= static_cast<uint64_t>(c_.highlightMinPairs)) {
-      std::array<double, kAbsenceRoughness.size()> contrast{}, error{};
-      for (size_t k = 0; k < kAbsenceRoughness.size(); ++k)
-        contrast[k] = rendered[k].contrast(o), error[k] = rendered[k].standardError(o);
+      const auto contrast = probe.contrast(o), error = probe.error(o);
       const RoughnessFromAbsence r =
           roughnessFromAbsence(evidence.contrast(o), evidence.standardError(o), kAbsenceRoughness, contrast, error);
       std::string curve;
@@ -481,21 +498,23 @@ void LightDecisions::decideHighlights(const TexelSpace& space, const FitBatches&
       timer.seconds());
 }
 
-void keepSharpLobesTheFramesAllow(ObjectRoles& roles, Appearance& a) {
-  CHECK(roles.sharpLobe.size() == static_cast<size_t>(a.objectCount()));
-  for (int o = 0; o < a.objectCount(); ++o) {
-    if (!roles.sharpLobe[o]) continue;
-    const float roughness = a.roughness[o], sharpBelow = roles.sharpBranch[3 * o],
-                roughAbove = roles.sharpBranch[3 * o + 1];
-    const bool allowed = !(roughness > sharpBelow && roughness < roughAbove);
+void LightDecisions::keepSharpLobesTheFramesAllow(const TexelSpace& space, const FitBatches& batches) {
+  if (std::find(r_.sharpLobe.begin(), r_.sharpLobe.end(), 1) == r_.sharpLobe.end()) return;
+  const HighlightProbe probe = probeHighlights(space, batches, true);
+  for (int o = 0; o < a_.objectCount(); ++o) {
+    if (!r_.sharpLobe[o]) continue;
+    const auto contrast = probe.contrast(o), error = probe.error(o);
+    const bool allowed = absenceAllows(probe.frames.contrast(o), probe.frames.standardError(o), kAbsenceRoughness,
+                                       contrast, error, a_.roughness[o]);
     spdlog::info("fit: object {} ({}) ended at roughness {:.3f}, specular {:.3f} on the sharp branch: {}", o,
-                 a.names[o], roughness, a.specular[o],
-                 allowed ? (roughness <= sharpBelow ? "a sharp lobe, kept" : "a rough lobe, kept")
-                         : fmt::format("the frames rule out ({:.2f}, {:.2f}), so the rough branch's middle", sharpBelow,
-                                       roughAbove));
+                 a_.names[o], a_.roughness[o], a_.specular[o],
+                 allowed ? "the frames allow it (the absence of a highlight tested again at this specular)"
+                         : fmt::format("the frames rule it out at this specular (they show {:+.1f}% +- {:.1f}% "
+                                       "brighter with a light reflected), so the rough branch's middle",
+                                       100 * probe.frames.contrast(o), 100 * probe.frames.standardError(o)));
     if (allowed) continue;
-    roles.sharpLobe[o] = 0, roles.highlight[o] = 0;
-    a.roughness[o] = 0.5f * (roles.roughnessAtLeast[o] + 1.0f), a.specular[o] = roles.sharpBranch[3 * o + 2];
+    r_.sharpLobe[o] = 0, r_.highlight[o] = 0;
+    a_.roughness[o] = 0.5f * (r_.roughnessAtLeast[o] + 1.0f), a_.specular[o] = r_.sharpBranch[3 * o + 2];
   }
 }
 

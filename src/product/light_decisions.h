@@ -4,6 +4,7 @@
 // emission stage and again after the first albedo stage (light_evidence.h), the radiance-fraction
 // pruning of the ablation, and the highlight test before the material stage.
 #pragma once
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -16,6 +17,7 @@
 #include "product/fit_workspace.h"
 #include "product/frame_gains.h"
 #include "product/light_evidence.h"
+#include "sampling/highlight_evidence.h"
 
 namespace relume {
 
@@ -41,10 +43,19 @@ struct ObjectRoles {
   void serialise(CheckpointIo& io);
 };
 
-// After the material stage: an object fitted on the sharp branch whose roughness ended where the
-// absence of a highlight rules out takes the rough branch's middle again, at the specular it was
-// tested at, and counts as bounded by the absence.
-void keepSharpLobesTheFramesAllow(ObjectRoles& roles, Appearance& a);
+// The roughnesses the absence of a highlight is tested at (roughnessFromAbsence).
+inline constexpr std::array<float, 10> kAbsenceRoughness = {0.1f, 0.2f, 0.3f, 0.4f, 0.5f,
+                                                            0.6f, 0.7f, 0.8f, 0.9f, 1.0f};
+
+// What the highlight probes found: the frames' contrast per object and, when rendered, the fit's
+// at each roughness of kAbsenceRoughness.
+struct HighlightProbe {
+  HighlightEvidence frames;
+  std::vector<HighlightEvidence> rendered;  // per roughness; empty when not rendered
+  HighlightProbe(int objects, bool render);
+  std::array<double, kAbsenceRoughness.size()> contrast(int object) const;
+  std::array<double, kAbsenceRoughness.size()> error(int object) const;
+};
 
 class LightDecisions {
  public:
@@ -83,6 +94,10 @@ class LightDecisions {
   // highlight_sharp_lobes), roughness and specular are fitted from that middle: the room's
   // reflections in the object decide between the branches.
   void decideHighlights(const TexelSpace& space, const FitBatches& batches);
+  // After the material stage: the absence of a highlight is tested again on the same connections
+  // at each sharp-branch object's fitted specular. One whose fitted roughness that rules out takes
+  // the rough branch's middle again, at the specular it was first tested at, and counts as bounded.
+  void keepSharpLobesTheFramesAllow(const TexelSpace& space, const FitBatches& batches);
 
   // The emission stage's references, per object (the radiance-fraction test compares with them).
   void observe(const Batch& batch);
@@ -91,6 +106,9 @@ class LightDecisions {
   std::vector<uint8_t> albedoHeld() const;
 
  private:
+  // The probe connections (kHighlightProbeBatches batches, the same every call): the frames'
+  // contrast per object, and with `render` the fit's at each roughness of kAbsenceRoughness.
+  HighlightProbe probeHighlights(const TexelSpace& space, const FitBatches& batches, bool render) const;
   void prune();
   void restartAlbedo(const TexelSpace& space, const std::vector<LightEvidence>& evidence,
                      const std::vector<uint8_t>& dropped);

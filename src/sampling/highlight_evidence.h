@@ -53,9 +53,12 @@ struct RoughnessFromAbsence {
   bool roughestRuledOut = false;
   float sharpBelow = -1, roughAbove = -1;  // -1: no sharp branch
   bool sharpBranch() const { return sharpBelow >= 0; }
-  bool rulesOut(float roughness) const { return roughness > sharpBelow && roughness < roughAbove; }
 };
 RoughnessFromAbsence roughnessFromAbsence(double observed, double observedError, std::span<const float> grid,
                                           std::span<const double> rendered, std::span<const double> renderedError);
+// Whether the frames allow `roughness` by the same test, its rendered contrast and error linear
+// between the grid's (below the grid's smoothest, the smoothest's).
+bool absenceAllows(double observed, double observedError, std::span<const float> grid,
+                   std::span<const double> rendered, std::span<const double> renderedError, float roughness);
 
 }  // namespace relume

@@ -8,7 +8,6 @@
 
 #include "adjoint/solver.h"
 #include "core/rng.h"
-#include "product/light_decisions.h"
 #include "product/light_evidence.h"
 #include "scenes/synth.h"
 
@@ -413,29 +412,3 @@ TEST(LightEvidence, PixelsBesideABrighterObjectAreTold) {
   EXPECT_GT(apart, 1000);
 }
 
-// After the material stage, an object fitted on the sharp branch keeps what it ended at where the
-// frames allow it (a lobe sharper than the ruled-out band, or a rough one); inside the band it takes
-// the rough branch's middle and the specular it was tested at, and counts as bounded.
-TEST(LightDecisions, ASharpLobeEndingWhereTheFramesRuleOutTakesTheRoughBranch) {
-  Appearance a(4);
-  ObjectRoles roles(4);
-  for (int o = 0; o < 3; ++o) {
-    roles.highlight[o] = roles.sharpLobe[o] = 1;
-    roles.roughnessAtLeast[o] = 0.6f;
-    const float branch[3] = {0.15f, 0.55f, 0.5f};
-    std::copy(branch, branch + 3, roles.sharpBranch.begin() + 3 * o);
-  }
-  a.roughness = {0.08f, 0.3f, 0.7f, 0.3f};  // sharp, ruled out, rough; the last not on the branch
-  a.specular = {0.2f, 0.2f, 0.2f, 0.2f};
-  keepSharpLobesTheFramesAllow(roles, a);
-  EXPECT_FLOAT_EQ(a.roughness[0], 0.08f);
-  EXPECT_FLOAT_EQ(a.specular[0], 0.2f);
-  EXPECT_EQ(roles.sharpLobe[0], 1);
-  EXPECT_FLOAT_EQ(a.roughness[1], 0.8f);
-  EXPECT_FLOAT_EQ(a.specular[1], 0.5f);
-  EXPECT_EQ(roles.sharpLobe[1], 0);
-  EXPECT_EQ(roles.highlight[1], 0);
-  EXPECT_FLOAT_EQ(a.roughness[2], 0.7f);
-  EXPECT_EQ(roles.highlight[2], 1);
-  EXPECT_FLOAT_EQ(a.roughness[3], 0.3f);
-}

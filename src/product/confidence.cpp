@@ -93,10 +93,10 @@ struct UnplacedTally {
 };
 
 Json materialEvidence(const ObjectRoles& roles, int o) {
-  if (roles.sharpLobe[o])
-    return {{"reflections_of_the_room",
-             {{"roughness_ruled_out", {roles.sharpBranch[3 * o], roles.sharpBranch[3 * o + 1]}}}}};
   if (roles.highlight[o]) return "highlights";
+  if (roles.roughnessAtLeast[o] >= 0 && roles.sharpBelow[o] >= 0)
+    return {{"absence_of_highlights",
+             {{"roughness_at_least", roles.roughnessAtLeast[o]}, {"or_sharper_than", roles.sharpBelow[o]}}}};
   if (roles.roughnessAtLeast[o] >= 0)
     return {{"absence_of_highlights", {{"roughness_at_least", roles.roughnessAtLeast[o]}}}};
   return "none (kept at its prior)";

@@ -414,7 +414,6 @@ void Fit::finishStage(const Stage& st, size_t stageIndex, const TexelSpace& spac
   std::vector<ParamGroup> groups = paramGroups(appearance_);
   optimiser_.settle(groups, st);
   if (st.settles.active(ParamKind::Albedo)) settleAlbedoError(space);
-  if (st.settles.active(ParamKind::Roughness)) decisions_.keepSharpLobesTheFramesAllow(space, batches_);
   if (st.fillUnobservedAfter) decisions_.fillUnobservedAlbedo(space);
   if (st.pruneAfter || st.redecideAfter) {
     if (decisions_.decide(space, st.name, st.pruneAfter)) optimiser_.restartAfterLightChange();

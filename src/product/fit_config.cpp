@@ -78,7 +78,6 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("highlight_min_pairs", ConfigField(&c.highlightMinPairs));
   fn("highlight_min_contrast", ConfigField(&c.highlightMinContrast));
   fn("highlight_absence", ConfigField(&c.highlightAbsence));
-  fn("highlight_sharp_lobes", ConfigField(&c.highlightSharpLobes));
   fn("drop_disagreeing", ConfigField(&c.dropDisagreeing));
   fn("emitter_parameterisation", ConfigField(&c.emitterParameterisation));
   fn("median_init", ConfigField(&c.medianInit));

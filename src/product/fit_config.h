@@ -163,10 +163,6 @@ struct FitConfig {
   // are ruled out and the roughness takes the middle of the rest (light_decisions.h); false = kept
   // at the init.
   bool highlightAbsence = true;
-  // Where that leaves a sharp lobe as well as a rough one (roughnessFromAbsence's sharp branch),
-  // roughness and specular are fitted as on a highlight, from the room's reflections, and kept
-  // only where the frames allow what the fit ends at; false = the rough branch's middle.
-  bool highlightSharpLobes = true;
   // The uniform batch leaves out a ray whose reference disagrees with its texel's median beyond
   // prepare's agreement ratio, on texels seen at least 5 times (product/confidence.h): the mesh is
   // not where the frame saw the surface (a missing object, a misregistered edge). The material and

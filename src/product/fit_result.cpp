@@ -59,7 +59,6 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
     }
   for (int o = 0; o < appearance.objectCount(); ++o) {
     const Color e = appearance.meanEmission(o);
-    const bool sharp = roles.sharpLobe[o] != 0;
     materials.push_back({{"id", o},
                          {"name", appearance.names[o]},
                          {"roughness", appearance.roughness[o]},
@@ -67,15 +66,12 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
                          {"emission", {e[0], e[1], e[2]}},
                          {"is_emitter", appearance.isEmissive(o)},
                          {"out_of_model", roles.outOfModel[o] != 0},
-                         {"highlight_observed", roles.highlight[o] != 0 && !sharp},
+                         {"highlight_observed", roles.highlight[o] != 0},
                          {"highlight_texels", roles.highlightPairs[o]},
                          {"highlight_contrast", roles.highlightContrast[o]},
-                         {"roughness_at_least", roles.roughnessAtLeast[o] >= 0 && !sharp
-                                                    ? Json(roles.roughnessAtLeast[o])
-                                                    : Json(nullptr)},
-                         {"sharp_lobe", sharp ? Json{{"roughness_ruled_out",
-                                                      {roles.sharpBranch[3 * o], roles.sharpBranch[3 * o + 1]}}}
-                                              : Json(nullptr)},
+                         {"roughness_at_least",
+                          roles.roughnessAtLeast[o] >= 0 ? Json(roles.roughnessAtLeast[o]) : Json(nullptr)},
+                         {"or_sharper_than", roles.sharpBelow[o] >= 0 ? Json(roles.sharpBelow[o]) : Json(nullptr)},
                          {"observed_texel_fraction", total[o] ? double(observed[o]) / total[o] : 0.0}});
   }
   Json summary = {

@@ -30,11 +30,10 @@ ObjectRoles::ObjectRoles(int objects)
     : emitter(objects, 1),
       outOfModel(objects, 0),
       highlight(objects, 0),
-      sharpLobe(objects, 0),
-      sharpBranch(3 * static_cast<size_t>(objects), -1.0f),
       highlightPairs(objects, 0),
       highlightContrast(objects, 0.0),
       roughnessAtLeast(objects, -1.0f),
+      sharpBelow(objects, -1.0f),
       observedSum(objects, 0.0),
       observedCount(objects, 0) {}
 
@@ -49,10 +48,7 @@ void ObjectRoles::serialise(CheckpointIo& io) {
   io.array("highlight_pairs", highlightPairs);
   io.array("highlight_contrast", highlightContrast);
   io.array("roughness_at_least", roughnessAtLeast);
-  if (io.optional("sharp_lobe", true)) {  // older checkpoints have no sharp branch
-    io.array("sharp_lobe", sharpLobe);
-    io.array("sharp_branch", sharpBranch);
-  }
+  if (io.optional("sharp_below", true)) io.array("sharp_below", sharpBelow);  // older checkpoints: none
   io.array("observed.sum", observedSum);
   io.array("observed.count", observedCount);
 }
@@ -328,7 +324,9 @@ void LightDecisions::prune() {
 }
 
 namespace {
-// The lobe samples each connection draws at every roughness of kAbsenceRoughness.
+// The roughnesses the absence of a highlight is tested at (roughnessFromAbsence), and the lobe
+// samples each connection draws at every one of them.
+constexpr std::array<float, 10> kAbsenceRoughness = {0.1f, 0.2f, 0.3f, 0.4f, 0.5f, 0.6f, 0.7f, 0.8f, 0.9f, 1.0f};
 constexpr int kAbsenceLobeSamples = 16;
 
 // The light a connection's first surface reflects straight from the light sources through its
@@ -399,26 +397,13 @@ std::vector<std::array<float, kAbsenceRoughness.size()>> renderAtEachRoughness(c
 }
 }  // namespace
 
-HighlightProbe::HighlightProbe(int objects, bool render) : frames(objects) {
-  if (render) rendered.assign(kAbsenceRoughness.size(), HighlightEvidence(objects));
-}
-
-std::array<double, kAbsenceRoughness.size()> HighlightProbe::contrast(int o) const {
-  std::array<double, kAbsenceRoughness.size()> c{};
-  for (size_t k = 0; k < c.size(); ++k) c[k] = rendered[k].contrast(o);
-  return c;
-}
-
-std::array<double, kAbsenceRoughness.size()> HighlightProbe::error(int o) const {
-  std::array<double, kAbsenceRoughness.size()> e{};
-  for (size_t k = 0; k < e.size(); ++k) e[k] = rendered[k].standardError(o);
-  return e;
-}
-
-HighlightProbe LightDecisions::probeHighlights(const TexelSpace& space, const FitBatches& batches, bool render) const {
-  HighlightProbe p(a_.objectCount(), render);
-  HighlightEvidence& evidence = p.frames;
-  std::vector<HighlightEvidence>& rendered = p.rendered;
+void LightDecisions::decideHighlights(const TexelSpace& space, const FitBatches& batches) {
+  const Timer timer;
+  const int objects = a_.objectCount();
+  HighlightEvidence evidence(objects);
+  // What the fit renders on the same connections at each tested roughness (highlight_absence).
+  std::vector<HighlightEvidence> rendered;
+  if (c_.highlightAbsence) rendered.assign(kAbsenceRoughness.size(), HighlightEvidence(objects));
   for (uint64_t probe = 0; probe < kHighlightProbeBatches; ++probe) {
     Batch batch = batches.sample(space, (uint64_t{1} << 40) + probe, c_.rayFootprint);
     gains_.apply(batch.rays, batch.frame);
@@ -429,7 +414,7 @@ HighlightProbe LightDecisions::probeHighlights(const TexelSpace& space, const Fi
       if (sawLight[j] >= 0) lum[j] = luminance(batch.rays[j].reference / batch.rays[j].gain);
     });
     evidence.addBatch(batch.slot, batch.object, lum, sawLight);
-    if (!render) continue;
+    if (!c_.highlightAbsence) continue;
     std::vector<int8_t> counted;
     const uint64_t stream = hashTuple({c_.seed, streamTag(RandomStream::HighlightAbsence), probe});
     const auto atEach = renderAtEachRoughness(*w_.scene, a_, batch, sawLight, lum, counted, stream);
@@ -439,83 +424,47 @@ HighlightProbe LightDecisions::probeHighlights(const TexelSpace& space, const Fi
       rendered[k].addBatch(batch.slot, batch.object, atRoughness, counted);
     }
   }
-  return p;
-}
-
-void LightDecisions::decideHighlights(const TexelSpace& space, const FitBatches& batches) {
-  const Timer timer;
-  const int objects = a_.objectCount();
-  const HighlightProbe probe = probeHighlights(space, batches, c_.highlightAbsence);
-  const HighlightEvidence& evidence = probe.frames;
   for (int o = 0; o < objects; ++o) {
     r_.highlightPairs[o] = evidence.texels(o), r_.highlightContrast[o] = evidence.contrast(o);
     r_.highlight[o] = !r_.emitter[o] && evidence.observed(o, c_.highlightMinPairs, c_.highlightMinContrast);
     std::string outcome = r_.highlight[o] ? "roughness/specular fitted" : "roughness/specular unconstrained (kept at init)";
-    r_.roughnessAtLeast[o] = -1;
+    r_.roughnessAtLeast[o] = -1, r_.sharpBelow[o] = -1;
     if (c_.highlightAbsence && !r_.highlight[o] && !r_.emitter[o] && !r_.outOfModel[o] &&
         evidence.texels(o) >= static_cast<uint64_t>(c_.highlightMinPairs)) {
-      const auto contrast = probe.contrast(o), error = probe.error(o);
+      std::array<double, kAbsenceRoughness.size()> contrast{}, error{};
+      for (size_t k = 0; k < kAbsenceRoughness.size(); ++k)
+        contrast[k] = rendered[k].contrast(o), error[k] = rendered[k].standardError(o);
       const RoughnessFromAbsence r =
           roughnessFromAbsence(evidence.contrast(o), evidence.standardError(o), kAbsenceRoughness, contrast, error);
       std::string curve;
       for (size_t k = 0; k < kAbsenceRoughness.size(); ++k)
         curve += fmt::format(" {:.1f}: {:+.1f}% +- {:.1f}%;", kAbsenceRoughness[k], 100 * contrast[k], 100 * error[k]);
       spdlog::debug("fit: object {} ({}) rendered at each roughness:{}", o, a_.names[o], curve);
-      r_.roughnessAtLeast[o] = r.atLeast;
+      r_.roughnessAtLeast[o] = r.atLeast, r_.sharpBelow[o] = r.sharpBelow;
       a_.roughness[o] = r.chosen;
-      r_.sharpLobe[o] = c_.highlightSharpLobes && r.sharpBranch();
-      if (r_.sharpLobe[o]) {
-        r_.highlight[o] = 1;
-        const float branch[3] = {r.sharpBelow, r.roughAbove, a_.specular[o]};
-        std::copy(branch, branch + 3, r_.sharpBranch.begin() + 3 * o);
-      }
-      outcome = r_.sharpLobe[o]
-                    ? fmt::format("roughness/specular fitted from {:.2f}: the frames rule out ({:.2f}, {:.2f}) at "
-                                  "specular {:.2f}, and allow a lobe too sharp to have pointed at a light as well as a "
-                                  "rough one",
-                                  r.chosen, r.sharpBelow, r.roughAbove, a_.specular[o])
-              : r.roughestRuledOut
+      outcome = r.roughestRuledOut
                     ? fmt::format("roughness 1: even the roughest renders {:+.1f}% at specular {:.2f}",
                                   100 * contrast.back(), a_.specular[o])
                     : fmt::format("roughness {:.2f}: a smoother lobe would have shown a highlight, ruled out below "
-                                  "{:.1f} at specular {:.2f} (rendered {:+.1f}% there, {:+.1f}% at {:.1f})",
+                                  "{:.1f} at specular {:.2f} (rendered {:+.1f}% there, {:+.1f}% at {:.1f}){}",
                                   r.chosen, r.atLeast, a_.specular[o],
                                   100 * contrast[std::find(kAbsenceRoughness.begin(), kAbsenceRoughness.end(),
                                                            r.atLeast) - kAbsenceRoughness.begin()],
-                                  100 * contrast.front(), kAbsenceRoughness.front());
+                                  100 * contrast.front(), kAbsenceRoughness.front(),
+                                  r.sharpBranch() ? fmt::format("; or a lobe sharper than {:.2f}, which never pointed "
+                                                                "at a light from the frames' views",
+                                                                r.sharpBelow)
+                                                  : "");
     }
     spdlog::info(
         "fit: object {} ({}): {} texels seen with and without a light reflected, {:+.1f}% +- {:.1f}% brighter with it "
         "-> {}",
         o, a_.names[o], evidence.texels(o), 100 * evidence.contrast(o), 100 * evidence.standardError(o), outcome);
   }
-  const auto sharp = std::count(r_.sharpLobe.begin(), r_.sharpLobe.end(), 1);
-  spdlog::info(
-      "fit: highlight test: {} objects fitted ({} of them on the sharp branch), {} bounded by the absence of one, in "
-      "{:.1f} s",
-      std::count(r_.highlight.begin(), r_.highlight.end(), 1), sharp,
-      std::count_if(r_.roughnessAtLeast.begin(), r_.roughnessAtLeast.end(), [](float r) { return r >= 0; }) - sharp,
-      timer.seconds());
-}
-
-void LightDecisions::keepSharpLobesTheFramesAllow(const TexelSpace& space, const FitBatches& batches) {
-  if (std::find(r_.sharpLobe.begin(), r_.sharpLobe.end(), 1) == r_.sharpLobe.end()) return;
-  const HighlightProbe probe = probeHighlights(space, batches, true);
-  for (int o = 0; o < a_.objectCount(); ++o) {
-    if (!r_.sharpLobe[o]) continue;
-    const auto contrast = probe.contrast(o), error = probe.error(o);
-    const bool allowed = absenceAllows(probe.frames.contrast(o), probe.frames.standardError(o), kAbsenceRoughness,
-                                       contrast, error, a_.roughness[o]);
-    spdlog::info("fit: object {} ({}) ended at roughness {:.3f}, specular {:.3f} on the sharp branch: {}", o,
-                 a_.names[o], a_.roughness[o], a_.specular[o],
-                 allowed ? "the frames allow it (the absence of a highlight tested again at this specular)"
-                         : fmt::format("the frames rule it out at this specular (they show {:+.1f}% +- {:.1f}% "
-                                       "brighter with a light reflected), so the rough branch's middle",
-                                       100 * probe.frames.contrast(o), 100 * probe.frames.standardError(o)));
-    if (allowed) continue;
-    r_.sharpLobe[o] = 0, r_.highlight[o] = 0;
-    a_.roughness[o] = 0.5f * (r_.roughnessAtLeast[o] + 1.0f), a_.specular[o] = r_.sharpBranch[3 * o + 2];
-  }
+  spdlog::info("fit: highlight test: {} objects fitted, {} bounded by the absence of one, in {:.1f} s",
+               std::count(r_.highlight.begin(), r_.highlight.end(), 1),
+               std::count_if(r_.roughnessAtLeast.begin(), r_.roughnessAtLeast.end(), [](float r) { return r >= 0; }),
+               timer.seconds());
 }
 
 }  // namespace relume

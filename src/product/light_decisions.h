@@ -4,7 +4,6 @@
 // emission stage and again after the first albedo stage (light_evidence.h), the radiance-fraction
 // pruning of the ablation, and the highlight test before the material stage.
 #pragma once
-#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -17,7 +16,6 @@
 #include "product/fit_workspace.h"
 #include "product/frame_gains.h"
 #include "product/light_evidence.h"
-#include "sampling/highlight_evidence.h"
 
 namespace relume {
 
@@ -25,10 +23,6 @@ struct ObjectRoles {
   std::vector<uint8_t> emitter;           // a light-source candidate, or a light once decided
   std::vector<uint8_t> outOfModel;        // excluded from emission and albedo (light_evidence.h)
   std::vector<uint8_t> highlight;         // roughness and specular fitted
-  std::vector<uint8_t> sharpLobe;         // fitted on the sharp branch of the absence (no highlight seen)
-  // Per object, 3 each, on the sharp branch: the open roughness interval the absence of a highlight
-  // rules out, and the specular it was tested at.
-  std::vector<float> sharpBranch;
   uint8_t refitEmission = 0;              // the re-decision changed the light sources: run emission_refit
   uint8_t clippedLights = 0;              // the first decision's lights include some seen only saturated
   uint8_t clippedScaleMoving = 0;         // their last scale moved them by more than its error
@@ -36,25 +30,14 @@ struct ObjectRoles {
   std::vector<uint64_t> highlightPairs;   // texels compared with and without a light reflected
   std::vector<double> highlightContrast;  // their mean contrast
   std::vector<float> roughnessAtLeast;    // what the absence of a highlight bounds it by (-1: not tested)
+  // Below which the absence also allows a lobe too sharp to have pointed at a light from the
+  // frames' views (roughnessFromAbsence's sharpBelow; -1: it does not).
+  std::vector<float> sharpBelow;
   std::vector<double> observedSum;        // luminance of the references seen in the emission stage
   std::vector<uint64_t> observedCount;
 
   explicit ObjectRoles(int objects);
   void serialise(CheckpointIo& io);
-};
-
-// The roughnesses the absence of a highlight is tested at (roughnessFromAbsence).
-inline constexpr std::array<float, 10> kAbsenceRoughness = {0.1f, 0.2f, 0.3f, 0.4f, 0.5f,
-                                                            0.6f, 0.7f, 0.8f, 0.9f, 1.0f};
-
-// What the highlight probes found: the frames' contrast per object and, when rendered, the fit's
-// at each roughness of kAbsenceRoughness.
-struct HighlightProbe {
-  HighlightEvidence frames;
-  std::vector<HighlightEvidence> rendered;  // per roughness; empty when not rendered
-  HighlightProbe(int objects, bool render);
-  std::array<double, kAbsenceRoughness.size()> contrast(int object) const;
-  std::array<double, kAbsenceRoughness.size()> error(int object) const;
 };
 
 class LightDecisions {
@@ -89,15 +72,9 @@ class LightDecisions {
   // texels. On the other objects seen both ways often enough (highlight_absence), the absence of
   // a highlight bounds the roughness from below (roughnessFromAbsence: the roughnesses the fit
   // would render a brighter contrast at than the frames show are ruled out), and the roughness
-  // takes the middle of what is left; elsewhere they keep their init and are reported unconstrained.
-  // Where the frames allow a lobe too sharp to have shown a light as well (the sharp branch,
-  // highlight_sharp_lobes), roughness and specular are fitted from that middle: the room's
-  // reflections in the object decide between the branches.
+  // takes the middle of what is left, the rough branch (a sharp branch below the ruled-out ones is
+  // reported, sharpBelow); elsewhere they keep their init and are reported unconstrained.
   void decideHighlights(const TexelSpace& space, const FitBatches& batches);
-  // After the material stage: the absence of a highlight is tested again on the same connections
-  // at each sharp-branch object's fitted specular. One whose fitted roughness that rules out takes
-  // the rough branch's middle again, at the specular it was first tested at, and counts as bounded.
-  void keepSharpLobesTheFramesAllow(const TexelSpace& space, const FitBatches& batches);
 
   // The emission stage's references, per object (the radiance-fraction test compares with them).
   void observe(const Batch& batch);
@@ -106,9 +83,6 @@ class LightDecisions {
   std::vector<uint8_t> albedoHeld() const;
 
  private:
-  // The probe connections (kHighlightProbeBatches batches, the same every call): the frames'
-  // contrast per object, and with `render` the fit's at each roughness of kAbsenceRoughness.
-  HighlightProbe probeHighlights(const TexelSpace& space, const FitBatches& batches, bool render) const;
   void prune();
   void restartAlbedo(const TexelSpace& space, const std::vector<LightEvidence>& evidence,
                      const std::vector<uint8_t>& dropped);

@@ -380,16 +380,13 @@ std::string texturesSection(const fs::path& work, const fs::path& out, const Sce
 // Whether the frames show a highlight on the object, and if not, what that rules out.
 std::string highlightCell(const Json& o) {
   if (o.at("highlight_observed").get<bool>()) return "yes: roughness and specular fitted";
-  if (const Json sharp = o.value("sharp_lobe", Json(nullptr)); sharp.is_object()) {
-    const Json& band = sharp.at("roughness_ruled_out");
-    return fmt::format(
-        "no, but a lobe too sharp to have pointed at a light is allowed: roughness and specular fitted on the room's "
-        "reflections (the frames rule out {:.2f} to {:.2f})",
-        band.at(0).get<double>(), band.at(1).get<double>());
-  }
   const Json bound = o.value("roughness_at_least", Json(nullptr));
-  return bound.is_number() ? fmt::format("no: roughness at least {:.1f}", bound.get<double>())
-                           : std::string("no: roughness and specular not constrained");
+  if (!bound.is_number()) return "no: roughness and specular not constrained";
+  const Json sharper = o.value("or_sharper_than", Json(nullptr));
+  return sharper.is_number() ? fmt::format("no: roughness at least {:.1f}, or below {:.2f} (a lobe too sharp to have "
+                                           "pointed at a light from the frames' views)",
+                                           bound.get<double>(), sharper.get<double>())
+                             : fmt::format("no: roughness at least {:.1f}", bound.get<double>());
 }
 
 std::string materialsSection(const Json& materials, const SceneDescription* truth) {
@@ -598,7 +595,8 @@ img.tex{width:256px;height:256px} figure{display:inline-block;margin:4px} figcap
         "{:.3f} over the {} with observed highlights); emitters {}/{} found; emission error {:.1f}%. "
         "Peers' measures: albedo PSNR {:.2f} dB and roughness PSNR {:.2f} dB on 8-bit maps, emission IoU {:.3f}.</p>",
         scores.albedoMae, scores.albedoPsnr, scores.albedoTexels, scores.roughnessMaeAll, scores.specularMaeAll,
-        scores.opaqueObjects, scores.roughnessMae, scores.specularMae, scores.materialObjects, scores.emittersCorrect, scores.emittersTrue, 100 * scores.emissionRelError, scores.albedoPsnr8,
+        scores.opaqueObjects, scores.roughnessMae, scores.specularMae, scores.materialObjects, scores.emittersCorrect,
+        scores.emittersTrue, 100 * scores.emissionRelError, scores.albedoPsnr8,
         scores.roughnessPsnr8, scores.emissionIou);
   if (truth && scores.albedoStandardErrorRms >= 0)
     page += fmt::format(

@@ -43,20 +43,17 @@ bool HighlightEvidence::observed(int o, int minTexels, double minContrast) const
          contrast(o) - 2 * standardError(o) >= minContrast;
 }
 
-namespace {
-// A highlight only adds light: a texel darker with a light reflected (occlusion the mesh lacks,
-// noise) says nothing about the lobe, and counted as it is it would rule out what the frames
-// cannot.
-bool allowedContrast(double observed, double observedError, double rendered, double renderedError) {
-  return rendered - std::max(observed, 0.0) <= 2 * std::sqrt(observedError * observedError + renderedError * renderedError);
-}
-}  // namespace
-
 RoughnessFromAbsence roughnessFromAbsence(double observed, double observedError, std::span<const float> grid,
                                           std::span<const double> rendered, std::span<const double> renderedError) {
   CHECK(!grid.empty() && grid.back() == 1.0f && rendered.size() == grid.size() && renderedError.size() == grid.size());
   CHECK(std::is_sorted(grid.begin(), grid.end()));
-  const auto allowed = [&](size_t k) { return allowedContrast(observed, observedError, rendered[k], renderedError[k]); };
+  // A highlight only adds light: a texel darker with a light reflected (occlusion the mesh lacks,
+  // noise) says nothing about the lobe, and counted as it is it would rule out what the frames
+  // cannot.
+  const double shown = std::max(observed, 0.0);
+  const auto allowed = [&](size_t k) {
+    return rendered[k] - shown <= 2 * std::sqrt(observedError * observedError + renderedError[k] * renderedError[k]);
+  };
   RoughnessFromAbsence r;
   if (!allowed(grid.size() - 1)) {
     r.roughestRuledOut = true;
@@ -69,24 +66,8 @@ RoughnessFromAbsence roughnessFromAbsence(double observed, double observedError,
   if (lowest == 0) return r;
   size_t smoothestRuledOut = 0;
   while (allowed(smoothestRuledOut)) ++smoothestRuledOut;
-  if (smoothestRuledOut > 0) {
-    r.sharpBelow = 0.5f * (grid[smoothestRuledOut - 1] + grid[smoothestRuledOut]);
-    r.roughAbove = 0.5f * (grid[lowest - 1] + grid[lowest]);
-  }
+  if (smoothestRuledOut > 0) r.sharpBelow = 0.5f * (grid[smoothestRuledOut - 1] + grid[smoothestRuledOut]);
   return r;
-}
-
-bool absenceAllows(double observed, double observedError, std::span<const float> grid,
-                   std::span<const double> rendered, std::span<const double> renderedError, float roughness) {
-  CHECK(!grid.empty() && rendered.size() == grid.size() && renderedError.size() == grid.size());
-  const size_t above = static_cast<size_t>(std::lower_bound(grid.begin(), grid.end(), roughness) - grid.begin());
-  if (above == 0 || above == grid.size()) {
-    const size_t k = above == 0 ? 0 : grid.size() - 1;
-    return allowedContrast(observed, observedError, rendered[k], renderedError[k]);
-  }
-  const double t = (roughness - grid[above - 1]) / (grid[above] - grid[above - 1]);
-  return allowedContrast(observed, observedError, (1 - t) * rendered[above - 1] + t * rendered[above],
-                         (1 - t) * renderedError[above - 1] + t * renderedError[above]);
 }
 
 }  // namespace relume

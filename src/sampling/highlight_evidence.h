@@ -44,21 +44,17 @@ class HighlightEvidence {
 // A smoother roughness allowed below the ruled-out ones is a second branch: a lobe so sharp that
 // it never pointed at a light from the frames' views (the frames' "with a light reflected" texels
 // see a light within about 10 degrees of the mirror direction, outside such a lobe). The absence
-// of a highlight cannot tell it from a rough lobe; the room's reflections can (fit.md). Then the
-// frames allow roughnesses below `sharpBelow` and above `roughAbove` (each half way between an
-// allowed and a ruled-out roughness of the grid) and rule out those between.
+// of a highlight cannot tell it from a rough lobe. `sharpBelow` is then the roughness under which
+// the frames allow it (half way between the grid's last allowed and first ruled-out roughness);
+// the bound [atLeast, 1] holds for a lobe no sharper than that.
 struct RoughnessFromAbsence {
   float atLeast = 1;
   float chosen = 1;
   bool roughestRuledOut = false;
-  float sharpBelow = -1, roughAbove = -1;  // -1: no sharp branch
+  float sharpBelow = -1;  // -1: no sharp branch
   bool sharpBranch() const { return sharpBelow >= 0; }
 };
 RoughnessFromAbsence roughnessFromAbsence(double observed, double observedError, std::span<const float> grid,
                                           std::span<const double> rendered, std::span<const double> renderedError);
-// Whether the frames allow `roughness` by the same test, its rendered contrast and error linear
-// between the grid's (below the grid's smoothest, the smoothest's).
-bool absenceAllows(double observed, double observedError, std::span<const float> grid,
-                   std::span<const double> rendered, std::span<const double> renderedError, float roughness);
 
 }  // namespace relume

@@ -411,4 +411,3 @@ TEST(LightEvidence, PixelsBesideABrighterObjectAreTold) {
   EXPECT_GT(beside, 8);
   EXPECT_GT(apart, 1000);
 }
-

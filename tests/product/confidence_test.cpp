@@ -295,3 +295,21 @@ TEST(Confidence, SettledAlbedoThroughACheckpoint) {
   EXPECT_NE(errorReading(tampered, 2).find("albedo.beyond_one_count 5 exceeds the albedo's 2 texels"),
             std::string::npos);
 }
+
+// What the absence of a highlight decided per object, the sharp branch included, comes back from a
+// checkpoint: a fit resumed after the material stage reports the same bounds.
+TEST(Confidence, MaterialEvidenceThroughACheckpoint) {
+  ObjectRoles roles(3);
+  roles.highlight = {0, 1, 0};
+  roles.roughnessAtLeast = {0.6f, -1.0f, 0.4f};
+  roles.sharpBelow = {0.15f, -1.0f, -1.0f};
+  Checkpoint ck;
+  CheckpointIo writer = CheckpointIo::writer(ck);
+  roles.serialise(writer);
+  ObjectRoles back(3);
+  CheckpointIo reader = CheckpointIo::reader(ck);
+  back.serialise(reader);
+  EXPECT_EQ(back.highlight, roles.highlight);
+  EXPECT_EQ(back.roughnessAtLeast, roles.roughnessAtLeast);
+  EXPECT_EQ(back.sharpBelow, roles.sharpBelow);
+}

@@ -94,12 +94,10 @@ struct UnplacedTally {
 
 Json materialEvidence(const ObjectRoles& roles, int o) {
   if (roles.highlight[o]) return "highlights";
-  if (roles.roughnessAtLeast[o] >= 0 && roles.sharpBelow[o] >= 0)
-    return {{"absence_of_highlights",
-             {{"roughness_at_least", roles.roughnessAtLeast[o]}, {"or_sharper_than", roles.sharpBelow[o]}}}};
-  if (roles.roughnessAtLeast[o] >= 0)
-    return {{"absence_of_highlights", {{"roughness_at_least", roles.roughnessAtLeast[o]}}}};
-  return "none (kept at its prior)";
+  if (roles.roughnessAtLeast[o] < 0) return "none (kept at its prior)";
+  Json bound = {{"roughness_at_least", roles.roughnessAtLeast[o]}};
+  if (roles.sharpBelow[o] >= 0) bound["or_sharper_than"] = roles.sharpBelow[o];
+  return {{"absence_of_highlights", bound}};
 }
 
 }  // namespace
@@ -205,21 +203,18 @@ TexelConfidence texelConfidence(const Workspace& w, const TexelSpace& space, con
     float error = 0;
     if (!settled.standardError.empty())
       for (size_t i = 3 * t; i < 3 * t + 3; ++i) error = std::max(error, settled.error(i));
+    const float* beyondOne = settled.unboundedBeyondOne(static_cast<uint32_t>(t));
     TexelEvidence e = TexelEvidence::Measured;
     if (observations <= 0) e = TexelEvidence::Unseen;
     else if (appearance.isEmissive(o))
       e = agrees[2] >= kSaturatedShare ? TexelEvidence::LightSaturated : TexelEvidence::LightMeasured;
     else if (observations < kFewObservations) e = TexelEvidence::Few;
     else if (agrees[1] > kDisagreeShare) e = TexelEvidence::Disagree;
-    else if (settled.unboundedBeyondOne(static_cast<uint32_t>(t)) && !lights.near(space.map.point(w.mesh, t)))
-      e = TexelEvidence::UnderLit;
+    else if (beyondOne && !lights.near(space.map.point(w.mesh, t))) e = TexelEvidence::UnderLit;
     else if (error > kUncertainAlbedo) e = TexelEvidence::Uncertain;
     if (median && observations > 0 && !appearance.isEmissive(o)) {
       const Color seen = median->at(x / perInit, y / perInit).max(0.0f);
-      const double missing =
-          e == TexelEvidence::UnderLit
-              ? luminance(missingRadiance(settled.unboundedBeyondOne(static_cast<uint32_t>(t)), seen))
-              : 0.0;
+      const double missing = e == TexelEvidence::UnderLit ? luminance(missingRadiance(beyondOne, seen)) : 0.0;
       unplaced.add(o, luminance(seen), missing, missing > 0 ? space.map.point(w.mesh, t) : Vec3::Zero());
     }
     c.evidence[t] = static_cast<uint8_t>(e);

@@ -9,7 +9,7 @@
 //                     highlight;
 //   under-lit         the frames show more than it could return with albedo 1 under the fitted lights
 //                     (the albedo fit without its bounds exceeds 1 by kUnderLitExcess and by
-//                     kUnderLitErrors standard errors in some channel), and not within three
+//                     kUnderLitErrors standard errors in some channel), and not within four
 //                     pixel footprints of a light source (whose radiance the pixels there mix
 //                     in): lit by light no light source of the fit supplies (a lamp seen only
 //                     from behind, a window outside every frame); its albedo is too bright and the

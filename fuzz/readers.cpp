@@ -20,6 +20,8 @@
 #include "core/error.h"
 #include "io/image.h"
 #include "optim/checkpoint.h"
+#include "product/confidence.h"
+#include "product/light_decisions.h"
 #include "sampling/visibility.h"
 #include "scene/appearance.h"
 #include "scene/mesh.h"
@@ -94,6 +96,20 @@ void touchCheckpoint(const fs::path& file) {
     } catch (const Error&) {
     }
   (void)c.bytes("albedo");
+  // The per-object and per-texel records `fit --resume` reads after the parameters, sized as it
+  // sizes them: objects from the emitter flags, texels from the albedo (3 floats each).
+  try {
+    ObjectRoles roles(static_cast<int>(std::min<size_t>(c.bytes("emitter"), 4096)));
+    CheckpointIo io = CheckpointIo::reader(c);
+    roles.serialise(io, file.parent_path());
+  } catch (const Error&) {
+  }
+  try {
+    SettledAlbedo settled;
+    CheckpointIo io = CheckpointIo::reader(c);
+    settled.serialise(io, c.bytes("albedo") / (3 * sizeof(float)), file.parent_path());
+  } catch (const Error&) {
+  }
 }
 
 // `synth --imperfect SPEC`: a spec that parses must survive its canonical form unchanged.

@@ -5,7 +5,8 @@
   relume prepare S/cap --out S/work --res 64 --gutter-res 64 --tile 16
   echo '{"stop_after_iterations": 2, "checkpoint_every": 1}' > S/fit.json && relume fit S/work --config S/fit.json
   scripts/fuzz_seeds.py S
-`scripts/fuzz_seeds.py --colmap` writes only the COLMAP seeds (made by hand, no build needed).
+`scripts/fuzz_seeds.py --hand-made` writes only the seeds made by hand (COLMAP models, the checkpoint's
+records), which need no build.
 Inputs the fuzzer found (crash-*, timeout-*, oom-*) live next to the seeds and are never rewritten."""
 import json, os, shutil, struct, sys
 
@@ -58,8 +59,31 @@ def colmap_seeds():
     put("colmap-binary", "models", colmap_model(cams, ims))
 
 
-if sys.argv[1:] == ["--colmap"]:
+# A checkpoint holding what `fit --resume` reads after the parameters, for two objects (the second
+# with a roughness bound and a sharp branch) and two texels (the second beyond albedo 1). The
+# harness sizes the records from `emitter` and `albedo`.
+def checkpoint_records_seed():
+    arrays = {
+        "albedo": struct.pack("<6f", 0.5, 0.5, 0.5, 0.9, 0.9, 0.9),
+        "albedo.standard_error": struct.pack("<6f", 0.01, 0.01, 0.01, -1, 0.02, 0.02),
+        "albedo.beyond_one_count": struct.pack("<Q", 1),
+        "albedo.beyond_one": struct.pack("<I", 1),
+        "albedo.beyond_one_albedo": struct.pack("<3f", 1.2, 1.1, 1.3),
+        "emitter": bytes([1, 0]), "out_of_model": bytes([0, 0]), "highlight": bytes([0, 0]),
+        "refit_emission": bytes([0]), "clipped_lights": bytes([0]), "clipped_scale_moving": bytes([0]),
+        "highlight_pairs": struct.pack("<2Q", 0, 40), "highlight_contrast": struct.pack("<2d", 0, 0.03),
+        "roughness_at_least": struct.pack("<2f", -1, 0.6), "sharp_below": struct.pack("<2f", -1, 0.15),
+        "observed.sum": struct.pack("<2d", 80.5, 12.25), "observed.count": struct.pack("<2Q", 7, 49),
+    }
+    names = sorted(arrays)
+    text = json.dumps({"meta": {"light_decisions": [{"object": 0, "verdict": "light"}]},
+                       "arrays": [[n, len(arrays[n])] for n in names]}, separators=(",", ":")).encode()
+    put("checkpoint", "records.bin", b"RLMCKP01" + struct.pack("<Q", len(text)) + text + b"".join(arrays[n] for n in names))
+
+
+if sys.argv[1:] == ["--hand-made"]:
     colmap_seeds()
+    checkpoint_records_seed()
     sys.exit(0)
 
 
@@ -120,3 +144,4 @@ text = compact(header).encode()
 put("checkpoint", "fit.bin", ck[:8] + struct.pack("<Q", len(text)) + text + bytes(sum(n for _, n in header["arrays"])))
 put("checkpoint", "empty.bin", ck[:8] + struct.pack("<Q", 24) + b'{"arrays":[],"meta":{}} ')
 colmap_seeds()
+checkpoint_records_seed()

@@ -482,7 +482,7 @@ void Fit::serialiseState(CheckpointIo& io) {
   for (ParamGroup& g : groups) io.array(g.name() + ".values", g.values);
   optimiser_.serialise(io, groups, appearance_.albedo.rgb.size());
   settled_.serialise(io, appearance_.albedo.rgb.size() / 3, w_.dir);
-  roles_.serialise(io);
+  roles_.serialise(io, w_.dir);
   gains_.serialise(io);
   poses_.serialise(io, w_);
 }

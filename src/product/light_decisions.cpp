@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <filesystem>
 #include <map>
 
 #include "core/error.h"
@@ -37,7 +39,7 @@ ObjectRoles::ObjectRoles(int objects)
       observedSum(objects, 0.0),
       observedCount(objects, 0) {}
 
-void ObjectRoles::serialise(CheckpointIo& io) {
+void ObjectRoles::serialise(CheckpointIo& io, const std::filesystem::path& work) {
   io.json("light_decisions", lightDecisions);
   io.array("emitter", emitter);
   io.array("out_of_model", outOfModel);
@@ -51,6 +53,25 @@ void ObjectRoles::serialise(CheckpointIo& io) {
   if (io.optional("sharp_below", true)) io.array("sharp_below", sharpBelow);  // older checkpoints: none
   io.array("observed.sum", observedSum);
   io.array("observed.count", observedCount);
+  if (io.writing()) return;
+  // What materials.json, confidence.json and the light decisions take from here as it is.
+  const auto flag = [](uint8_t v) { return v <= 1; };
+  for (const auto& [name, flags] : {std::pair<const char*, const std::vector<uint8_t>*>{"emitter", &emitter},
+                                    {"out_of_model", &outOfModel},
+                                    {"highlight", &highlight}})
+    if (!std::all_of(flags->begin(), flags->end(), flag))
+      fail("{}: checkpoint's {} holds a value that is neither 0 nor 1", work.string(), name);
+  if (!flag(refitEmission) || !flag(clippedLights) || !flag(clippedScaleMoving))
+    fail("{}: checkpoint's refit_emission, clipped_lights or clipped_scale_moving is neither 0 nor 1", work.string());
+  const auto bound = [](float v) { return v == -1.0f || (v >= 0.0f && v <= 1.0f); };
+  for (size_t o = 0; o < roughnessAtLeast.size(); ++o)
+    if (!bound(roughnessAtLeast[o]) || !bound(sharpBelow[o]) || (roughnessAtLeast[o] < 0 && sharpBelow[o] >= 0))
+      fail("{}: checkpoint's roughness_at_least / sharp_below of object {} ({}, {}) is no roughness bound (-1 or "
+           "in [0, 1], sharp_below only with roughness_at_least)",
+           work.string(), o, roughnessAtLeast[o], sharpBelow[o]);
+  for (size_t o = 0; o < observedSum.size(); ++o)
+    if (!std::isfinite(observedSum[o]))
+      fail("{}: checkpoint's observed.sum of object {} is not finite", work.string(), o);
 }
 
 void LightDecisions::observe(const Batch& batch) {

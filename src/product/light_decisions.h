@@ -5,6 +5,7 @@
 // pruning of the ablation, and the highlight test before the material stage.
 #pragma once
 #include <cstdint>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -37,7 +38,9 @@ struct ObjectRoles {
   std::vector<uint64_t> observedCount;
 
   explicit ObjectRoles(int objects);
-  void serialise(CheckpointIo& io);
+  // To and from a fit's checkpoint (of `work`, named in errors); reading, sized for the objects
+  // first, and refused when a value is none these fields can hold.
+  void serialise(CheckpointIo& io, const std::filesystem::path& work);
 };
 
 class LightDecisions {

@@ -3,6 +3,8 @@
 // frames show the sofa where the mesh has the floor and walls behind it.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "capture/objects.h"
 #include "capture/transforms.h"
 #include "core/error.h"
@@ -305,11 +307,41 @@ TEST(Confidence, MaterialEvidenceThroughACheckpoint) {
   roles.sharpBelow = {0.15f, -1.0f, -1.0f};
   Checkpoint ck;
   CheckpointIo writer = CheckpointIo::writer(ck);
-  roles.serialise(writer);
+  roles.serialise(writer, "WORK");
   ObjectRoles back(3);
   CheckpointIo reader = CheckpointIo::reader(ck);
-  back.serialise(reader);
+  back.serialise(reader, "WORK");
   EXPECT_EQ(back.highlight, roles.highlight);
   EXPECT_EQ(back.roughnessAtLeast, roles.roughnessAtLeast);
   EXPECT_EQ(back.sharpBelow, roles.sharpBelow);
+
+  // A value these fields cannot hold is refused, naming the work folder and the field.
+  const auto errorReading = [](const Checkpoint& tampered) {
+    ObjectRoles read(3);
+    CheckpointIo io = CheckpointIo::reader(tampered);
+    try {
+      read.serialise(io, "WORK");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  Checkpoint sharpAboveOne = ck;
+  sharpAboveOne.put("sharp_below", std::vector<float>{1.5f, -1.0f, -1.0f});
+  EXPECT_NE(errorReading(sharpAboveOne).find("WORK: checkpoint's roughness_at_least / sharp_below of object 0"),
+            std::string::npos);
+  Checkpoint sharpWithoutBound = ck;
+  sharpWithoutBound.put("sharp_below", std::vector<float>{0.15f, 0.2f, -1.0f});
+  EXPECT_NE(errorReading(sharpWithoutBound).find("sharp_below of object 1"), std::string::npos);
+  Checkpoint notANumber = ck;
+  notANumber.put("roughness_at_least", std::vector<float>{0.6f, -1.0f, std::nanf("")});
+  EXPECT_NE(errorReading(notANumber).find("of object 2"), std::string::npos);
+  Checkpoint flag = ck;
+  flag.put("highlight", std::vector<uint8_t>{0, 2, 0});
+  EXPECT_NE(errorReading(flag).find("WORK: checkpoint's highlight holds a value that is neither 0 nor 1"),
+            std::string::npos);
+  Checkpoint infiniteSum = ck;
+  infiniteSum.put("observed.sum", std::vector<double>{0.0, INFINITY, 0.0});
+  EXPECT_NE(errorReading(infiniteSum).find("observed.sum of object 1 is not finite"), std::string::npos);
+  EXPECT_EQ(errorReading(ck), "");
 }

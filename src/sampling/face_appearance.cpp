@@ -32,8 +32,8 @@ std::pair<float, float> robustMean(std::vector<Observation>& obs, int c, std::ve
 
 // Whether the pixels around `pixel` show the surface of face f (component `component`, plane
 // through p with normal n).
-bool interiorPixel(const Scene& scene, const std::vector<uint32_t>& component, uint32_t f, const Camera& cam,
-                   const Vec2& pixel, const Vec3& p, const Vec3& n, float planeTolerance) {
+bool pixelsAroundShowFace(const Scene& scene, const std::vector<uint32_t>& component, uint32_t f, const Camera& cam,
+                          const Vec2& pixel, const Vec3& p, const Vec3& n, float planeTolerance) {
   const float tolerance = planeTolerance * (p - cam.position).norm();
   for (const Vec2& offset : {Vec2(-1.5f, -1.5f), Vec2(1.5f, -1.5f), Vec2(-1.5f, 1.5f), Vec2(1.5f, 1.5f)}) {
     const auto dir = cam.rayDirection(pixel + offset);
@@ -72,8 +72,8 @@ std::vector<FaceAppearance> observeFaces(const Scene& scene, const std::vector<F
     for (size_t k : chosen)
       for (const Vec3& p : points) {
         const auto px = observe(scene, frames[k].camera, p, n);
-        if (!px || !interiorPixel(scene, component, static_cast<uint32_t>(f), frames[k].camera, *px, p, n,
-                                  o.planeTolerance))
+        if (!px || !pixelsAroundShowFace(scene, component, static_cast<uint32_t>(f), frames[k].camera, *px, p, n,
+                                         o.planeTolerance))
           continue;
         const auto c = store.bilinear(k, *px);
         if (!c) continue;

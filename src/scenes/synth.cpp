@@ -431,11 +431,17 @@ void writeObjectNames(const SynthCaptureOptions& o, const Appearance& a) {
 int writeSynthCapture(const SynthCaptureOptions& o) {
   const SynthScene synth = makeSynthScene(o.kind, o.atlasResolution, o.scanTriangles);
   const SceneDescription& gt = synth.scene;
+  // The cameras of a walk through the scene (phase 0: the training frames; 0.5: the held-out
+  // ones, between them), forming their pixels with the capture's filter.
+  const auto cameras = [&](int count, int width, int height, double phase) {
+    std::vector<Camera> cams = synthCameraPath(o.kind, count, width, height, phase);
+    for (Camera& cam : cams) cam.filter = o.pixelFilter;
+    return cams;
+  };
+  const std::vector<Camera> walk = cameras(o.frames, o.width, o.height, 0.0);
   // The training frames' flaws, planned before anything is written (a spec that leaves no frame fails).
   std::vector<FrameImperfection> plan;
   if (o.imperfections) {
-    std::vector<Camera> walk = synthCameraPath(o.kind, o.frames, o.width, o.height, 0.0);
-    for (Camera& cam : walk) cam.filter = o.pixelFilter;
     const std::string& unseen = o.imperfections->unseenObject;
     const std::vector<uint8_t> showsUnseen =
         unseen.empty() ? std::vector<uint8_t>{}
@@ -460,10 +466,9 @@ int writeSynthCapture(const SynthCaptureOptions& o) {
         std::tuple{"test", "transforms_test.json", o.testFrames, 0.5, o.testSpp, testWidth, testHeight}}) {
     ro.spp = spp;
     std::vector<Frame> frames;
-    auto cams = synthCameraPath(o.kind, count, width, height, phase);
-    for (Camera& cam : cams) cam.filter = o.pixelFilter;
     // Only the training frames have flaws: the held-out ones are the judge.
     const bool training = std::string(folder) == "images";
+    const std::vector<Camera> cams = training ? walk : cameras(count, width, height, phase);
     const ImperfectionSpec* flaws = training && o.imperfections ? &*o.imperfections : nullptr;
     Progress progress(training ? "synth frames" : "synth held-out", cams.size());
     for (size_t i = 0; i < cams.size(); ++i) {

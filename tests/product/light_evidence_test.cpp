@@ -3,6 +3,7 @@
 // glossy red table under the lamp are not.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <map>
 #include <set>
 
@@ -20,11 +21,12 @@ struct Observed {
   std::vector<int> objects;
 };
 
-// Rays through the pixel centres of a few lounge views, each compared with the converged radiance
-// the true appearance gives (what a capture's frames hold).
-Observed observe(const Scene& scene, const Appearance& truth, int width, int height) {
+// Rays through the pixel centres of `cameras`, each compared with the converged radiance the true
+// appearance gives (what a capture's frames hold).
+Observed observe(const Scene& scene, const Appearance& truth, const std::vector<Camera>& cameras) {
   Observed o;
-  for (const Camera& cam : synthCameraPath(SynthSceneKind::Lounge, 6, width, height, 0.0))
+  for (const Camera& cam : cameras) {
+    const int width = cam.width, height = cam.height;
     for (int y = 0; y < height; ++y)
       for (int x = 0; x < width; ++x) {
         const auto dir = cam.rayDirection(Vec2(x + 0.5f, y + 0.5f));
@@ -36,6 +38,7 @@ Observed observe(const Scene& scene, const Appearance& truth, int width, int hei
         o.rays.push_back(r);
         o.objects.push_back(hit->object);
       }
+  }
   const LightSampler lights(scene, truth);
   std::vector<Color> sum(o.rays.size(), Color::Zero());
   constexpr int kPaths = 64;
@@ -48,6 +51,11 @@ Observed observe(const Scene& scene, const Appearance& truth, int width, int hei
   }
   for (size_t j = 0; j < o.rays.size(); ++j) o.rays[j].reference = sum[j] / float(kPaths);
   return o;
+}
+
+// A few views of the lounge's walk.
+Observed observe(const Scene& scene, const Appearance& truth, int width, int height) {
+  return observe(scene, truth, synthCameraPath(SynthSceneKind::Lounge, 6, width, height, 0.0));
 }
 
 std::map<std::string, LightDecision> decide(const SceneDescription& s, const Scene& scene, const Appearance& current,
@@ -261,6 +269,50 @@ TEST_F(LightEvidenceTest, ALightNoFrameShowsLeavesItsSurfacesUnderLitFromItsDire
   for (size_t k = 0; k < lit.size(); ++k)
     if (!kLights.count(lounge_->scene.appearance.names[k])) {
       EXPECT_FALSE(underLit(lit[k], LightTestSettings{}).underLit) << k;
+    }
+}
+
+// Issue 38's weak window: the lounge's windows as dim and coloured as a sky and an evening light
+// (1.8 and 2.2 in luminance, beside a white sofa of 0.6), seen only from near the window wall,
+// looking along it, so that every pixel of a pane sees it at 35 degrees or more from its normal
+// (up to 85). Each is still a light, and its pixels show its emission to 3% per channel.
+TEST_F(LightEvidenceTest, AWeakColouredWindowSeenOnlyObliquelyIsALightWithItsEmission) {
+  Appearance truth = lounge_->scene.appearance;
+  const int windowA = objectNamed(truth, "window_a"), windowB = objectNamed(truth, "window_b");
+  truth.emission[windowA] = Color(1.2f, 1.8f, 3.6f), truth.emission[windowB] = Color(2.6f, 2.1f, 1.4f);
+  // Cameras with OpenCV axes (x right, y down, z forward) from `eye` towards `target`, y up in the world.
+  const auto lookAt = [](const Vec3& eye, const Vec3& target) {
+    Camera c;
+    c.width = 48, c.height = 36, c.fx = c.fy = 31.0f, c.cx = 24.0f, c.cy = 18.0f;
+    const Vec3 z = (target - eye).normalized(), x = z.cross(Vec3::UnitY()).normalized(), y = z.cross(x);
+    c.rotation.col(0) = x, c.rotation.col(1) = y, c.rotation.col(2) = z;
+    c.position = eye;
+    return c;
+  };
+  const std::vector<Camera> along = {
+      lookAt({0.5f, 1.2f, 3.85f}, {0, 1.5f, 0.6f}), lookAt({0.8f, 1.6f, 3.85f}, {0, 1.4f, 0.9f}),
+      lookAt({0.5f, 1.3f, 0.15f}, {0, 1.5f, 3.4f}), lookAt({0.8f, 1.6f, 0.15f}, {0, 1.4f, 3.0f})};
+  const Observed o = observe(*scene_, truth, along);
+  size_t windowRays = 0;
+  for (size_t j = 0; j < o.rays.size(); ++j) {
+    if (o.objects[j] != windowA && o.objects[j] != windowB) continue;
+    ++windowRays;
+    // The panes face +x; the premise: no pixel looks at one within 35 degrees of its normal.
+    ASSERT_LT(-o.rays[j].dir.x(), std::cos(35.0f * kPi / 180.0f)) << j;
+  }
+  ASSERT_GT(windowRays, 200u);
+  std::vector<LightEvidence> evidence;
+  const auto d = decide(lounge_->scene, *scene_, truth, o, &evidence);
+  for (int w : {windowA, windowB}) {
+    EXPECT_EQ(d.at(truth.names[w]).verdict, LightVerdict::Light) << d.at(truth.names[w]).why;
+    const LightEvidence::PixelEmission shown = evidence[w].pixelEmission(16);
+    EXPECT_FALSE(shown.lowerBound);
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(shown.emission[c], truth.emission[w][c], 0.03 * truth.emission[w][c]) << w << c;
+  }
+  for (const char* reflector : {"white_sofa", "walls", "floor"})
+    if (evidence[objectNamed(truth, reflector)].rays) {
+      EXPECT_EQ(d.at(reflector).verdict, LightVerdict::Reflector) << reflector << ": " << d.at(reflector).why;
     }
 }
 

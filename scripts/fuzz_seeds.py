@@ -78,7 +78,8 @@ def checkpoint_records_seed():
     names = sorted(arrays)
     text = json.dumps({"meta": {"light_decisions": [{"object": 0, "verdict": "light"}]},
                        "arrays": [[n, len(arrays[n])] for n in names]}, separators=(",", ":")).encode()
-    put("checkpoint", "records.bin", b"RLMCKP01" + struct.pack("<Q", len(text)) + text + b"".join(arrays[n] for n in names))
+    body = b"".join(arrays[n] for n in names)
+    put("checkpoint", "records.bin", b"RLMCKP01" + struct.pack("<Q", len(text)) + text + body)
 
 
 if sys.argv[1:] == ["--hand-made"]:

@@ -7,6 +7,9 @@
 #include <fstream>
 #include <iterator>
 
+#include "optim/checkpoint.h"
+#include "product/confidence.h"
+#include "product/light_decisions.h"
 #include "readers.h"
 
 namespace fs = std::filesystem;
@@ -45,6 +48,21 @@ TEST(Corpus, EveryFolderHasAReader) {
     if (!entry.is_directory()) continue;
     EXPECT_NE(std::find(names.begin(), names.end(), entry.path().filename().string()), names.end()) << entry.path();
   }
+}
+
+// The checkpoint seed made by hand (scripts/fuzz_seeds.py --hand-made) reads through the fit's
+// per-object records and the settled albedo's, so the fuzzer starts from an input that reaches them.
+TEST(CheckpointSeed, TheRecordsSeedReadsToTheEnd) {
+  const relume::Checkpoint c = relume::Checkpoint::read(kCorpus / "checkpoint" / "seed_records.bin");
+  relume::CheckpointIo io = relume::CheckpointIo::reader(c);
+  relume::ObjectRoles roles(2);
+  ASSERT_NO_THROW(roles.serialise(io, "seed"));
+  EXPECT_EQ(roles.roughnessAtLeast[1], 0.6f);
+  EXPECT_EQ(roles.sharpBelow[1], 0.15f);
+  relume::SettledAlbedo settled;
+  ASSERT_NO_THROW(settled.serialise(io, c.bytes("albedo") / (3 * sizeof(float)), "seed"));
+  EXPECT_TRUE(settled.beyondOneKnown);
+  EXPECT_EQ(settled.beyondOne, std::vector<uint32_t>{1});
 }
 
 }  // namespace

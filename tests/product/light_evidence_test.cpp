@@ -274,8 +274,8 @@ TEST_F(LightEvidenceTest, ALightNoFrameShowsLeavesItsSurfacesUnderLitFromItsDire
 
 // Issue 38's weak window: the lounge's windows as dim and coloured as a sky and an evening light
 // (1.8 and 2.2 in luminance, beside a white sofa of 0.6), seen only from near the window wall,
-// looking along it, so that every pixel of a pane sees it at 35 degrees or more from its normal
-// (up to 85). Each is still a light, and its pixels show its emission to 3% per channel.
+// looking along it, so that every pixel of a pane sees it at 35 degrees or more from its normal.
+// Each is still a light, and its pixels show its emission to 3% per channel.
 TEST_F(LightEvidenceTest, AWeakColouredWindowSeenOnlyObliquelyIsALightWithItsEmission) {
   Appearance truth = lounge_->scene.appearance;
   const int windowA = objectNamed(truth, "window_a"), windowB = objectNamed(truth, "window_b");

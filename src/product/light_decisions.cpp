@@ -56,11 +56,11 @@ void ObjectRoles::serialise(CheckpointIo& io, const std::filesystem::path& work)
   if (io.writing()) return;
   // What materials.json, confidence.json and the light decisions take from here as it is.
   const auto flag = [](uint8_t v) { return v <= 1; };
-  for (const auto& [name, flags] : {std::pair<const char*, const std::vector<uint8_t>*>{"emitter", &emitter},
-                                    {"out_of_model", &outOfModel},
-                                    {"highlight", &highlight}})
-    if (!std::all_of(flags->begin(), flags->end(), flag))
+  const auto requireFlags = [&](const char* name, const std::vector<uint8_t>& flags) {
+    if (!std::all_of(flags.begin(), flags.end(), flag))
       fail("{}: checkpoint's {} holds a value that is neither 0 nor 1", work.string(), name);
+  };
+  requireFlags("emitter", emitter), requireFlags("out_of_model", outOfModel), requireFlags("highlight", highlight);
   if (!flag(refitEmission) || !flag(clippedLights) || !flag(clippedScaleMoving))
     fail("{}: checkpoint's refit_emission, clipped_lights or clipped_scale_moving is neither 0 nor 1", work.string());
   const auto bound = [](float v) { return v == -1.0f || (v >= 0.0f && v <= 1.0f); };

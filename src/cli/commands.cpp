@@ -234,11 +234,20 @@ void registerFit(CLI::App& app, CommandTable& table) {
   c->add_option("--res", *maxRes, "cap on the final albedo resolution (default: what the frames resolve)")
       ->check(CLI::NonNegativeNumber);
   c->add_flag("--resume", *resume, "continue from WORK/checkpoint.bin");
+  auto budget = std::make_shared<std::string>();
+  c->add_option("--time-budget", *budget,
+                "end the fit in this time (600, 90s, 10m, 1.5h): the stage lengths follow from the measured cost of "
+                "its iterations (sets time_budget)");
   auto noReport = std::make_shared<bool>(false);
   c->add_flag("--no-report", *noReport, "skip WORK/report/ (`relume report WORK` writes it later)");
   table[c] = [=] {
     FitConfig cfg = config->empty() ? FitConfig{} : FitConfig::load(*config);
     if (*maxRes > 0) cfg.maxResolution = *maxRes;
+    if (!budget->empty()) {
+      const std::optional<double> seconds = parseDuration(*budget);
+      if (!seconds || *seconds <= 0) fail("--time-budget: '{}' is not a duration (600, 90s, 10m, 1.5h)", *budget);
+      cfg.timeBudget = static_cast<float>(*seconds);
+    }
     // Its checkpoint is written atomically into the work folder: clear what killed runs left.
     if (const size_t stale = removeStaleTemporaries(*work))
       spdlog::info("fit: removed {} temporaries of killed runs", stale);

@@ -8,6 +8,8 @@
 #include <xmmintrin.h>
 
 #include <atomic>
+#include <cctype>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -56,6 +58,32 @@ std::string formatDuration(double seconds) {
   return fmt::format("{}h{:02d}m", s / 3600, s % 3600 / 60);
 }
 
+std::optional<double> parseDuration(std::string_view text) {
+  double total = 0;
+  size_t i = 0;
+  int parts = 0;
+  while (i < text.size()) {
+    size_t j = i;
+    while (j < text.size() && (std::isdigit(static_cast<unsigned char>(text[j])) || text[j] == '.')) ++j;
+    double value = 0;
+    const auto [end, ec] = std::from_chars(text.data() + i, text.data() + j, value);
+    if (j == i || ec != std::errc() || end != text.data() + j) return std::nullopt;
+    double unit = 1;
+    if (j < text.size()) {
+      const char u = text[j++];
+      unit = u == 'h' ? 3600 : u == 'm' ? 60 : u == 's' ? 1 : 0;
+      if (unit == 0) return std::nullopt;
+    } else if (parts > 0) {
+      return std::nullopt;  // "1h30": the last number needs its unit too
+    }
+    total += value * unit;
+    ++parts;
+    i = j;
+  }
+  if (parts == 0 || !std::isfinite(total)) return std::nullopt;
+  return total;
+}
+
 namespace {
 thread_local Progress* innermostProgress = nullptr;  // the bar a new bar on this thread nests in
 }  // namespace
@@ -76,6 +104,11 @@ Progress::~Progress() {
 
 void Progress::advance(size_t n) {
   done_ += n;
+  refresh();
+}
+
+void Progress::setTotal(size_t total) {
+  total_ = std::max<size_t>(total, 1);
   refresh();
 }
 
@@ -111,7 +144,8 @@ void Progress::draw(bool final) {
   const double frac = fraction(), elapsed = timer_.seconds();
   const std::optional<double> eta = etaSeconds(elapsed, frac, 1.0);
   const int width = 30, filled = static_cast<int>(frac * width);
-  const std::string count = fmt::format("{}/{}", std::min<size_t>(done_, total_), total_);
+  const size_t total = total_;
+  const std::string count = fmt::format("{}/{}", std::min<size_t>(done_, total), total);
   std::fprintf(stderr, "\r%-18s [%s%s] %5.1f%% %9s %7s ETA %7s%s\033[K%s", label_.c_str(),
                std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(), 100.0 * frac, count.c_str(),
                formatDuration(elapsed).c_str(), eta ? formatDuration(*eta).c_str() : "--", note.c_str(),

@@ -9,6 +9,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 
 namespace relume {
 
@@ -36,6 +37,9 @@ class Timer {
 std::optional<double> etaSeconds(double elapsedSeconds, double done, double total);
 // "42s", "3m05s", "1h02m": a duration as a person reads it.
 std::string formatDuration(double seconds);
+// The reverse, in seconds: "600", "90s", "10m", "1.5h", "1h30m" (numbers each followed by h, m or
+// s, or one bare number of seconds). Empty for any other text.
+std::optional<double> parseDuration(std::string_view text);
 
 // Thread-safe progress bar on stderr: label, bar, units done, elapsed time and ETA; silent when
 // stderr is not a terminal. A bar created while another bar created on the same thread is alive
@@ -49,6 +53,7 @@ class Progress {
   Progress& operator=(const Progress&) = delete;
   void advance(size_t n = 1);
   void note(std::string text);  // shown after the bar (e.g. loss, rays/s)
+  void setTotal(size_t total);  // the work turned out longer or shorter (a replanned fit stage)
   // Fraction done in [0, 1], a nested bar's share of the current unit included.
   double fraction() const;
 
@@ -57,7 +62,7 @@ class Progress {
   void draw(bool final);
   std::string label_, note_;
   std::mutex noteMutex_;
-  size_t total_;
+  std::atomic<size_t> total_;
   std::atomic<size_t> done_{0};
   std::atomic<double> inner_{0.0};  // the nested bar's fraction of the current unit
   std::atomic<long> lastDrawMs_{-1000};

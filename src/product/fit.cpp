@@ -24,6 +24,7 @@
 #include "product/frame_poses.h"
 #include "product/group_optimiser.h"
 #include "product/light_decisions.h"
+#include "product/time_budget.h"
 
 namespace relume {
 namespace fs = std::filesystem;
@@ -37,6 +38,7 @@ class Fit {
   Fit(const fs::path& work, const FitConfig& config, const FitHooks& hooks)
       : c_(config),
         hooks_(hooks),
+        clockStart_(hooks.clock ? hooks.clock() : 0.0),
         w_(work),
         appearance_(w_.mesh.objectCount),
         roles_(appearance_.objectCount()),
@@ -69,7 +71,9 @@ class Fit {
   std::vector<float> medianRadiance(const TexelSpace& space) const;
   void settleAlbedoError(const TexelSpace& space);
   void upsampleAlbedo(const TexelSpace& from, const TexelSpace& to);
-  void runStage(const Stage& st, size_t stageIndex, int firstIteration, const TexelSpace& space);
+  bool skips(const Stage& st) const;
+  void runStage(size_t stageIndex, int firstIteration, const TexelSpace& space);
+  void planBudget(size_t stageIndex, int done);
   void finishStage(const Stage& st, size_t stageIndex, const TexelSpace& space);
   void refinePoses(const std::string& after);
 
@@ -80,10 +84,15 @@ class Fit {
     return c_.emissionTextureResolution > 0 ? std::min(albedoResolution, c_.emissionTextureResolution)
                                             : albedoResolution;
   }
-  double fitSeconds() const { return total_.seconds() - hookSeconds_; }
+  // Seconds of fitting: this run's, time spent in hooks left out, and those of the run it resumed.
+  double fitSeconds() const {
+    return elapsedBefore_ + (hooks_.clock ? hooks_.clock() - clockStart_ : total_.seconds() - hookSeconds_);
+  }
   Json memoryBreakdown(Gradients& grads, const Batch& batch, const AdjointSettings& settings, const TexelSpace& space) {
     return fitMemory(w_, appearance_, space, grads, batch, settings, optimiser_, lights_ ? &*lights_ : nullptr);
   }
+  // With time_budget: the budget, the stage lengths it chose, its last plan and the time taken.
+  Json budgetSummary() const;
   void appendMetrics(const Json& j) const;
   void serialiseState(CheckpointIo& io);
   void writeCheckpoint(size_t stage, int iteration, const TexelSpace& space);
@@ -91,13 +100,19 @@ class Fit {
     Json frames = gains_.toJson(w_.frames);
     if (poses_.refined()) frames["poses"] = poses_.toJson(w_.frames);
     return writeFitResult(w_, appearance_, space, roles_, c_, frames,
-                          {globalIteration_, lastLoss_, stats_, peakMemory_}, settled_);
+                          {globalIteration_, lastLoss_, stats_, peakMemory_, budgetSummary()}, settled_);
   }
 
   FitConfig c_;
   FitHooks hooks_;
   Timer total_;
   double hookSeconds_ = 0;
+  double clockStart_ = 0;     // hooks_.clock() when the fit started
+  double elapsedBefore_ = 0;  // fit seconds of the runs this one resumes
+  std::vector<Stage> stages_;
+  std::optional<TimeBudget> budget_;  // with time_budget
+  Json lastPlan_;                     // the budget's last plan
+  double lastIterationEnd_ = 0;       // fitSeconds() then (the setup, then each iteration's end)
   Json peakMemory_;
   Workspace w_;
   Appearance appearance_;
@@ -146,12 +161,18 @@ FitSummary Fit::run(bool resumeRequested) {
   const TexelSpace init(w_, w_.initResolution);
   const std::vector<int> resolutions = chooseResolutions(init);
   // Valid texels scale with the area: estimated from the init resolution, no texel map needed.
-  const std::vector<Stage> stages = buildSchedule(c_, resolutions, [&](int r) -> size_t {
+  stages_ = buildSchedule(c_, resolutions, [&](int r) -> size_t {
     const size_t f = static_cast<size_t>(r / init.resolution);
     return init.sampleable.size() * f * f;
   });
   spdlog::info("fit: {} stages, final albedo resolution {}^2 ({} texels sampleable at {}^2), radiance scale {:.3g}",
-               stages.size(), finalRes_, init.sampleable.size(), init.resolution, radianceScale_);
+               stages_.size(), finalRes_, init.sampleable.size(), init.resolution, radianceScale_);
+  if (c_.timeBudget > 0) {
+    std::vector<double> drawn;
+    for (const Stage& st : stages_) drawn.push_back(texelsDrawn(c_, st));
+    budget_.emplace(c_.timeBudget, stages_, std::move(drawn));
+    spdlog::info("fit: time budget {:.0f} s: the stage lengths follow from the first iterations' cost", c_.timeBudget);
+  }
   if (refinePoses_)
     spdlog::info("fit: poses refined between stages ({})",
                  c_.refinePoses == RefinePoses::On ? "refine_poses on" : "the capture's poses are estimates");
@@ -162,14 +183,12 @@ FitSummary Fit::run(bool resumeRequested) {
   const fs::path checkpointPath = w_.dir / "checkpoint.bin";
   FitPosition at;
   std::unique_ptr<TexelSpace> space = resumeRequested && pathExists(checkpointPath)
-                                          ? resume(Checkpoint::read(checkpointPath), stages.size(), at)
-                                          : start(stages.front());
+                                          ? resume(Checkpoint::read(checkpointPath), stages_.size(), at)
+                                          : start(stages_.front());
   FitSummary summary;
-  for (size_t si = at.stage; si < stages.size(); ++si) {
-    const Stage& st = stages[si];
-    if ((st.refit && !roles_.refitEmission) || (st.onlyWithClippedLights && !roles_.clippedLights) ||
-        (st.afterClippedScale && !roles_.clippedScaleMoving))
-      continue;
+  for (size_t si = at.stage; si < stages_.size(); ++si) {
+    const Stage& st = stages_[si];
+    if (skips(st)) continue;
     if (st.resolution != space->resolution) {
       auto finer = std::make_unique<TexelSpace>(w_, st.resolution, roles_.outOfModel);
       upsampleAlbedo(*space, *finer);
@@ -181,7 +200,7 @@ FitSummary Fit::run(bool resumeRequested) {
     const int firstIteration = si == static_cast<size_t>(at.stage) ? at.iteration : 0;
     if (st.name == "materials" && firstIteration == 0) decisions_.decideHighlights(*space, batches_);
     const size_t excludedBefore = std::count(roles_.outOfModel.begin(), roles_.outOfModel.end(), 1);
-    runStage(st, si, firstIteration, *space);
+    runStage(si, firstIteration, *space);
     if (static_cast<size_t>(std::count(roles_.outOfModel.begin(), roles_.outOfModel.end(), 1)) != excludedBefore)
       space = std::make_unique<TexelSpace>(w_, space->resolution, roles_.outOfModel);
     if (stopped_) {
@@ -287,7 +306,16 @@ void Fit::upsampleAlbedo(const TexelSpace& from, const TexelSpace& to) {
   optimiser_.upsampleAlbedo(from, to, w_.mesh);
 }
 
-void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const TexelSpace& space) {
+// The stages that run only when a decision before them asks for them (as far as it is known).
+bool Fit::skips(const Stage& st) const {
+  return (st.refit && !roles_.refitEmission) || (st.onlyWithClippedLights && !roles_.clippedLights) ||
+         (st.afterClippedScale && !roles_.clippedScaleMoving);
+}
+
+void Fit::runStage(size_t stageIndex, int firstIteration, const TexelSpace& space) {
+  // A time budget may replan this stage's length while it runs (planBudget): `st` is the
+  // schedule's own entry, and every use of its length below sees the plan.
+  const Stage& st = stages_[stageIndex];
   CHECK(appearance_.albedo.width == space.resolution && appearance_.albedo.rgb.size() == 3 * space.map.texelCount());
   CHECK(roles_.emitter.size() == static_cast<size_t>(appearance_.objectCount()));
   AdjointSettings settings = settings_;
@@ -304,6 +332,11 @@ void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const
   const std::vector<uint8_t> albedoHeld = decisions_.albedoHeld();
   const GradientMasks masks{space, w_.mesh, albedoHeld, roles_.highlight, roles_.emitter};
   std::vector<Color> estimates;  // each ray's, for gain_refine
+  if (budget_) {
+    const double now = fitSeconds();
+    budget_->recordBoundary(now - lastIterationEnd_);
+    lastIterationEnd_ = now;
+  }
   for (int it = firstIteration; it < st.iterations; ++it) {
     const uint64_t iteration = static_cast<uint64_t>(globalIteration_);
     FitPhaseTimes now;
@@ -359,17 +392,27 @@ void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const
       spdlog::debug("fit: bytes by part: {}", memory.dump());
       if (peakMemory_.empty() || memory["total"] > peakMemory_["total"]) peakMemory_ = memory;
     }
+    bool go = true;
     if (hooks_.afterIteration) {
       Timer th;
-      const bool go = hooks_.afterIteration(
-          FitIteration{st.name, globalIteration_, fitSeconds(), now, batch.rays, batch.object, *w_.scene, *lights_,
-                       settings, !grads.albedoCurvature.empty(), appearance_, w_.mesh, peakMemory_});
+      go = hooks_.afterIteration(FitIteration{st.name, globalIteration_, fitSeconds(), now, batch.rays, batch.object,
+                                              *w_.scene, *lights_, settings, !grads.albedoCurvature.empty(),
+                                              appearance_, w_.mesh, peakMemory_});
       hookSeconds_ += th.seconds();
-      if (!go) {
-        if (hooks_.writeFiles) writeCheckpoint(stageIndex, it + 1, space);
-        stopped_ = true;
-        return;
+    }
+    if (budget_) {
+      const double end = fitSeconds();
+      budget_->recordIteration(stageIndex, end - lastIterationEnd_);
+      lastIterationEnd_ = end;
+      if (budget_->due(stageIndex, st, it + 1)) {
+        planBudget(stageIndex, it + 1);
+        progress.setTotal(static_cast<size_t>(st.iterations));
       }
+    }
+    if (!go) {
+      if (hooks_.writeFiles) writeCheckpoint(stageIndex, it + 1, space);
+      stopped_ = true;
+      return;
     }
     progress.advance();
     const double traceSeconds = gr.times.primal + gr.times.adjoint;
@@ -406,6 +449,34 @@ void Fit::runStage(const Stage& st, size_t stageIndex, int firstIteration, const
       st.name, st.iterations - firstIteration, lastLoss_, 1e3 * times.sample / done, 1e3 * times.primal / done,
       1e3 * times.adjoint / done, 1e3 * times.optimiser / done);
   finishStage(st, stageIndex, space);
+}
+
+// The lengths of stage `stageIndex` (`done` iterations run) and those after it, for the time left
+// at the cost measured (product/time_budget.h).
+void Fit::planBudget(size_t stageIndex, int done) {
+  std::vector<bool> runs;
+  for (const Stage& st : stages_) runs.push_back(!skips(st));
+  lastPlan_ = budget_->plan(stages_, stageIndex, done, fitSeconds(), runs);
+  std::string lengths;
+  for (const Json& stage : lastPlan_["iterations"])
+    lengths += fmt::format("{} {}, ", stage[0].get<std::string>(), stage[1].get<int>());
+  const double scale = lastPlan_["scale"].get<double>();
+  spdlog::info("fit: time budget {:.0f} s, {:.0f} s spent ({:.1f} ms per iteration of {}): {}; {}, predicted end "
+               "{:.0f} s",
+               c_.timeBudget, lastPlan_["elapsed_seconds"].get<double>(), lastPlan_["ms_per_iteration"].get<double>(),
+               stages_[stageIndex].name, lengths.substr(0, lengths.size() - 2),
+               scale == 1 ? std::string("the default schedule") : fmt::format("the default schedule x{:.2f}", scale),
+               lastPlan_["predicted_end_seconds"].get<double>());
+  if (hooks_.writeFiles) appendMetrics({{"budget", lastPlan_}});
+}
+
+Json Fit::budgetSummary() const {
+  if (!budget_) return nullptr;
+  Json j = {{"budget_seconds", c_.timeBudget}, {"fit_seconds", fitSeconds()}};
+  for (const Stage& st : stages_)
+    if (!skips(st)) j["iterations"].push_back({st.name, st.iterations});
+  if (!lastPlan_.is_null()) j["last_plan"] = lastPlan_;
+  return j;
 }
 
 // The stage's settled groups take their averages; then the decisions at its boundary, before the
@@ -485,6 +556,14 @@ void Fit::serialiseState(CheckpointIo& io) {
   roles_.serialise(io, w_.dir);
   gains_.serialise(io);
   poses_.serialise(io, w_);
+  if (budget_) {
+    double elapsed = fitSeconds();
+    budget_->serialise(io, elapsed, (w_.dir / "checkpoint.bin").string());
+    if (!io.writing()) {
+      elapsedBefore_ = lastIterationEnd_ = elapsed;
+      budget_->apply(stages_);
+    }
+  }
 }
 
 void Fit::writeCheckpoint(size_t stage, int iteration, const TexelSpace& space) {

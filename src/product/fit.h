@@ -63,6 +63,9 @@ struct FitHooks {
   bool writeFiles = true;  // metrics, checkpoints and the result (off: a measurement leaves WORK as it was)
   // Called once at the end with the final state (Polyak averages applied), files or not.
   std::function<void(const Appearance&, const TriangleMesh&)> finished;
+  // The fit's clock in seconds, in place of the steady clock (hook time then counts): tests of the
+  // time budget run on a clock they advance themselves.
+  std::function<double()> clock;
 };
 
 // Runs (or resumes) the fit; writes WORK/result/ (scene.json, albedo.exr/.png, emission

@@ -13,9 +13,9 @@
 
 namespace relume {
 
-// Version 6: refined poses (5: the scale probes of lights seen only saturated; 4: frame gains;
-// 3: light decisions and out-of-model objects).
-inline constexpr int kFitCheckpointVersion = 6;
+// Version 7: the time budget's plan (6: refined poses; 5: the scale probes of lights seen only
+// saturated; 4: frame gains; 3: light decisions and out-of-model objects).
+inline constexpr int kFitCheckpointVersion = 7;
 
 class CheckpointIo {
  public:

@@ -60,6 +60,7 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("albedo_passes", ConfigField(&c.albedoPasses));
   fn("max_stage_iterations", ConfigField(&c.maxStageIterations));
   fn("max_resolution", ConfigField(&c.maxResolution));
+  fn("time_budget", ConfigField(&c.timeBudget));
   fn("light_test", ConfigField(&c.lightTest));
   fn("light_min_unexplained", ConfigField(&c.lightMinUnexplained));
   fn("light_significance", ConfigField(&c.lightSignificance));
@@ -147,6 +148,8 @@ void FitConfig::validate(const std::string& where) const {
   need(std::isfinite(c.albedoPasses) && c.albedoPasses > 0 && c.albedoPasses <= 1e4,
        "albedo_passes must be in (0, 1e4]");
   need(c.maxResolution >= 0, "max_resolution must be >= 0");
+  need(std::isfinite(c.timeBudget) && c.timeBudget >= 0 && c.timeBudget <= 1e7,
+       "time_budget must be in [0, 1e7] seconds (0 = the fixed schedule)");
   need(c.emissionTextureResolution >= 0, "emission_texture_resolution must be >= 0 (0 = the albedo's)");
   need(c.initWhitePoint >= 0 && c.initWhitePoint <= 1, "init_white_point must be in [0, 1] (0 = off)");
   need(c.lightMinUnexplained >= 0 && c.lightMinUnexplained <= 1, "light_min_unexplained must be in [0, 1]");

@@ -125,6 +125,9 @@ struct FitConfig {
   float albedoPasses = 100.0f;           // albedo stage length: expected draws per sampleable texel
   int maxStageIterations = 2000;         // cap on any albedo stage
   int maxResolution = 0;                 // cap on the final albedo resolution; 0 = what the frames resolve
+  // Seconds the fit may take: the stage lengths are chosen from measured iteration costs so that
+  // it ends then (product/time_budget.h); 0 = the fixed schedule above.
+  float timeBudget = 0;
   int emissionTextureResolution = 1024;  // cap on the emission textures' atlas resolution; 0 = the albedo's
   // Light sources (docs/design/light-sources.md). Reflector: an object is a light when no
   // reflector with albedo <= 1 and the model's specular lobe returns its observed radiance,

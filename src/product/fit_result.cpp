@@ -78,6 +78,7 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
       {"objects", materials},         {"albedo_resolution", space.resolution}, {"iterations", progress.iterations},
       {"final_loss", progress.loss},  {"sampler", progress.sampler.toJson()},  {"config", c.toJson()},
       {"peak_rss_mib", peakRssMiB()}, {"memory_bytes", progress.peakMemory}};
+  if (!progress.budget.is_null()) summary["time_budget"] = progress.budget;
   killPoint("result-half");
   writeJson(staging / "materials.json", summary);
   writeJson(staging / "lights.json",

@@ -19,6 +19,7 @@ struct FitProgress {
   double loss = 0;              // the last iteration's
   const SamplerStats& sampler;  // summed over the fit
   const Json& peakMemory;       // the largest fitMemory seen
+  const Json& budget;           // with time_budget, what it chose (null otherwise)
 };
 
 // Writes WORK/result/ atomically (WORK/result.partial/, then renamed); returns its path.

@@ -40,6 +40,7 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
     int n = c.emissionIterations + c.materialIterations;
     for (int r : resolutions) n += albedoIterations(r);
     s.push_back({"all", all, finalRes, n, false, false, all, rays});
+    s.back().lengthFromPasses = true;
     return s;
   }
   // Its unknowns are per object (with emitter_parameterisation), so a ray may stand for a whole
@@ -73,12 +74,14 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
       s.push_back({k == 1 ? fmt::format("scale_probe@{}", resolutions.front())
                           : fmt::format("scale_probe_{}@{}", k, resolutions.front()),
                    albedo, resolutions.front(), std::max(1, albedoIterations(resolutions.front()) / 4)});
+      s.back().lengthFromPasses = true;
       s.back().scaleClippedLightsAfter = true;
       s.back().onlyWithClippedLights = true;
       s.back().afterClippedScale = k > 1;
     }
   s.push_back({fmt::format("albedo@{}", resolutions.front()), albedo, resolutions.front(),
                albedoIterations(resolutions.front())});
+  s.back().lengthFromPasses = true;
   // The light sources decided again now that the albedo explains the lit surfaces; when that
   // changed them, their emission is fitted again (the albedo held) before the materials.
   const bool redecide =
@@ -100,9 +103,11 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   const size_t materialStage = s.size();
   s.push_back({"materials", materials, resolutions.front(), c.materialIterations});
   s.back().refinePosesAfter = resolutions.size() > 1;
-  for (size_t i = 1; i < resolutions.size(); ++i)
+  for (size_t i = 1; i < resolutions.size(); ++i) {
     s.push_back(
         {fmt::format("albedo@{}", resolutions[i]), afterMaterials, resolutions[i], albedoIterations(resolutions[i])});
+    s.back().lengthFromPasses = true;
+  }
   s.back().settles = s.back().active;
   if (c.materialStageSettles) {
     s[materialStage].settles.set(K::Roughness, true);
@@ -119,6 +124,14 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
     s[refitStage].footprint = s[0].footprint;
   }
   return s;
+}
+
+double texelsDrawn(const FitConfig& c, const Stage& st) {
+  double n = c.sampler == SamplerKind::Texture ? c.batchTexels
+                                               : static_cast<double>(c.imageRays) / std::max(1, c.framesPerTexel);
+  if (st.active.active(ParamKind::Roughness)) n += c.materialBatchTexels + c.highlightBatchTexels;
+  if (st.focusEmitters) n += c.emissionBatchTexels;
+  return std::max(1.0, n);
 }
 
 }  // namespace relume

@@ -33,6 +33,7 @@ struct Stage {
   bool onlyWithClippedLights = false;            // run only when the lights include such lights
   bool afterClippedScale = false;                // run only while their last scale moved them
   bool refinePosesAfter = false;                 // the frames' poses are refined at its end (with refine_poses)
+  bool lengthFromPasses = false;                 // its length is albedo passes (a time budget scales it freely)
 
   // The learning-rate factor at iteration `it` for the kinds this stage settles: 1 over its first
   // half, then linear down to `finalFraction` (1 for the kinds it does not settle).
@@ -47,5 +48,10 @@ struct Stage {
 // over them).
 std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& resolutions,
                                  const std::function<size_t(int)>& sampleableAt);
+
+// The texels an iteration of `st` draws: the uniform batch (the image sampler's rays, counted as
+// frames_per_texel to a texel), and its focus sets where the configuration has them (the cost
+// model of a time budget, product/time_budget.h).
+double texelsDrawn(const FitConfig& c, const Stage& st);
 
 }  // namespace relume

@@ -543,6 +543,24 @@ std::string stagesSection(const std::vector<Json>& metrics) {
          rows + "</table>";
 }
 
+// With a time budget, what it chose (materials.json's time_budget; empty without one).
+std::string budgetSentence(const Json& budget) {
+  if (!budget.is_object()) return "";
+  std::string lengths;
+  for (const Json& stage : budget.value("iterations", Json::array()))
+    lengths += fmt::format("{} {}, ", html(stage[0].get<std::string>()), stage[1].get<int>());
+  const Json plan = budget.value("last_plan", Json::object());
+  return fmt::format(
+      "<p>Time budget {:.0f} s: the fit took {:.0f} s. Stage lengths chosen for it from the measured cost of the "
+      "iterations: {}{}.</p>",
+      budget.value("budget_seconds", 0.0), budget.value("fit_seconds", 0.0), lengths.substr(0, lengths.size() - 2),
+      plan.contains("scale") ? fmt::format(" (the default schedule x{:.2f} in its last plan, at {:.1f} ms per "
+                                           "iteration of {})",
+                                           plan["scale"].get<double>(), plan.value("ms_per_iteration", 0.0),
+                                           html(plan.value("stage", std::string())))
+                             : std::string());
+}
+
 std::string prepareSection(const Json& prepare, const Json& materials) {
   std::string s = "<table><tr><th>phase</th><th>time</th></tr>";
   for (const auto& [phase, p] : prepare.at("phases").items())
@@ -618,7 +636,8 @@ img.tex{width:256px;height:256px} figure{display:inline-block;margin:4px} figcap
   const fs::path consistencyFile = work / "frame_gains.json";
   page += "<h2>Frames</h2>" +
           framesSection(prepare, gains, pathExists(consistencyFile) ? readJson(consistencyFile) : Json::object());
-  page += "<h2>Loss and time per stage</h2>" + stagesSection(readJsonLines(work / "metrics.jsonl"));
+  page += "<h2>Loss and time per stage</h2>" + budgetSentence(materials.value("time_budget", Json())) +
+          stagesSection(readJsonLines(work / "metrics.jsonl"));
   page += "<h2>Prepare and memory</h2>" + prepareSection(prepare, materials);
   page += "<h2>Config</h2><pre>" + html(materials.value("config", Json::object()).dump(2)) + "</pre></body></html>\n";
   writeTextAtomically(out / "index.html", page);

@@ -24,6 +24,17 @@ TEST(Progress, DurationsReadAsSecondsMinutesHours) {
   EXPECT_EQ(formatDuration(-3), "0s");
 }
 
+TEST(Progress, DurationsParseFromWhatAPersonTypes) {
+  EXPECT_EQ(parseDuration("600"), 600.0);
+  EXPECT_EQ(parseDuration("90s"), 90.0);
+  EXPECT_EQ(parseDuration("10m"), 600.0);
+  EXPECT_EQ(parseDuration("1.5h"), 5400.0);
+  EXPECT_EQ(parseDuration("1h30m"), 5400.0);
+  EXPECT_EQ(parseDuration("2m30s"), 150.0);
+  for (const char* bad : {"", "m", "10x", "1h30", "-5", "1..5s", "10 m", "1e400", "h1"})
+    EXPECT_FALSE(parseDuration(bad).has_value()) << bad;
+}
+
 TEST(Progress, ABarInsideAnotherCarriesItThroughItsCurrentUnit) {
   Progress phase("phase", 4);
   phase.advance();

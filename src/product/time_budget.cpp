@@ -67,7 +67,8 @@ double TimeBudget::predictedSeconds(const std::vector<Stage>& stages, size_t cur
   for (size_t i = current; i < stages.size(); ++i) {
     // The current stage keeps its settling half ahead of it: lr decay and averages are set by
     // its length, and the iterations run so far had the constant rate.
-    const int len = i == current ? std::max(lengthAt(i, s), std::max(done + 1, 2 * done)) : lengthAt(i, s);
+    const int len =
+        i == current ? std::max(done, std::min(defaults_[i], std::max(lengthAt(i, s), 2 * done))) : lengthAt(i, s);
     if (lengths) (*lengths)[i] = len;
     if (i != current && !runs[i]) continue;
     const int left = i == current ? len - done : len;
@@ -87,8 +88,8 @@ Json TimeBudget::plan(std::vector<Stage>& stages, size_t current, int done, doub
   if (predictedSeconds(stages, current, done, runs, s, &lengths) > left) {
     if (shortest > left) {
       if (first)
-        fail("time budget {:.0f} s is too short for this fit: its shortest schedule (albedo stages at {:.0f}% of their "
-             "passes, the others at {:.0f}% of their length) is predicted to end at {:.0f} s on this machine, "
+        fail("time budget {:.0f} s is too short for this fit: its shortest schedule (albedo stages at {:.0f}%, the "
+             "others at {:.0f}% of their length) is predicted to end at {:.0f} s on this machine, "
              "measured over the first iterations of stage {}",
              seconds_, 100 * kMinPassFraction, 100 * kMinFixedFraction, elapsed + shortest, stages[current].name);
       s = 0;

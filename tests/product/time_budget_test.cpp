@@ -49,6 +49,17 @@ double predicted(const std::vector<Stage>& s, const std::vector<bool>& runs) {
 
 const std::vector<bool> kAllRun(4, true);
 
+// A 60 s budget planned in the emission stage, then `count` iterations of the albedo stage
+// measured: the first `first` s, the others `each`.
+TimeBudget inTheAlbedoStage(FourStages& f, double first, double each, int count) {
+  TimeBudget b = measured(60, f);
+  b.plan(f.stages, 0, 11, 2.0, kAllRun);
+  b.recordBoundary(1.0);
+  b.recordIteration(1, first);
+  for (int i = 1; i < count; ++i) b.recordIteration(1, each);
+  return b;
+}
+
 }  // namespace
 
 TEST(TimeBudget, ABudgetLongerThanTheDefaultScheduleEndsWithIt) {
@@ -91,11 +102,7 @@ TEST(TimeBudget, ABudgetBelowTheShortestScheduleIsRefusedAtTheFirstPlan) {
 
 TEST(TimeBudget, ALaterPlanThatCannotKeepTheBudgetRunsTheShortestSchedule) {
   FourStages f;
-  TimeBudget b = measured(60, f);
-  b.plan(f.stages, 0, 11, 2.0, kAllRun);
-  b.recordBoundary(1.0);
-  b.recordIteration(1, 5.0);
-  for (int i = 0; i < 10; ++i) b.recordIteration(1, 1.0);  // the albedo 20x dearer than predicted
+  TimeBudget b = inTheAlbedoStage(f, 5.0, 1.0, 11);  // the albedo 20x dearer than predicted
   const Json plan = b.plan(f.stages, 1, 11, 40.0, kAllRun);
   EXPECT_EQ(plan["scale"].get<double>(), 0.0);
   EXPECT_EQ(f.stages[1].iterations, 100);  // 5% of its passes
@@ -105,15 +112,23 @@ TEST(TimeBudget, ALaterPlanThatCannotKeepTheBudgetRunsTheShortestSchedule) {
 
 TEST(TimeBudget, AStageKeepsItsSettlingHalfAhead) {
   FourStages f;
-  TimeBudget b = measured(60, f);
-  b.plan(f.stages, 0, 11, 2.0, kAllRun);
-  b.recordBoundary(1.0);
-  b.recordIteration(1, 0.05);
-  for (int i = 0; i < 999; ++i) b.recordIteration(1, 0.05);
+  TimeBudget b = inTheAlbedoStage(f, 0.05, 0.05, 1000);
   // 1000 iterations in, with the budget spent: the stage still runs as long again, so that its
   // learning-rate decay and averages (its second half) come after what has run.
   b.plan(f.stages, 1, 1000, 60.0, kAllRun);
   EXPECT_EQ(f.stages[1].iterations, 2000);
+}
+
+TEST(TimeBudget, AStagePlannedAtItsLastIterationIsNotLengthened) {
+  FourStages f;
+  f.stages[0].iterations = 2;
+  TimeBudget b(600, f.stages, f.drawn);
+  b.recordBoundary(0.1);
+  b.recordIteration(0, 0.05);
+  b.recordIteration(0, 0.05);
+  ASSERT_TRUE(b.due(0, f.stages[0], 2));
+  b.plan(f.stages, 0, 2, 0.2, kAllRun);
+  EXPECT_EQ(f.stages[0].iterations, 2);
 }
 
 TEST(TimeBudget, AStageThatWillNotRunCostsNothing) {

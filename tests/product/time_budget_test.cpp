@@ -3,10 +3,12 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <iterator>
 
 #include "core/error.h"
 #include "io/json.h"
 #include "product/fit.h"
+#include "product/report.h"
 #include "product/time_budget.h"
 #include "support/prepared_capture.h"
 
@@ -245,6 +247,9 @@ TEST(FitTimeBudget, EndsAtTheBudgetOnItsClockAndAResumedFitKeepsThePlan) {
   for (std::string line; std::getline(metrics, line);) plans += Json::parse(line).contains("budget");
   EXPECT_GE(plans, 4);  // each stage after its first iterations, and the albedo's a quarter through
   const std::vector<float> uninterrupted = fittedValues(work);
+  std::ifstream page(writeFitReport(work));
+  const std::string html((std::istreambuf_iterator<char>(page)), std::istreambuf_iterator<char>());
+  EXPECT_NE(html.find("Time budget 2 s: the fit took 2 s"), std::string::npos);
 
   // The fixed schedule it replaced is far longer: the budget, not the defaults, set where it ended.
   ClockedFit fixed;

@@ -30,6 +30,8 @@ const std::vector<BenchSweep>& benchSweeps() {
       {"resolution", "max_resolution", {512, 1024}},
       {"sampler", "sampler", {"texture", "image"}},
       {"smoothing", "albedo_smoothing", {"none", "albedo", "guide_edges"}},
+      // Seconds (wall clock): a budget longer than the base schedule ends with it.
+      {"budget", "time_budget", {60, 120, 300, 600}},
   };
   return sweeps;
 }

@@ -22,6 +22,7 @@
 #include "optim/checkpoint.h"
 #include "product/confidence.h"
 #include "product/light_decisions.h"
+#include "product/time_budget.h"
 #include "sampling/visibility.h"
 #include "scene/appearance.h"
 #include "scene/mesh.h"
@@ -108,6 +109,16 @@ void touchCheckpoint(const fs::path& file) {
     SettledAlbedo settled;
     CheckpointIo io = CheckpointIo::reader(c);
     settled.serialise(io, c.bytes("albedo") / (3 * sizeof(float)), file.parent_path());
+  } catch (const Error&) {
+  }
+  try {  // a time budget's plan, over as many stages as it lists (each 2000 iterations by default)
+    const size_t count = std::min<size_t>(c.bytes("budget.lengths") / sizeof(int), 64);
+    const std::vector<Stage> stages(count, Stage{"", {0}, 64, 2000});
+    if (stages.empty()) return;
+    TimeBudget budget(1.0, stages, std::vector<double>(stages.size(), 1.0));
+    CheckpointIo io = CheckpointIo::reader(c);
+    double elapsed = 0;
+    budget.serialise(io, elapsed, file.string());
   } catch (const Error&) {
   }
 }

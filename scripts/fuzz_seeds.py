@@ -60,8 +60,9 @@ def colmap_seeds():
 
 
 # A checkpoint holding what `fit --resume` reads after the parameters, for two objects (the second
-# with a roughness bound and a sharp branch) and two texels (the second beyond albedo 1). The
-# harness sizes the records from `emitter` and `albedo`.
+# with a roughness bound and a sharp branch), two texels (the second beyond albedo 1) and a time
+# budget's plan of three stages. The harness sizes the records from `emitter`, `albedo` and
+# `budget.lengths`.
 def checkpoint_records_seed():
     arrays = {
         "albedo": struct.pack("<6f", 0.5, 0.5, 0.5, 0.9, 0.9, 0.9),
@@ -74,6 +75,8 @@ def checkpoint_records_seed():
         "highlight_pairs": struct.pack("<2Q", 0, 40), "highlight_contrast": struct.pack("<2d", 0, 0.03),
         "roughness_at_least": struct.pack("<2f", -1, 0.6), "sharp_below": struct.pack("<2f", -1, 0.15),
         "observed.sum": struct.pack("<2d", 80.5, 12.25), "observed.count": struct.pack("<2Q", 7, 49),
+        "budget.lengths": struct.pack("<3i", 200, 1000, 100), "budget.planned_at": struct.pack("<3i", 11, 31, -1),
+        "budget.numbers": struct.pack("<5d", 42.5, 0.5, 3.0, 1.0, 2.0), "budget.counts": struct.pack("<4i", 1, 30, 10, 2),
     }
     names = sorted(arrays)
     text = json.dumps({"meta": {"light_decisions": [{"object": 0, "verdict": "light"}]},

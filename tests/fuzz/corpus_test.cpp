@@ -10,6 +10,7 @@
 #include "optim/checkpoint.h"
 #include "product/confidence.h"
 #include "product/light_decisions.h"
+#include "product/time_budget.h"
 #include "readers.h"
 
 namespace fs = std::filesystem;
@@ -63,6 +64,13 @@ TEST(CheckpointSeed, TheRecordsSeedReadsToTheEnd) {
   ASSERT_NO_THROW(settled.serialise(io, c.bytes("albedo") / (3 * sizeof(float)), "seed"));
   EXPECT_TRUE(settled.beyondOneKnown);
   EXPECT_EQ(settled.beyondOne, std::vector<uint32_t>{1});
+  std::vector<relume::Stage> stages(3, relume::Stage{"", {0}, 64, 2000});
+  relume::TimeBudget budget(1.0, stages, std::vector<double>(3, 1.0));
+  double elapsed = 0;
+  ASSERT_NO_THROW(budget.serialise(io, elapsed, "seed"));
+  budget.apply(stages);
+  EXPECT_EQ(elapsed, 42.5);
+  EXPECT_EQ(stages[1].iterations, 1000);
 }
 
 }  // namespace

@@ -25,10 +25,16 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
                                  const std::function<size_t(int)>& sampleableAt) {
   using K = ParamKind;
   const int finalRes = resolutions.back();
-  auto albedoIterations = [&](int res) {
+  // The iterations of albedo_passes at `res`, without max_stage_iterations (at most 1e8), and with it.
+  auto passIterations = [&](int res) {
     const double n = std::ceil(c.albedoPasses * sampleableAt(res) /
                                std::max(1, c.sampler == SamplerKind::Texture ? c.batchTexels : c.imageRays));
-    return static_cast<int>(std::clamp(n, 1.0, static_cast<double>(c.maxStageIterations)));
+    return static_cast<int>(std::clamp(n, 1.0, 1e8));
+  };
+  auto albedoIterations = [&](int res) { return std::min(passIterations(res), c.maxStageIterations); };
+  auto passStage = [&](Stage& st, int longest) {
+    st.lengthFromPasses = true;
+    st.longest = std::max(st.iterations, longest);
   };
   std::vector<Stage> s;
   const RayFootprint rays = c.rayFootprint;
@@ -40,7 +46,7 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
     int n = c.emissionIterations + c.materialIterations;
     for (int r : resolutions) n += albedoIterations(r);
     s.push_back({"all", all, finalRes, n, false, false, all, rays});
-    s.back().lengthFromPasses = true;
+    passStage(s.back(), n);
     return s;
   }
   // Its unknowns are per object (with emitter_parameterisation), so a ray may stand for a whole
@@ -74,14 +80,14 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
       s.push_back({k == 1 ? fmt::format("scale_probe@{}", resolutions.front())
                           : fmt::format("scale_probe_{}@{}", k, resolutions.front()),
                    albedo, resolutions.front(), std::max(1, albedoIterations(resolutions.front()) / 4)});
-      s.back().lengthFromPasses = true;
+      passStage(s.back(), passIterations(resolutions.front()) / 4);
       s.back().scaleClippedLightsAfter = true;
       s.back().onlyWithClippedLights = true;
       s.back().afterClippedScale = k > 1;
     }
   s.push_back({fmt::format("albedo@{}", resolutions.front()), albedo, resolutions.front(),
                albedoIterations(resolutions.front())});
-  s.back().lengthFromPasses = true;
+  passStage(s.back(), passIterations(resolutions.front()));
   // The light sources decided again now that the albedo explains the lit surfaces; when that
   // changed them, their emission is fitted again (the albedo held) before the materials.
   const bool redecide =
@@ -106,7 +112,7 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
   for (size_t i = 1; i < resolutions.size(); ++i) {
     s.push_back(
         {fmt::format("albedo@{}", resolutions[i]), afterMaterials, resolutions[i], albedoIterations(resolutions[i])});
-    s.back().lengthFromPasses = true;
+    passStage(s.back(), passIterations(resolutions[i]));
   }
   s.back().settles = s.back().active;
   if (c.materialStageSettles) {

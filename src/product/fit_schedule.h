@@ -33,7 +33,9 @@ struct Stage {
   bool onlyWithClippedLights = false;            // run only when the lights include such lights
   bool afterClippedScale = false;                // run only while their last scale moved them
   bool refinePosesAfter = false;                 // the frames' poses are refined at its end (with refine_poses)
-  bool lengthFromPasses = false;                 // its length is albedo passes (a time budget scales it freely)
+  bool lengthFromPasses = false;                 // its length is albedo passes
+  // With a time budget, the most it may run: its albedo_passes without max_stage_iterations.
+  int longest = 0;
 
   // The learning-rate factor at iteration `it` for the kinds this stage settles: 1 over its first
   // half, then linear down to `finalFraction` (1 for the kinds it does not settle).

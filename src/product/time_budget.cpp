@@ -15,7 +15,9 @@ TimeBudget::TimeBudget(double seconds, const std::vector<Stage>& stages, std::ve
   CHECK(seconds > 0 && texelsDrawn_.size() == stages.size());
   for (const Stage& st : stages) {
     defaults_.push_back(st.iterations);
+    longest_.push_back(st.lengthFromPasses ? std::max(st.iterations, st.longest) : st.iterations);
     byPasses_.push_back(st.lengthFromPasses);
+    maxScale_ = std::max(maxScale_, static_cast<double>(longest_.back()) / std::max(1, st.iterations));
   }
   lengths_ = defaults_;
 }
@@ -54,7 +56,8 @@ int TimeBudget::lengthAt(size_t i, double s) const {
   const int d = defaults_[i];
   if (d == 0) return 0;
   const double least = byPasses_[i] ? kMinPassFraction : kMinFixedFraction;
-  return std::clamp(static_cast<int>(std::lround(s * d)), std::max(1, static_cast<int>(std::ceil(least * d))), d);
+  const int want = static_cast<int>(std::min(std::round(s * d), 1e9));
+  return std::clamp(want, std::max(1, static_cast<int>(std::ceil(least * d))), longest_[i]);
 }
 
 double TimeBudget::predictedSeconds(const std::vector<Stage>& stages, size_t current, int done,
@@ -68,7 +71,7 @@ double TimeBudget::predictedSeconds(const std::vector<Stage>& stages, size_t cur
     // The current stage keeps its settling half ahead of it: lr decay and averages are set by
     // its length, and the iterations run so far had the constant rate.
     const int len =
-        i == current ? std::max(done, std::min(defaults_[i], std::max(lengthAt(i, s), 2 * done))) : lengthAt(i, s);
+        i == current ? std::max(done, std::min(longest_[i], std::max(lengthAt(i, s), 2 * done))) : lengthAt(i, s);
     if (lengths) (*lengths)[i] = len;
     if (i != current && !runs[i]) continue;
     const int left = i == current ? len - done : len;
@@ -82,7 +85,7 @@ Json TimeBudget::plan(std::vector<Stage>& stages, size_t current, int done, doub
   CHECK(stages.size() == defaults_.size() && runs.size() == stages.size() && current < stages.size());
   const bool first = std::all_of(plannedAt_.begin(), plannedAt_.end(), [](int p) { return p < 0; });
   const double left = seconds_ - elapsed;
-  double s = 1;
+  double s = maxScale_;
   std::vector<int> lengths = lengths_;
   const double shortest = predictedSeconds(stages, current, done, runs, 0.0, &lengths);
   if (predictedSeconds(stages, current, done, runs, s, &lengths) > left) {
@@ -134,7 +137,7 @@ void TimeBudget::serialise(CheckpointIo& io, double& elapsed, const std::string&
   io.array("budget.counts", counts);
   if (io.writing()) return;
   for (size_t i = 0; i < lengths_.size(); ++i)
-    if (lengths_[i] < 0 || lengths_[i] > std::max(1, defaults_[i]) ||
+    if (lengths_[i] < 0 || lengths_[i] > std::max(1, longest_[i]) ||
         plannedAt_[i] < -1 || plannedAt_[i] > lengths_[i])
       fail("{}: the time budget's plan for stage {} ({} iterations) is not one this fit makes", where, i, lengths_[i]);
   for (double x : numbers)

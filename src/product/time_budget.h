@@ -8,12 +8,13 @@
 // iterations and then every tenth of its length up to its settling half, with its own measured
 // cost (over its iterations since the last plan) and the stages before it as they ran.
 //
-// Allocation: the default schedule scaled by one factor s <= 1, the stages whose lengths are
-// albedo passes down to kMinPassFraction of their default, the others (emission, materials,
-// emission textures) down to kMinFixedFraction. s is the largest whose predicted end is within
-// the budget; a budget longer than the default schedule ends with it (on the 1K room 1.8x its
-// albedo iterations bought nothing). When even the shortest schedule does not fit, the first
-// plan refuses the budget, naming the time it needs (docs/design/fit.md, "Time budget").
+// Allocation: the default schedule scaled by one factor s. The stages whose lengths are albedo
+// passes go from kMinPassFraction of their default up to the albedo_passes that
+// max_stage_iterations cut (Stage::longest); the others (emission, materials, emission textures)
+// from kMinFixedFraction up to their default, which their unknowns settle within. s is the
+// largest whose predicted end is within the budget; a budget longer than every stage at its
+// longest ends early. When even the shortest schedule does not fit, the first plan refuses the
+// budget, naming the time it needs (docs/design/fit.md, "Time budget").
 #pragma once
 #include <cstdint>
 #include <string>
@@ -66,6 +67,8 @@ class TimeBudget {
 
   double seconds_;
   std::vector<int> defaults_;         // each stage's default length
+  std::vector<int> longest_;          // and the most it may run
+  double maxScale_ = 1;               // the s at which every stage is at its longest
   std::vector<uint8_t> byPasses_;     // whose length is albedo passes
   std::vector<double> texelsDrawn_;   // per iteration
   std::vector<int> lengths_;          // as planned (the defaults until the first plan)

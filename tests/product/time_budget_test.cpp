@@ -64,8 +64,8 @@ TimeBudget inTheAlbedoStage(FourStages& f, double first, double each, int count)
 
 }  // namespace
 
-TEST(TimeBudget, ABudgetLongerThanTheDefaultScheduleEndsWithIt) {
-  FourStages f;
+TEST(TimeBudget, ABudgetLongerThanTheDefaultScheduleEndsWithItWhenNoStageWasCut) {
+  FourStages f;  // the albedo stage runs all its passes: max_stage_iterations did not cut it
   TimeBudget b = measured(200, f);
   const Json plan = b.plan(f.stages, 0, 11, 2.0, kAllRun);
   // 10 + 100 + 30 + 5 s of iterations (less the 0.55 s run) and 4 s of boundaries: an end at
@@ -74,6 +74,26 @@ TEST(TimeBudget, ABudgetLongerThanTheDefaultScheduleEndsWithIt) {
   for (int i = 0; i < 4; ++i) EXPECT_EQ(f.stages[i].iterations, defaults[i]) << f.stages[i].name;
   EXPECT_EQ(plan["scale"].get<double>(), 1.0);
   EXPECT_NEAR(plan["predicted_end_seconds"].get<double>(), 150.45, 1e-9);
+}
+
+TEST(TimeBudget, ALongerBudgetRunsTheAlbedoPassesTheStageCapCut) {
+  FourStages f;
+  f.stages[1].longest = 4000;  // albedo_passes asked for 4000 iterations, max_stage_iterations allowed 2000
+  TimeBudget b = measured(200, f);
+  const Json plan = b.plan(f.stages, 0, 11, 2.0, kAllRun);
+  // The fixed stages cost 10 + 30 + 5 s at their defaults (less the 0.55 s run), the boundaries
+  // 4 s; the albedo gets the rest, 198 - 4 - 44.45 = 149.55 s: 2991 iterations.
+  EXPECT_EQ(f.stages[0].iterations, 200);
+  EXPECT_EQ(f.stages[2].iterations, 300);
+  EXPECT_EQ(f.stages[3].iterations, 100);
+  EXPECT_NEAR(f.stages[1].iterations, 2991, 1);
+  EXPECT_NEAR(plan["predicted_end_seconds"].get<double>(), 200, 0.05);
+  // With time to spare, all 4000 and an early end.
+  FourStages g;
+  g.stages[1].longest = 4000;
+  TimeBudget c = measured(1000, g);
+  EXPECT_NEAR(c.plan(g.stages, 0, 11, 2.0, kAllRun)["predicted_end_seconds"].get<double>(), 250.45, 1e-9);
+  EXPECT_EQ(g.stages[1].iterations, 4000);
 }
 
 TEST(TimeBudget, ASmallBudgetScalesEveryStageAlike) {

@@ -76,7 +76,7 @@ def checkpoint_records_seed():
         "roughness_at_least": struct.pack("<2f", -1, 0.6), "sharp_below": struct.pack("<2f", -1, 0.15),
         "observed.sum": struct.pack("<2d", 80.5, 12.25), "observed.count": struct.pack("<2Q", 7, 49),
         "budget.lengths": struct.pack("<3i", 200, 1000, 100), "budget.planned_at": struct.pack("<3i", 11, 31, -1),
-        "budget.numbers": struct.pack("<5d", 42.5, 0.5, 3.0, 1.0, 2.0), "budget.counts": struct.pack("<4i", 1, 30, 10, 2),
+        "budget.numbers": struct.pack("<4d", 42.5, 0.5, 1.0, 2.0), "budget.counts": struct.pack("<3i", 1, 10, 2),
     }
     names = sorted(arrays)
     text = json.dumps({"meta": {"light_decisions": [{"object": 0, "verdict": "light"}]},

@@ -34,17 +34,16 @@ void TimeBudget::recordIteration(size_t stage, double seconds) {
   if (measuredStage_ != static_cast<int>(stage)) {
     measuredStage_ = static_cast<int>(stage);
     firstSeconds_ = seconds;
-    stageSeconds_ = recentSeconds_ = 0;
-    stageIterations_ = recentIterations_ = 0;
+    recentSeconds_ = 0;
+    recentIterations_ = 0;
     return;
   }
-  stageSeconds_ += seconds, recentSeconds_ += seconds;
-  ++stageIterations_, ++recentIterations_;
+  recentSeconds_ += seconds;
+  ++recentIterations_;
 }
 
 double TimeBudget::secondsPerIteration() const {
-  if (recentIterations_ > 0) return recentSeconds_ / recentIterations_;
-  return stageIterations_ > 0 ? stageSeconds_ / stageIterations_ : firstSeconds_;
+  return recentIterations_ > 0 ? recentSeconds_ / recentIterations_ : firstSeconds_;
 }
 
 void TimeBudget::recordBoundary(double seconds) {
@@ -106,6 +105,7 @@ Json TimeBudget::plan(std::vector<Stage>& stages, size_t current, int done, doub
     }
   }
   const double predicted = predictedSeconds(stages, current, done, runs, s, &lengths);
+  const double perIteration = secondsPerIteration();
   for (size_t i = current; i < stages.size(); ++i) lengths_[i] = lengths[i];
   plannedAt_[current] = done;
   recentSeconds_ = 0, recentIterations_ = 0;
@@ -116,7 +116,7 @@ Json TimeBudget::plan(std::vector<Stage>& stages, size_t current, int done, doub
             {"scale", s},
             {"predicted_end_seconds", elapsed + predicted},
             {"shortest_end_seconds", elapsed + shortest},
-            {"ms_per_iteration", 1e3 * secondsPerIteration()},
+            {"ms_per_iteration", 1e3 * perIteration},
             {"boundary_seconds", boundaries_ > 0 ? boundarySeconds_ / boundaries_ : 0.0}};
   for (size_t i = current; i < stages.size(); ++i)
     if (i == current || runs[i]) j["iterations"].push_back({stages[i].name, lengths_[i]});
@@ -131,8 +131,8 @@ void TimeBudget::apply(std::vector<Stage>& stages) const {
 void TimeBudget::serialise(CheckpointIo& io, double& elapsed, const std::string& where) {
   io.array("budget.lengths", lengths_);
   io.array("budget.planned_at", plannedAt_);
-  std::vector<double> numbers{elapsed, firstSeconds_, stageSeconds_, recentSeconds_, boundarySeconds_};
-  std::vector<int> counts{measuredStage_, stageIterations_, recentIterations_, boundaries_};
+  std::vector<double> numbers{elapsed, firstSeconds_, recentSeconds_, boundarySeconds_};
+  std::vector<int> counts{measuredStage_, recentIterations_, boundaries_};
   io.array("budget.numbers", numbers);
   io.array("budget.counts", counts);
   if (io.writing()) return;
@@ -143,13 +143,10 @@ void TimeBudget::serialise(CheckpointIo& io, double& elapsed, const std::string&
   for (double x : numbers)
     if (!std::isfinite(x) || x < 0)
       fail("{}: the time budget's measured seconds ({}) are not finite and >= 0", where, x);
-  if (counts[0] < -1 || counts[0] >= static_cast<int>(lengths_.size()) || counts[1] < 0 || counts[2] < 0 ||
-      counts[2] > counts[1] || counts[3] < 0)
-    fail("{}: the time budget's counts ({}, {}, {}, {}) are out of range", where, counts[0], counts[1], counts[2],
-         counts[3]);
-  elapsed = numbers[0], firstSeconds_ = numbers[1], stageSeconds_ = numbers[2], recentSeconds_ = numbers[3];
-  boundarySeconds_ = numbers[4];
-  measuredStage_ = counts[0], stageIterations_ = counts[1], recentIterations_ = counts[2], boundaries_ = counts[3];
+  if (counts[0] < -1 || counts[0] >= static_cast<int>(lengths_.size()) || counts[1] < 0 || counts[2] < 0)
+    fail("{}: the time budget's counts ({}, {}, {}) are out of range", where, counts[0], counts[1], counts[2]);
+  elapsed = numbers[0], firstSeconds_ = numbers[1], recentSeconds_ = numbers[2], boundarySeconds_ = numbers[3];
+  measuredStage_ = counts[0], recentIterations_ = counts[1], boundaries_ = counts[2];
 }
 
 }  // namespace relume

@@ -73,11 +73,11 @@ class TimeBudget {
   std::vector<double> texelsDrawn_;   // per iteration
   std::vector<int> lengths_;          // as planned (the defaults until the first plan)
   std::vector<int> plannedAt_;        // per stage, its iterations at its last plan (-1: none yet)
-  // The measurements: iterations of the stage last measured (its first left out; "recent": those
-  // since its last plan, the cost a plan uses), and the boundaries so far.
+  // The measurements: the iterations of the stage last measured since its last plan (its first
+  // left out, and standing for it until another is measured), and the boundaries so far.
   int measuredStage_ = -1;
-  double firstSeconds_ = 0, stageSeconds_ = 0, recentSeconds_ = 0;
-  int stageIterations_ = 0, recentIterations_ = 0;
+  double firstSeconds_ = 0, recentSeconds_ = 0;
+  int recentIterations_ = 0;
   double boundarySeconds_ = 0;
   int boundaries_ = 0;
 };

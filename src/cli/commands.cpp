@@ -238,6 +238,10 @@ void registerFit(CLI::App& app, CommandTable& table) {
   c->add_option("--time-budget", *budget,
                 "end the fit in this time (600, 90s, 10m, 1.5h): the stage lengths follow from the measured cost of "
                 "its iterations (sets time_budget)");
+  auto memory = std::make_shared<std::string>();
+  c->add_option("--memory-budget", *memory,
+                "stay within this memory (2G, 1.5G, 800M): the finest albedo resolution whose predicted peak fits, or "
+                "a refusal up front (sets memory_budget_mib)");
   auto noReport = std::make_shared<bool>(false);
   c->add_flag("--no-report", *noReport, "skip WORK/report/ (`relume report WORK` writes it later)");
   table[c] = [=] {
@@ -247,6 +251,11 @@ void registerFit(CLI::App& app, CommandTable& table) {
       const std::optional<double> seconds = parseDuration(*budget);
       if (!seconds || *seconds <= 0) fail("--time-budget: '{}' is not a duration (600, 90s, 10m, 1.5h)", *budget);
       cfg.timeBudget = static_cast<float>(*seconds);
+    }
+    if (!memory->empty()) {
+      const std::optional<double> bytes = parseByteSize(*memory);
+      if (!bytes || *bytes < 1 << 20) fail("--memory-budget: '{}' is not a size of 1M or more (2G, 800M)", *memory);
+      cfg.memoryBudgetMib = static_cast<float>(*bytes / (1 << 20));
     }
     // Its checkpoint is written atomically into the work folder: clear what killed runs left.
     if (const size_t stale = removeStaleTemporaries(*work))

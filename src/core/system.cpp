@@ -30,14 +30,19 @@ int threadCount() {
   return static_cast<int>(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
 }
 
-double peakRssMiB() {
+namespace {
+// A field of /proc/self/status in kB ("VmHWM:", "VmRSS:"), in MiB; 0 when absent.
+double statusMiB(std::string_view field) {
   std::ifstream status("/proc/self/status");
   std::string line;
-  while (std::getline(status, line)) {
-    if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
-  }
+  while (std::getline(status, line))
+    if (line.rfind(field, 0) == 0) return std::stod(line.substr(field.size())) / 1024.0;
   return 0.0;
 }
+}  // namespace
+
+double peakRssMiB() { return statusMiB("VmHWM:"); }
+double currentRssMiB() { return statusMiB("VmRSS:"); }
 
 double processCpuSeconds() {
   rusage u{};
@@ -82,6 +87,34 @@ std::optional<double> parseDuration(std::string_view text) {
   }
   if (parts == 0 || !std::isfinite(total)) return std::nullopt;
   return total;
+}
+
+std::optional<double> parseByteSize(std::string_view text) {
+  size_t j = 0;
+  while (j < text.size() && (std::isdigit(static_cast<unsigned char>(text[j])) || text[j] == '.')) ++j;
+  double value = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + j, value);
+  if (j == 0 || ec != std::errc() || end != text.data() + j) return std::nullopt;
+  std::string unit;
+  for (char c : text.substr(j)) unit += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (unit.ends_with("ib")) unit.resize(unit.size() - 2);
+  else if (unit.ends_with("b")) unit.resize(unit.size() - 1);
+  static constexpr std::string_view kPrefixes = "kmgt";
+  double scale = 1;
+  if (unit.size() == 1 && kPrefixes.find(unit[0]) != std::string_view::npos)
+    scale = std::ldexp(1.0, 10 * (1 + static_cast<int>(kPrefixes.find(unit[0]))));
+  else if (!unit.empty())
+    return std::nullopt;
+  const double bytes = value * scale;
+  if (!std::isfinite(bytes) || bytes > std::ldexp(1.0, 62)) return std::nullopt;
+  return bytes;
+}
+
+std::string formatBytes(double bytes) {
+  static constexpr const char* kUnits[] = {"B", "KiB", "MiB", "GiB", "TiB"};
+  int u = 0;
+  while (u < 4 && std::abs(bytes) >= 1024) bytes /= 1024, ++u;
+  return u == 0 ? fmt::format("{:.0f} B", bytes) : fmt::format("{:.{}f} {}", bytes, bytes < 10 ? 2 : bytes < 100 ? 1 : 0, kUnits[u]);
 }
 
 namespace {

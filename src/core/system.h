@@ -18,7 +18,8 @@ namespace relume {
 std::unique_ptr<tbb::global_control> initThreads(int threads);
 int threadCount();
 
-double peakRssMiB();  // VmHWM of this process
+double peakRssMiB();     // VmHWM of this process
+double currentRssMiB();  // VmRSS of this process
 // User + system CPU seconds of this process, all threads: a cost that other processes sharing
 // the cores do not inflate (wall time does).
 double processCpuSeconds();
@@ -40,6 +41,12 @@ std::string formatDuration(double seconds);
 // The reverse, in seconds: "600", "90s", "10m", "1.5h", "1h30m" (numbers each followed by h, m or
 // s, or one bare number of seconds). Empty for any other text.
 std::optional<double> parseDuration(std::string_view text);
+// A size in bytes as a person types it: "2G", "1.5GiB", "512M", "512MB", "64k" (K, M, G and T are
+// binary: 1024-based, as in `ulimit`, Slurm and Docker; the case and a trailing "B" or "iB" do not
+// matter) or a bare number of bytes. Empty for any other text, a negative size or one beyond 2^62.
+std::optional<double> parseByteSize(std::string_view text);
+// "1.9 GiB", "512 MiB", "20 KiB", "200 B": a size as a person reads it.
+std::string formatBytes(double bytes);
 
 // Thread-safe progress bar on stderr: label, bar, units done, elapsed time and ETA; silent when
 // stderr is not a terminal. A bar created while another bar created on the same thread is alive

@@ -24,6 +24,7 @@
 #include "product/frame_poses.h"
 #include "product/group_optimiser.h"
 #include "product/light_decisions.h"
+#include "product/memory_budget.h"
 #include "product/time_budget.h"
 
 namespace relume {
@@ -65,14 +66,17 @@ class Fit {
 
  private:
   std::vector<int> chooseResolutions(const TexelSpace& init);
+  std::vector<int> keepMemoryBudget(std::vector<int> resolutions, const TexelSpace& init);
   std::unique_ptr<TexelSpace> start(const Stage& first);
   std::unique_ptr<TexelSpace> resume(const Checkpoint& ck, size_t stageCount, FitPosition& at);
   void initialiseAlbedo(const TexelSpace& space);
   std::vector<float> medianRadiance(const TexelSpace& space) const;
-  void settleAlbedoError(const TexelSpace& space);
+  void settleAlbedoError();
+  void smoothAlbedo(const TexelSpace& space);
   void upsampleAlbedo(const TexelSpace& from, const TexelSpace& to);
   bool skips(const Stage& st) const;
   void runStage(size_t stageIndex, int firstIteration, const TexelSpace& space);
+  void iterate(size_t stageIndex, int firstIteration, const TexelSpace& space);
   void planBudget(size_t stageIndex, int done);
   void finishStage(const Stage& st, size_t stageIndex, const TexelSpace& space);
   void refinePoses(const std::string& after);
@@ -100,7 +104,9 @@ class Fit {
     Json frames = gains_.toJson(w_.frames);
     if (poses_.refined()) frames["poses"] = poses_.toJson(w_.frames);
     return writeFitResult(w_, appearance_, space, roles_, c_, frames,
-                          {globalIteration_, lastLoss_, stats_, peakMemory_, budgetSummary()}, settled_);
+                          {globalIteration_, lastLoss_, stats_, peakMemory_, budgetSummary(),
+                           memoryPlan_ ? memoryPlan_->toJson() : Json()},
+                          settled_);
   }
 
   FitConfig c_;
@@ -111,6 +117,7 @@ class Fit {
   double elapsedBefore_ = 0;  // fit seconds of the runs this one resumes
   std::vector<Stage> stages_;
   std::optional<TimeBudget> budget_;  // with time_budget
+  std::optional<MemoryPlan> memoryPlan_;  // with memory_budget_mib
   Json lastPlan_;                     // the budget's last plan
   double lastIterationEnd_ = 0;       // fitSeconds() then (the setup, then each iteration's end)
   Json peakMemory_;
@@ -157,9 +164,43 @@ std::vector<int> Fit::chooseResolutions(const TexelSpace& init) {
   return resolutions;
 }
 
+// With memory_budget_mib: the resolutions up to the finest whose predicted peak fits
+// (product/memory_budget.h); refuses the fit when not even the coarsest does.
+std::vector<int> Fit::keepMemoryBudget(std::vector<int> resolutions, const TexelSpace& init) {
+  // What the process holds besides the arrays counted below, measured on six captures
+  // (docs/notes/2026-11-27-memory-budget.md): the binary, its libraries, the thread pools and the
+  // allocator's arenas, and per triangle what the BVH build and the light sampler's tables of the
+  // emission stage leave resident.
+  constexpr double kProcessBytes = 176.0 * (1 << 20), kBytesPerTriangle = 150;
+  const double rays = c_.sampler == SamplerKind::Texture
+                          ? static_cast<double>(c_.batchTexels + c_.materialBatchTexels + c_.highlightBatchTexels +
+                                                c_.emissionBatchTexels) *
+                                c_.framesPerTexel
+                          : static_cast<double>(c_.imageRays);
+  const double fixed = kProcessBytes + kBytesPerTriangle * static_cast<double>(w_.mesh.triangles.size()) +
+                       meshBytes(w_.mesh) + static_cast<double>(w_.scene->bytes()) +
+                       static_cast<double>(w_.vis.bytes()) + static_cast<double>(w_.store->mappedBytes()) +
+                       double(threadCount()) * adjointRecordBytesPerThread(c_.maxDepth) +
+                       rays * (sizeof(BatchRay) + 2 * sizeof(uint32_t) + sizeof(int) + 4 * sizeof(Color));
+  const double sampleableFraction =
+      static_cast<double>(init.sampleable.size()) / std::max<size_t>(1, init.map.texelCount());
+  memoryPlan_ = planMemory(double(c_.memoryBudgetMib) * (1 << 20), resolutions, fixed,
+                           texelBytes(c_, sampleableFraction));
+  std::string predicted;
+  for (const MemoryEstimate& e : memoryPlan_->estimates)
+    predicted += fmt::format("{} at {}^2, ", formatBytes(e.peakBytes()), e.resolution);
+  spdlog::info("fit: memory budget {}: predicted peak {}the process holding {} now; albedo up to {}^2",
+               formatBytes(memoryPlan_->budgetBytes), predicted, formatBytes(currentRssMiB() * (1 << 20)),
+               memoryPlan_->resolution);
+  std::erase_if(resolutions, [&](int r) { return r > memoryPlan_->resolution; });
+  finalRes_ = resolutions.back();
+  return resolutions;
+}
+
 FitSummary Fit::run(bool resumeRequested) {
   const TexelSpace init(w_, w_.initResolution);
-  const std::vector<int> resolutions = chooseResolutions(init);
+  std::vector<int> resolutions = chooseResolutions(init);
+  if (c_.memoryBudgetMib > 0) resolutions = keepMemoryBudget(std::move(resolutions), init);
   // Valid texels scale with the area: estimated from the init resolution, no texel map needed.
   stages_ = buildSchedule(c_, resolutions, [&](int r) -> size_t {
     const size_t f = static_cast<size_t>(r / init.resolution);
@@ -312,7 +353,14 @@ bool Fit::skips(const Stage& st) const {
          (st.afterClippedScale && !roles_.clippedScaleMoving);
 }
 
+// The stage's iterations, then (unless the fit stopped in it) its boundary, its gradient buffers
+// freed by then.
 void Fit::runStage(size_t stageIndex, int firstIteration, const TexelSpace& space) {
+  iterate(stageIndex, firstIteration, space);
+  if (!stopped_) finishStage(stages_[stageIndex], stageIndex, space);
+}
+
+void Fit::iterate(size_t stageIndex, int firstIteration, const TexelSpace& space) {
   // A time budget may replan this stage's length while it runs (planBudget): `st` is the
   // schedule's own entry, and every use of its length below sees the plan.
   const Stage& st = stages_[stageIndex];
@@ -332,6 +380,7 @@ void Fit::runStage(size_t stageIndex, int firstIteration, const TexelSpace& spac
   const std::vector<uint8_t> albedoHeld = decisions_.albedoHeld();
   const GradientMasks masks{space, w_.mesh, albedoHeld, roles_.highlight, roles_.emitter};
   std::vector<Color> estimates;  // each ray's, for gain_refine
+  Json stageMemory;              // the stage's largest memoryBreakdown
   if (budget_) {
     const double now = fitSeconds();
     budget_->recordBoundary(now - lastIterationEnd_);
@@ -388,16 +437,18 @@ void Fit::runStage(size_t stageIndex, int firstIteration, const TexelSpace& spac
     if (it == firstIteration || averagesStart || lightsGrew) {
       const Json memory = memoryBreakdown(grads, batch, settings, space);
       spdlog::log(lightsGrew && !(it == firstIteration || averagesStart) ? spdlog::level::debug : spdlog::level::info,
-                  "fit: stage {} holds {:.1f} MiB", st.name, memory["total"].get<double>() / (1 << 20));
+                  "fit: stage {} holds {:.1f} MiB (process RSS {:.0f} MiB, peak {:.0f} MiB)", st.name,
+                  memory["total"].get<double>() / (1 << 20), currentRssMiB(), peakRssMiB());
       spdlog::debug("fit: bytes by part: {}", memory.dump());
       if (peakMemory_.empty() || memory["total"] > peakMemory_["total"]) peakMemory_ = memory;
+      if (stageMemory.empty() || memory["total"] > stageMemory["total"]) stageMemory = memory;
     }
     bool go = true;
     if (hooks_.afterIteration) {
       Timer th;
       go = hooks_.afterIteration(FitIteration{st.name, globalIteration_, fitSeconds(), now, batch.rays, batch.object,
                                               *w_.scene, *lights_, settings, !grads.albedoCurvature.empty(),
-                                              appearance_, w_.mesh, peakMemory_});
+                                              appearance_, w_.mesh, peakMemory_, stageMemory});
       hookSeconds_ += th.seconds();
     }
     if (budget_) {
@@ -448,7 +499,6 @@ void Fit::runStage(size_t stageIndex, int firstIteration, const TexelSpace& spac
       "optimiser {:.1f} ms",
       st.name, st.iterations - firstIteration, lastLoss_, 1e3 * times.sample / done, 1e3 * times.primal / done,
       1e3 * times.adjoint / done, 1e3 * times.optimiser / done);
-  finishStage(st, stageIndex, space);
 }
 
 // The lengths of stage `stageIndex` (`done` iterations run) and those after it, for the time left
@@ -484,7 +534,9 @@ Json Fit::budgetSummary() const {
 void Fit::finishStage(const Stage& st, size_t stageIndex, const TexelSpace& space) {
   std::vector<ParamGroup> groups = paramGroups(appearance_);
   optimiser_.settle(groups, st);
-  if (st.settles.active(ParamKind::Albedo)) settleAlbedoError(space);
+  if (st.settles.active(ParamKind::Albedo)) settleAlbedoError();
+  optimiser_.release(groups, st);
+  if (st.settles.active(ParamKind::Albedo)) smoothAlbedo(space);
   if (st.fillUnobservedAfter) decisions_.fillUnobservedAlbedo(space);
   if (st.pruneAfter || st.redecideAfter) {
     if (decisions_.decide(space, st.name, st.pruneAfter)) optimiser_.restartAfterLightChange();
@@ -506,13 +558,19 @@ void Fit::refinePoses(const std::string& after) {
   poses_.refine(w_, appearance_, render, gains_, s, c_.unalignedFrames == UnalignedFrames::Drop, after);
 }
 
-// The settled albedo's standard errors and unbounded values, and with albedo_smoothing the albedo
-// smoothed by them (optim/texel_smoothing.h) on the texels whose albedo is fitted.
-void Fit::settleAlbedoError(const TexelSpace& space) {
+// The settled albedo's standard errors and unbounded values, read from the optimiser's state.
+void Fit::settleAlbedoError() {
   const ParamGroup albedo = paramGroups(appearance_).front();
   CHECK(albedo.kind == ParamKind::Albedo);
   settled_.findBeyondOne(optimiser_.albedoNewton(), appearance_.albedo.rgb.size() / 3, albedo.hi - albedo.lo);
   settled_.standardError = optimiser_.albedoStandardError(albedo.hi - albedo.lo);
+}
+
+// With albedo_smoothing, the settled albedo smoothed by its standard errors
+// (optim/texel_smoothing.h) on the texels whose albedo is fitted.
+void Fit::smoothAlbedo(const TexelSpace& space) {
+  const ParamGroup albedo = paramGroups(appearance_).front();
+  CHECK(albedo.kind == ParamKind::Albedo);
   if (c_.albedoSmoothing == AlbedoSmoothing::None) return;
   if (settled_.standardError.empty()) {
     spdlog::info("fit: albedo_smoothing {} skipped: the albedo step ({}) has no standard errors",

@@ -55,7 +55,8 @@ struct FitIteration {
   bool albedoCurvature = false;     // the gradient buffer had Gauss-Newton curvature storage
   const Appearance& appearance;     // albedo on `mesh`'s uv at the stage's resolution
   const TriangleMesh& mesh;
-  const Json& memory;  // bytes held by the fit, by part (see memoryBreakdown in fit.cpp)
+  const Json& memory;       // bytes held by the fit, by part (see memoryBreakdown in fit.cpp), at its largest
+  const Json& stageMemory;  // the same in this stage
 };
 
 struct FitHooks {

@@ -61,6 +61,7 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("max_stage_iterations", ConfigField(&c.maxStageIterations));
   fn("max_resolution", ConfigField(&c.maxResolution));
   fn("time_budget", ConfigField(&c.timeBudget));
+  fn("memory_budget_mib", ConfigField(&c.memoryBudgetMib));
   fn("light_test", ConfigField(&c.lightTest));
   fn("light_min_unexplained", ConfigField(&c.lightMinUnexplained));
   fn("light_significance", ConfigField(&c.lightSignificance));
@@ -150,6 +151,8 @@ void FitConfig::validate(const std::string& where) const {
   need(c.maxResolution >= 0, "max_resolution must be >= 0");
   need(std::isfinite(c.timeBudget) && c.timeBudget >= 0 && c.timeBudget <= 1e7,
        "time_budget must be in [0, 1e7] seconds (0 = the fixed schedule)");
+  need(std::isfinite(c.memoryBudgetMib) && c.memoryBudgetMib >= 0 && c.memoryBudgetMib <= 1e9,
+       "memory_budget_mib must be in [0, 1e9] MiB (0 = no budget)");
   need(c.emissionTextureResolution >= 0, "emission_texture_resolution must be >= 0 (0 = the albedo's)");
   need(c.initWhitePoint >= 0 && c.initWhitePoint <= 1, "init_white_point must be in [0, 1] (0 = off)");
   need(c.lightMinUnexplained >= 0 && c.lightMinUnexplained <= 1, "light_min_unexplained must be in [0, 1]");

@@ -128,6 +128,9 @@ struct FitConfig {
   // Seconds the fit may take: the stage lengths are chosen from measured iteration costs so that
   // it ends then (product/time_budget.h); 0 = the fixed schedule above.
   float timeBudget = 0;
+  // MiB the fit may hold at its peak: it takes the finest albedo resolution whose predicted peak
+  // fits, or refuses up front (product/memory_budget.h); 0 = no budget.
+  float memoryBudgetMib = 0;
   int emissionTextureResolution = 1024;  // cap on the emission textures' atlas resolution; 0 = the albedo's
   // Light sources (docs/design/light-sources.md). Reflector: an object is a light when no
   // reflector with albedo <= 1 and the model's specular lobe returns its observed radiance,

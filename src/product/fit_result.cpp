@@ -79,6 +79,7 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
       {"final_loss", progress.loss},  {"sampler", progress.sampler.toJson()},  {"config", c.toJson()},
       {"peak_rss_mib", peakRssMiB()}, {"memory_bytes", progress.peakMemory}};
   if (!progress.budget.is_null()) summary["time_budget"] = progress.budget;
+  if (!progress.memoryBudget.is_null()) summary["memory_budget"] = progress.memoryBudget;
   killPoint("result-half");
   writeJson(staging / "materials.json", summary);
   writeJson(staging / "lights.json",
@@ -91,6 +92,11 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
   return result;
 }
 
+double meshBytes(const TriangleMesh& m) {
+  return static_cast<double>((m.positions.size() + m.normals.size()) * sizeof(Vec3) + m.uvs.size() * sizeof(Vec2) +
+                             m.triangles.size() * (sizeof(Eigen::Vector3i) + sizeof(int32_t)));
+}
+
 Json fitMemory(const Workspace& w, Appearance& appearance, const TexelSpace& space, Gradients& grads,
                const Batch& batch, const AdjointSettings& settings, const GroupOptimiser& optimiser,
                const LightSampler* lights) {
@@ -99,9 +105,7 @@ Json fitMemory(const Workspace& w, Appearance& appearance, const TexelSpace& spa
   for (ParamGroup& g : paramGroups(appearance, &grads))
     parameters += floats(g.values.size()), gradients += floats(g.grads.size());
   const double texels = space.map.bytes() + space.sampleable.size() * sizeof(uint32_t) + space.updatable.size();
-  const TriangleMesh& m = w.mesh;  // its arrays; Embree's BVH and the shading records not counted
-  const double mesh = (m.positions.size() + m.normals.size()) * sizeof(Vec3) + m.uvs.size() * sizeof(Vec2) +
-                      m.triangles.size() * (sizeof(Eigen::Vector3i) + sizeof(int32_t));
+  const double mesh = meshBytes(w.mesh);
   const double batchBytes =
       batch.rays.size() * (sizeof(BatchRay) + 2 * sizeof(uint32_t) + sizeof(int) + 4 * sizeof(Color));
   const double records = double(threadCount()) * adjointRecordBytesPerThread(settings.path.maxDepth);
@@ -111,6 +115,7 @@ Json fitMemory(const Workspace& w, Appearance& appearance, const TexelSpace& spa
             {"averages", optimiser.averageBytes()},
             {"texel_map", texels},
             {"mesh", mesh},
+            {"scene", static_cast<double>(w.scene->bytes())},
             {"visibility_index", static_cast<double>(w.vis.bytes())},
             {"frame_cache_mapped", static_cast<double>(w.store->mappedBytes())},
             {"batch", batchBytes},

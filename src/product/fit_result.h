@@ -20,6 +20,7 @@ struct FitProgress {
   const SamplerStats& sampler;  // summed over the fit
   const Json& peakMemory;       // the largest fitMemory seen
   const Json& budget;           // with time_budget, what it chose (null otherwise)
+  const Json& memoryBudget;     // with memory_budget_mib, its plan (MemoryPlan::toJson; null otherwise)
 };
 
 // Writes WORK/result/ atomically (WORK/result.partial/, then renamed); returns its path.
@@ -31,6 +32,9 @@ struct FitProgress {
 std::filesystem::path writeFitResult(const Workspace& w, const Appearance& appearance, const TexelSpace& space,
                                      const ObjectRoles& roles, const FitConfig& c, const Json& frames,
                                      const FitProgress& progress, const SettledAlbedo& settled);
+
+// Bytes of the workspace's mesh arrays (the scene's BVH and face records: Scene::bytes).
+double meshBytes(const TriangleMesh& m);
 
 // Bytes the fit holds, by part, once a stage's buffers are allocated; "total" leaves out the
 // frame cache, a mapping of frames.bin of which only the pages the sampler touches are resident.

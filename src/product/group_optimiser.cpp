@@ -88,6 +88,12 @@ void GroupOptimiser::settle(std::span<ParamGroup> groups, const Stage& st) const
         std::copy(p->second.mean.begin(), p->second.mean.end(), g.values.begin());
 }
 
+void GroupOptimiser::release(std::span<const ParamGroup> groups, const Stage& st) {
+  for (const ParamGroup& g : groups)
+    if (st.settles.active(g.kind)) adam_.erase(g.name()), polyak_.erase(g.name());
+  if (st.settles.active(ParamKind::Albedo)) newton_ = GaussNewtonState();
+}
+
 namespace {
 
 std::vector<uint16_t> upsampleSteps(const std::vector<uint16_t>& steps, const TexelSpace& from, const TexelSpace& to,

@@ -46,6 +46,10 @@ class GroupOptimiser {
             const Stage& st, int it);
   // At the end of stage `st`: the groups it settles take their averages.
   void settle(std::span<ParamGroup> groups, const Stage& st) const;
+  // Then, once what the settled albedo's standard errors need has been read, the state of the
+  // kinds `st` settled (their steps' state and averages) is freed: no later stage steps them, and
+  // at 4096^2 the albedo's is most of what a fit holds while it smooths and writes its result.
+  void release(std::span<const ParamGroup> groups, const Stage& st);
 
   // The albedo's state follows it to the finer texel space `to`.
   void upsampleAlbedo(const TexelSpace& from, const TexelSpace& to, const TriangleMesh& mesh);

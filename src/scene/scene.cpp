@@ -22,10 +22,21 @@ void Scene::throwIfEmbreeFailed() const {
   fail("embree error {} on a mesh of {} triangles: {}", embreeErrorCode_, mesh_.triangles.size(), embreeMessage_);
 }
 
+bool Scene::onEmbreeMemory(void* scene, ssize_t bytes, bool /*post*/) {
+  static_cast<Scene*>(scene)->embreeBytes_.fetch_add(bytes, std::memory_order_relaxed);
+  return true;  // never refuses an allocation: a memory budget is kept by sizing the fit beforehand
+}
+
+size_t Scene::bytes() const {
+  return static_cast<size_t>(std::max<int64_t>(0, embreeBytes_.load(std::memory_order_relaxed))) +
+         vertexBuffer_.size() * sizeof(float) + faces_.size() * sizeof(FaceRecord);
+}
+
 Scene::Scene(TriangleMesh mesh, SceneOptions options) : mesh_(std::move(mesh)) {
   device_ = rtcNewDevice(nullptr);
   if (!device_) fail("cannot create Embree device (error {})", static_cast<int>(rtcGetDeviceError(nullptr)));
   rtcSetDeviceErrorFunction(device_, onEmbreeError, this);
+  rtcSetDeviceMemoryMonitorFunction(device_, onEmbreeMemory, this);
   scene_ = rtcNewScene(device_);
   rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_HIGH);
   rtcSetSceneFlags(scene_, options.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);

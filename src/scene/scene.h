@@ -68,6 +68,9 @@ class Scene {
   // loops that trace many rays, once per pass.
   void throwIfEmbreeFailed() const;
   RTCDevice embreeDevice() const { return device_; }
+  // Bytes the scene holds: Embree's (its BVH, as its device reports them), the face records and
+  // the vertex buffer (the mesh's own arrays not counted).
+  size_t bytes() const;
 
  private:
   TriangleMesh mesh_;
@@ -82,6 +85,7 @@ class Scene {
   };
   bool traceable(const Vec3& origin, const Vec3& dir, float tmax) const;
   static void onEmbreeError(void* scene, RTCError code, const char* message);
+  static bool onEmbreeMemory(void* scene, ssize_t bytes, bool post);
   void release();
   std::atomic<bool> embreeFailed_{false};  // set once the first error is stored
   mutable std::mutex embreeErrorMutex_;
@@ -92,6 +96,7 @@ class Scene {
   RTCDevice device_ = nullptr;
   RTCScene scene_ = nullptr;
   mutable std::atomic<size_t> skippedRays_{0};
+  std::atomic<int64_t> embreeBytes_{0};
 };
 
 // The point with barycentrics (1 - b1 - b2, b1, b2) of a triangle's corners.

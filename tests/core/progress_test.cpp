@@ -35,6 +35,26 @@ TEST(Progress, DurationsParseFromWhatAPersonTypes) {
     EXPECT_FALSE(parseDuration(bad).has_value()) << bad;
 }
 
+TEST(Progress, ByteSizesParseFromWhatAPersonTypes) {
+  const double gib = 1024.0 * 1024 * 1024;
+  EXPECT_EQ(parseByteSize("2G"), 2 * gib);
+  EXPECT_EQ(parseByteSize("2g"), 2 * gib);
+  EXPECT_EQ(parseByteSize("2GiB"), 2 * gib);
+  EXPECT_EQ(parseByteSize("2GB"), 2 * gib);
+  EXPECT_EQ(parseByteSize("1.5G"), 1.5 * gib);
+  EXPECT_EQ(parseByteSize("512M"), 512.0 * 1024 * 1024);
+  EXPECT_EQ(parseByteSize("64k"), 65536.0);
+  EXPECT_EQ(parseByteSize("1T"), 1024 * gib);
+  EXPECT_EQ(parseByteSize("1000"), 1000.0);
+  EXPECT_EQ(parseByteSize("1000B"), 1000.0);
+  for (const char* bad : {"", "G", "2X", "2GG", "-1G", "2 G", "1..5G", "1e400", "2Gi", "5P"})
+    EXPECT_FALSE(parseByteSize(bad).has_value()) << bad;
+  EXPECT_EQ(formatBytes(200), "200 B");
+  EXPECT_EQ(formatBytes(1.5 * gib), "1.50 GiB");
+  EXPECT_EQ(formatBytes(512.0 * 1024 * 1024), "512 MiB");
+  EXPECT_EQ(formatBytes(20.0 * 1024 * 1024), "20.0 MiB");
+}
+
 TEST(Progress, ABarInsideAnotherCarriesItThroughItsCurrentUnit) {
   Progress phase("phase", 4);
   phase.advance();

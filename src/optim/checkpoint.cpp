@@ -14,34 +14,40 @@ namespace {
 constexpr char kMagic[8] = {'R', 'L', 'M', 'C', 'K', 'P', '0', '1'};
 }
 
-size_t Checkpoint::bytes(const std::string& name) const {
-  const auto it = arrays_.find(name);
-  return it == arrays_.end() ? 0 : it->second.size();
+std::span<const char> Checkpoint::find(const std::string& name) const {
+  if (const auto it = arrays_.find(name); it != arrays_.end()) return it->second;
+  if (const auto it = views_.find(name); it != views_.end()) return it->second;
+  return {};
 }
 
+size_t Checkpoint::bytes(const std::string& name) const { return find(name).size(); }
+
 void Checkpoint::copyOut(const std::string& name, void* out, size_t bytes) const {
-  const auto it = arrays_.find(name);
-  if (it == arrays_.end()) fail("{}: checkpoint has no array '{}'", source_.string(), name);
-  if (it->second.size() != bytes)
+  if (!has(name)) fail("{}: checkpoint has no array '{}'", source_.string(), name);
+  const std::span<const char> data = find(name);
+  if (data.size() != bytes)
     fail("{}: checkpoint array '{}' has {} bytes, expected {} (was it written for another work folder?)",
-         source_.string(), name, it->second.size(), bytes);
-  if (bytes) std::memcpy(out, it->second.data(), bytes);
+         source_.string(), name, data.size(), bytes);
+  if (bytes) std::memcpy(out, data.data(), bytes);
 }
 
 void Checkpoint::write(const std::filesystem::path& path) const {
+  // Copied and in-place arrays in one order, by name.
+  std::map<std::string, std::span<const char>> all(views_.begin(), views_.end());
+  for (const auto& [name, data] : arrays_) all[name] = data;
   writeAtomically(path, [&](const std::filesystem::path& tmp) {
     std::ofstream out(tmp, std::ios::binary);
     Json header = meta;
     Json index = Json::array();
-    for (const auto& [name, data] : arrays_) index.push_back({name, data.size()});
+    for (const auto& [name, data] : all) index.push_back({name, data.size()});
     const std::string text = Json{{"meta", header}, {"arrays", index}}.dump();
     const uint64_t length = text.size();
     out.write(kMagic, sizeof(kMagic));
     out.write(reinterpret_cast<const char*>(&length), sizeof(length));
     out.write(text.data(), static_cast<std::streamsize>(text.size()));
     size_t written = 0;
-    for (const auto& [name, data] : arrays_) {
-      if (written++ == arrays_.size() / 2) {
+    for (const auto& [name, data] : all) {
+      if (written++ == all.size() / 2) {
         out.flush();
         killPoint("checkpoint-half");
       }

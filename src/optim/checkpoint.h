@@ -21,15 +21,23 @@ class Checkpoint {
 
   template <typename T>
   void put(const std::string& name, std::span<const T> data) {
+    views_.erase(name);
     std::vector<char>& b = arrays_[name];
     b.resize(data.size_bytes());
     if (!data.empty()) std::memcpy(b.data(), data.data(), data.size_bytes());
+  }
+  // Array `name` written from `data` itself rather than a copy: `data` must stay alive and
+  // unchanged until write(). The per-texel state of a 4096^2 fit is GiBs, which a copy doubles.
+  template <typename T>
+  void putInPlace(const std::string& name, std::span<const T> data) {
+    arrays_.erase(name);
+    views_[name] = std::span<const char>(reinterpret_cast<const char*>(data.data()), data.size_bytes());
   }
   template <typename T>
   void put(const std::string& name, const std::vector<T>& data) {
     put(name, std::span<const T>(data));
   }
-  bool has(const std::string& name) const { return arrays_.count(name) != 0; }
+  bool has(const std::string& name) const { return arrays_.count(name) != 0 || views_.count(name) != 0; }
   // Copies array `name` into `out`, which must have exactly its size (throws relume::Error otherwise).
   template <typename T>
   void get(const std::string& name, std::span<T> out) const {
@@ -48,7 +56,9 @@ class Checkpoint {
 
  private:
   void copyOut(const std::string& name, void* out, size_t bytes) const;
+  std::span<const char> find(const std::string& name) const;  // empty data() when absent
   std::map<std::string, std::vector<char>> arrays_;
+  std::map<std::string, std::span<const char>> views_;  // putInPlace's
   std::filesystem::path source_;
 };
 

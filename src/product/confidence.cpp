@@ -127,7 +127,7 @@ void SettledAlbedo::findBeyondOne(const GaussNewtonState& newton, size_t texels,
 void SettledAlbedo::serialise(CheckpointIo& io, size_t texels, const std::filesystem::path& work) {
   if (io.optional("albedo.standard_error", !standardError.empty())) {
     if (!io.writing()) standardError.resize(3 * texels);
-    io.array("albedo.standard_error", standardError);
+    io.arrayInPlace("albedo.standard_error", standardError);
   }
   beyondOneKnown = io.optional("albedo.beyond_one_count", beyondOneKnown);
   if (!beyondOneKnown) return;

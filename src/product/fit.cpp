@@ -608,7 +608,7 @@ void Fit::appendMetrics(const Json& j) const {
 // what each object is.
 void Fit::serialiseState(CheckpointIo& io) {
   std::vector<ParamGroup> groups = paramGroups(appearance_);
-  for (ParamGroup& g : groups) io.array(g.name() + ".values", g.values);
+  for (ParamGroup& g : groups) io.arrayInPlace(g.name() + ".values", g.values);
   optimiser_.serialise(io, groups, appearance_.albedo.rgb.size());
   settled_.serialise(io, appearance_.albedo.rgb.size() / 3, w_.dir);
   roles_.serialise(io, w_.dir);

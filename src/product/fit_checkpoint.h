@@ -35,6 +35,19 @@ class CheckpointIo {
   void array(const std::string& name, std::vector<T>& data) {
     array(name, std::span<T>(data));
   }
+  // The same for an array that stays alive and unchanged until the checkpoint is written: a
+  // writer refers to it instead of copying it (Checkpoint::putInPlace; the per-texel state).
+  template <typename T>
+  void arrayInPlace(const std::string& name, std::span<T> data) {
+    if (out_)
+      out_->putInPlace(name, std::span<const T>(data));
+    else
+      in_->get(name, data);
+  }
+  template <typename T>
+  void arrayInPlace(const std::string& name, std::vector<T>& data) {
+    arrayInPlace(name, std::span<T>(data));
+  }
   // A one-entry array.
   template <typename T>
   void single(const std::string& name, T& value) {

@@ -160,27 +160,27 @@ void GroupOptimiser::serialise(CheckpointIo& io, std::span<ParamGroup> groups, s
     const std::string name = g.name();
     if (io.optional(name + ".m", adam_.count(name) != 0)) {
       AdamState& s = io.writing() ? adam_.at(name) : (adam_[name] = AdamState(g.values.size()));
-      io.array(name + ".m", s.m);
-      io.array(name + ".v", s.v);
-      io.array(name + ".steps", s.steps);
+      io.arrayInPlace(name + ".m", s.m);
+      io.arrayInPlace(name + ".v", s.v);
+      io.arrayInPlace(name + ".steps", s.steps);
     }
     // Averages independently of Adam state: the albedo has none under the Gauss-Newton step.
     if (io.optional(name + ".mean", polyak_.count(name) != 0)) {
       PolyakAverage& p = polyak_[name];
       if (!io.writing()) p.mean.resize(g.values.size());
-      io.array(name + ".mean", p.mean);
+      io.arrayInPlace(name + ".mean", p.mean);
       io.single(name + ".count", p.count);
     }
   }
   if (io.optional("albedo.curvature", newton_.size() > 0) && (io.writing() || newtonAlbedo())) {
     if (!io.writing()) newton_ = GaussNewtonState(albedoEntries);
-    io.array("albedo.numerator", newton_.numerator);
-    io.array("albedo.curvature", newton_.curvature);
-    io.array("albedo.curvature_steps", newton_.steps);
+    io.arrayInPlace("albedo.numerator", newton_.numerator);
+    io.arrayInPlace("albedo.curvature", newton_.curvature);
+    io.arrayInPlace("albedo.curvature_steps", newton_.steps);
     if (io.optional("albedo.residual_square", newton_.tracksSpread())) {
       if (!io.writing()) newton_.residualSquare.resize(albedoEntries), newton_.weightSquare.resize(albedoEntries);
-      io.array("albedo.residual_square", newton_.residualSquare);
-      io.array("albedo.weight_square", newton_.weightSquare);
+      io.arrayInPlace("albedo.residual_square", newton_.residualSquare);
+      io.arrayInPlace("albedo.weight_square", newton_.weightSquare);
     }
   }
 }

@@ -60,14 +60,15 @@ MemoryPlan planMemory(double budgetBytes, const std::vector<int>& resolutions, d
   for (int r : resolutions) {
     MemoryEstimate e{r, fixedBytes, perTexel.peak() * static_cast<double>(r) * r};
     plan.estimates.push_back(e);
-    if (e.peakBytes() <= budgetBytes) plan.resolution = r;
+    if (e.peakBytes() <= (1 - MemoryPlan::kReserve) * budgetBytes) plan.resolution = r;
   }
   const MemoryEstimate& coarsest = plan.estimates.front();
   if (plan.resolution == 0)
     fail("memory budget {} is too small for this fit: it is predicted to need {} at its coarsest albedo resolution "
-         "{}^2 ({} without the albedo, held before the fit starts)",
+         "{}^2 ({} of it whatever the resolution), so a budget of {} with the {:.0f}% reserve",
          formatBytes(budgetBytes), formatBytes(coarsest.peakBytes()), coarsest.resolution,
-         formatBytes(coarsest.fixedBytes));
+         formatBytes(coarsest.fixedBytes), formatBytes(coarsest.peakBytes() / (1 - MemoryPlan::kReserve)),
+         100 * MemoryPlan::kReserve);
   return plan;
 }
 

@@ -567,8 +567,17 @@ std::string prepareSection(const Json& prepare, const Json& materials) {
     if (p.contains("seconds"))
       s += fmt::format("<tr><td>prepare: {}</td><td>{:.2f} s</td></tr>", html(phase), p["seconds"].get<double>());
   s += "</table>";
-  return s + fmt::format("<p>Peak RSS: prepare {:.0f} MiB, fit {:.0f} MiB.</p>", prepare.value("peak_rss_mib", 0.0),
-                         materials.value("peak_rss_mib", 0.0));
+  s += fmt::format("<p>Peak RSS: prepare {:.0f} MiB, fit {:.0f} MiB.", prepare.value("peak_rss_mib", 0.0),
+                   materials.value("peak_rss_mib", 0.0));
+  // With a memory budget, what it predicted for each resolution and which it took.
+  if (const Json plan = materials.value("memory_budget", Json()); plan.is_object()) {
+    std::string predicted;
+    for (const Json& e : plan.value("predicted", Json::array()))
+      predicted += fmt::format("{} at {}^2, ", formatBytes(e.value("peak_bytes", 0.0)), e.value("resolution", 0));
+    s += fmt::format(" Memory budget {}: predicted peak {}so the albedo went up to {}^2.",
+                     formatBytes(plan.value("budget_bytes", 0.0)), predicted, plan.value("resolution", 0));
+  }
+  return s + "</p>";
 }
 
 }  // namespace

@@ -2,10 +2,14 @@
 // against what a fit holds, and a whole fit that takes the coarser resolution or refuses up front.
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <iterator>
+
 #include "core/error.h"
 #include "io/json.h"
 #include "product/fit.h"
 #include "product/memory_budget.h"
+#include "product/report.h"
 #include "support/prepared_capture.h"
 
 using namespace relume;
@@ -34,9 +38,11 @@ TEST(MemoryBudget, TakesTheFinestResolutionThatFitsAndRefusesWhenNoneDoes) {
   const double fixed = 100 * kMiB;
   // 1024^2 x 107 B = 107 MiB; 2048^2: 428 MiB; 4096^2: 1712 MiB.
   const std::vector<int> res{1024, 2048, 4096};
+  const double usable = 1 - MemoryPlan::kReserve;  // of the budget
   EXPECT_EQ(planMemory(2048 * kMiB, res, fixed, b).resolution, 4096);
-  EXPECT_EQ(planMemory(1812 * kMiB, res, fixed, b).resolution, 4096);  // exactly at the budget
-  EXPECT_EQ(planMemory(1811 * kMiB, res, fixed, b).resolution, 2048);
+  EXPECT_EQ(planMemory(1812 * kMiB / usable, res, fixed, b).resolution, 4096);  // exactly at the budget
+  EXPECT_EQ(planMemory(1811 * kMiB / usable, res, fixed, b).resolution, 2048);
+  EXPECT_EQ(planMemory(1812 * kMiB, res, fixed, b).resolution, 2048);  // the reserve is kept
   const MemoryPlan p = planMemory(600 * kMiB, res, fixed, b);
   EXPECT_EQ(p.resolution, 2048);
   ASSERT_EQ(p.estimates.size(), 3u);
@@ -45,6 +51,7 @@ TEST(MemoryBudget, TakesTheFinestResolutionThatFitsAndRefusesWhenNoneDoes) {
   const std::string refused = errorOf([&] { planMemory(200 * kMiB, res, fixed, b); });
   EXPECT_NE(refused.find("memory budget 200 MiB is too small"), std::string::npos) << refused;
   EXPECT_NE(refused.find("207 MiB at its coarsest albedo resolution 1024^2"), std::string::npos) << refused;
+  EXPECT_NE(refused.find("a budget of 218 MiB"), std::string::npos) << refused;
 }
 
 TEST(MemoryBudget, TheSettlingStageHoldsWhatTheOptimiserAllocates) {
@@ -123,12 +130,15 @@ TEST(FitMemoryBudget, TakesTheCoarserResolutionOrRefusesUpFront) {
                fine = plan.at("predicted")[1].at("peak_bytes").get<double>();
   ASSERT_LT(coarse, fine);
 
-  c.memoryBudgetMib = static_cast<float>(0.5 * (coarse + fine) / kMiB);
+  c.memoryBudgetMib = static_cast<float>(0.5 * (coarse + fine) / (1 - MemoryPlan::kReserve) / kMiB);
   EXPECT_EQ(runFit(work, c, false).finalResolution, 64);
   EXPECT_EQ(readJson(work / "result" / "materials.json").at("memory_budget").at("resolution").get<int>(), 64);
+  std::ifstream page(writeFitReport(work));
+  const std::string html((std::istreambuf_iterator<char>(page)), std::istreambuf_iterator<char>());
+  EXPECT_NE(html.find("so the albedo went up to 64^2"), std::string::npos);
 
   fs::remove_all(work / "result");
-  c.memoryBudgetMib = static_cast<float>(0.9 * coarse / kMiB);
+  c.memoryBudgetMib = static_cast<float>(coarse / kMiB);  // the prediction without the reserve
   FitHooks hooks;
   int iterations = 0;
   hooks.afterIteration = [&](const FitIteration&) { return ++iterations > 0; };

@@ -185,7 +185,7 @@ std::vector<int> Fit::keepMemoryBudget(std::vector<int> resolutions, const Texel
   const double sampleableFraction =
       static_cast<double>(init.sampleable.size()) / std::max<size_t>(1, init.map.texelCount());
   memoryPlan_ = planMemory(double(c_.memoryBudgetMib) * (1 << 20), resolutions, fixed,
-                           texelBytes(c_, sampleableFraction));
+                           static_cast<double>(w_.store->mappedBytes()), texelBytes(c_, sampleableFraction));
   std::string predicted;
   for (const MemoryEstimate& e : memoryPlan_->estimates)
     predicted += fmt::format("{} at {}^2, ", formatBytes(e.peakBytes()), e.resolution);

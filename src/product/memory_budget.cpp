@@ -53,7 +53,7 @@ Json MemoryPlan::toJson() const {
 }
 
 MemoryPlan planMemory(double budgetBytes, const std::vector<int>& resolutions, double fixedBytes,
-                      const TexelBytes& perTexel) {
+                      double frameCacheBytes, const TexelBytes& perTexel) {
   CHECK(!resolutions.empty() && std::is_sorted(resolutions.begin(), resolutions.end()));
   MemoryPlan plan;
   plan.budgetBytes = budgetBytes;
@@ -65,10 +65,11 @@ MemoryPlan planMemory(double budgetBytes, const std::vector<int>& resolutions, d
   const MemoryEstimate& coarsest = plan.estimates.front();
   if (plan.resolution == 0)
     fail("memory budget {} is too small for this fit: it is predicted to need {} at its coarsest albedo resolution "
-         "{}^2 ({} of it whatever the resolution), so a budget of {} with the {:.0f}% reserve",
+         "{}^2, so a budget of {} with the {:.0f}% reserve ({} of it whatever the resolution, {} of that the frame "
+         "cache: its file mapping becomes resident as the frames are read; prepare --downscale 2 quarters it)",
          formatBytes(budgetBytes), formatBytes(coarsest.peakBytes()), coarsest.resolution,
-         formatBytes(coarsest.fixedBytes), formatBytes(coarsest.peakBytes() / (1 - MemoryPlan::kReserve)),
-         100 * MemoryPlan::kReserve);
+         formatBytes(coarsest.peakBytes() / (1 - MemoryPlan::kReserve)), 100 * MemoryPlan::kReserve,
+         formatBytes(coarsest.fixedBytes), formatBytes(frameCacheBytes));
   return plan;
 }
 

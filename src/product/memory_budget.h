@@ -49,10 +49,9 @@ struct MemoryPlan {
 };
 
 // The finest of `resolutions` (coarse to fine) whose predicted peak is within `budgetBytes` (less
-// its reserve), the
-// process already holding `fixedBytes` with everything that does not grow with the resolution.
-// Throws relume::Error naming the figure the coarsest needs when none fits.
+// its reserve), `fixedBytes` being held whatever the resolution, `frameCacheBytes` of them the
+// frame cache's mapping. Throws relume::Error naming the figure the coarsest needs when none fits.
 MemoryPlan planMemory(double budgetBytes, const std::vector<int>& resolutions, double fixedBytes,
-                      const TexelBytes& perTexel);
+                      double frameCacheBytes, const TexelBytes& perTexel);
 
 }  // namespace relume

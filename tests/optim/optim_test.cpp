@@ -335,6 +335,31 @@ TEST(Checkpoint, RoundTripAndCorruptFiles) {
 
 // Found by fuzz_checkpoint: a length or header integer written as a huge float (1.6e85) was cast
 // to an integer by nlohmann (undefined behaviour); both are now checked integers.
+// An array put in place is written from the caller's memory as it is when the file is written
+// (no copy held), in the same name order as the copied ones, and reads back like them.
+TEST(Checkpoint, ArraysPutInPlaceAreWrittenFromTheCallersMemory) {
+  const fs::path path = fs::temp_directory_path() / "relume_ck_in_place_test.bin";
+  std::vector<float> big{1, 2, 3, 4};
+  Checkpoint c;
+  c.put("b", std::vector<uint16_t>{9});
+  c.putInPlace("a", std::span<const float>(big));
+  c.put("c", std::vector<float>{5});
+  EXPECT_TRUE(c.has("a"));
+  EXPECT_EQ(c.bytes("a"), 16u);
+  big[3] = 40;  // after the put, before the write: the file has it
+  c.write(path);
+  const Checkpoint r = Checkpoint::read(path);
+  std::vector<float> a(4), cv(1);
+  std::vector<uint16_t> b(1);
+  r.get("a", a), r.get("b", b), r.get("c", cv);
+  EXPECT_EQ(a, (std::vector<float>{1, 2, 3, 40}));
+  EXPECT_EQ(b[0], 9);
+  EXPECT_EQ(cv[0], 5);
+  c.put("a", std::vector<float>{7});  // a copy replaces the view
+  EXPECT_EQ(c.bytes("a"), 4u);
+  fs::remove(path);
+}
+
 TEST(Checkpoint, NumbersThatAreNotIntegersInRangeAreCleanErrors) {
   const fs::path path = fs::temp_directory_path() / "relume_ck_numbers_test.bin";
   auto writeRaw = [&](const std::string& header, const std::string& payload) {

@@ -39,19 +39,21 @@ TEST(MemoryBudget, TakesTheFinestResolutionThatFitsAndRefusesWhenNoneDoes) {
   // 1024^2 x 107 B = 107 MiB; 2048^2: 428 MiB; 4096^2: 1712 MiB.
   const std::vector<int> res{1024, 2048, 4096};
   const double usable = 1 - MemoryPlan::kReserve;  // of the budget
-  EXPECT_EQ(planMemory(2048 * kMiB, res, fixed, b).resolution, 4096);
-  EXPECT_EQ(planMemory(1812 * kMiB / usable, res, fixed, b).resolution, 4096);  // exactly at the budget
-  EXPECT_EQ(planMemory(1811 * kMiB / usable, res, fixed, b).resolution, 2048);
-  EXPECT_EQ(planMemory(1812 * kMiB, res, fixed, b).resolution, 2048);  // the reserve is kept
-  const MemoryPlan p = planMemory(600 * kMiB, res, fixed, b);
+  EXPECT_EQ(planMemory(2048 * kMiB, res, fixed, 10 * kMiB, b).resolution, 4096);
+  EXPECT_EQ(planMemory(1812 * kMiB / usable, res, fixed, 10 * kMiB, b).resolution, 4096);  // exactly at the budget
+  EXPECT_EQ(planMemory(1811 * kMiB / usable, res, fixed, 10 * kMiB, b).resolution, 2048);
+  EXPECT_EQ(planMemory(1812 * kMiB, res, fixed, 10 * kMiB, b).resolution, 2048);  // the reserve is kept
+  const MemoryPlan p = planMemory(600 * kMiB, res, fixed, 10 * kMiB, b);
   EXPECT_EQ(p.resolution, 2048);
   ASSERT_EQ(p.estimates.size(), 3u);
   EXPECT_EQ(p.estimates[1].peakBytes(), 528 * kMiB);
   EXPECT_EQ(p.toJson()["predicted"][2]["peak_bytes"].get<double>(), 1812 * kMiB);
-  const std::string refused = errorOf([&] { planMemory(200 * kMiB, res, fixed, b); });
+  const std::string refused = errorOf([&] { planMemory(200 * kMiB, res, fixed, 10 * kMiB, b); });
   EXPECT_NE(refused.find("memory budget 200 MiB is too small"), std::string::npos) << refused;
   EXPECT_NE(refused.find("207 MiB at its coarsest albedo resolution 1024^2"), std::string::npos) << refused;
   EXPECT_NE(refused.find("a budget of 218 MiB"), std::string::npos) << refused;
+  EXPECT_NE(refused.find("100 MiB of it whatever the resolution, 10.0 MiB of that the frame cache"), std::string::npos)
+      << refused;
 }
 
 TEST(MemoryBudget, TheSettlingStageHoldsWhatTheOptimiserAllocates) {

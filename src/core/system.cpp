@@ -97,13 +97,14 @@ std::optional<double> parseByteSize(std::string_view text) {
   if (j == 0 || ec != std::errc() || end != text.data() + j) return std::nullopt;
   std::string unit;
   for (char c : text.substr(j)) unit += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  if (unit.ends_with("ib")) unit.resize(unit.size() - 2);
+  const bool binaryMark = unit.ends_with("ib");  // "GiB": then a prefix must come before it
+  if (binaryMark) unit.resize(unit.size() - 2);
   else if (unit.ends_with("b")) unit.resize(unit.size() - 1);
   static constexpr std::string_view kPrefixes = "kmgt";
   double scale = 1;
   if (unit.size() == 1 && kPrefixes.find(unit[0]) != std::string_view::npos)
     scale = std::ldexp(1.0, 10 * (1 + static_cast<int>(kPrefixes.find(unit[0]))));
-  else if (!unit.empty())
+  else if (!unit.empty() || binaryMark)
     return std::nullopt;
   const double bytes = value * scale;
   if (!std::isfinite(bytes) || bytes > std::ldexp(1.0, 62)) return std::nullopt;
@@ -114,7 +115,8 @@ std::string formatBytes(double bytes) {
   static constexpr const char* kUnits[] = {"B", "KiB", "MiB", "GiB", "TiB"};
   int u = 0;
   while (u < 4 && std::abs(bytes) >= 1024) bytes /= 1024, ++u;
-  return u == 0 ? fmt::format("{:.0f} B", bytes) : fmt::format("{:.{}f} {}", bytes, bytes < 10 ? 2 : bytes < 100 ? 1 : 0, kUnits[u]);
+  if (u == 0) return fmt::format("{:.0f} B", bytes);
+  return fmt::format("{:.{}f} {}", bytes, bytes < 10 ? 2 : bytes < 100 ? 1 : 0, kUnits[u]);
 }
 
 namespace {

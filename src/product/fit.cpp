@@ -31,6 +31,8 @@ namespace relume {
 namespace fs = std::filesystem;
 namespace {
 
+constexpr const char* kMemoryResolutionKey = "memory_budget.resolution";  // the plan's, in the checkpoint
+
 // One fit: the stages of the schedule, each a loop of iterations
 //   batch (FitBatches) -> gradient (adjoint solver) -> masks and step (GroupOptimiser),
 // with the light decisions at stage boundaries and checkpoints along the way.
@@ -66,7 +68,7 @@ class Fit {
 
  private:
   std::vector<int> chooseResolutions(const TexelSpace& init);
-  std::vector<int> keepMemoryBudget(std::vector<int> resolutions, const TexelSpace& init);
+  std::vector<int> keepMemoryBudget(std::vector<int> resolutions, const TexelSpace& init, const Checkpoint* resumed);
   std::unique_ptr<TexelSpace> start(const Stage& first);
   std::unique_ptr<TexelSpace> resume(const Checkpoint& ck, size_t stageCount, FitPosition& at);
   void initialiseAlbedo(const TexelSpace& space);
@@ -165,9 +167,12 @@ std::vector<int> Fit::chooseResolutions(const TexelSpace& init) {
 }
 
 // With memory_budget_mib: the resolutions up to the finest whose predicted peak fits
-// (product/memory_budget.h); refuses the fit when not even the coarsest does.
-std::vector<int> Fit::keepMemoryBudget(std::vector<int> resolutions, const TexelSpace& init) {
-  // What the process holds besides the arrays counted below, measured on six captures
+// (product/memory_budget.h); refuses the fit when not even the coarsest does. A resumed fit keeps
+// the resolution of the run it continues (`resumed`'s), which its schedule was built for: the
+// prediction depends on the thread count and Embree's allocations, which may differ.
+std::vector<int> Fit::keepMemoryBudget(std::vector<int> resolutions, const TexelSpace& init,
+                                       const Checkpoint* resumed) {
+  // What the process holds besides the arrays counted below, measured on five captures
   // (docs/notes/2026-11-27-memory-budget.md): the binary, its libraries, the thread pools and the
   // allocator's arenas, and per triangle what the BVH build and the light sampler's tables of the
   // emission stage leave resident.
@@ -186,6 +191,17 @@ std::vector<int> Fit::keepMemoryBudget(std::vector<int> resolutions, const Texel
       static_cast<double>(init.sampleable.size()) / std::max<size_t>(1, init.map.texelCount());
   memoryPlan_ = planMemory(double(c_.memoryBudgetMib) * (1 << 20), resolutions, fixed,
                            static_cast<double>(w_.store->mappedBytes()), texelBytes(c_, sampleableFraction));
+  if (resumed && resumed->has(kMemoryResolutionKey)) {
+    std::vector<int> kept(1);
+    resumed->get(kMemoryResolutionKey, kept);
+    if (std::find(resolutions.begin(), resolutions.end(), kept[0]) == resolutions.end())
+      fail("{}: the memory plan's resolution {} is not one of this fit's", (w_.dir / "checkpoint.bin").string(),
+           kept[0]);
+    if (kept[0] != memoryPlan_->resolution)
+      spdlog::info("fit: the interrupted run's memory plan kept: albedo up to {}^2 (this run's would be {}^2)", kept[0],
+                   memoryPlan_->resolution);
+    memoryPlan_->resolution = kept[0];
+  }
   std::string predicted;
   for (const MemoryEstimate& e : memoryPlan_->estimates)
     predicted += fmt::format("{} at {}^2, ", formatBytes(e.peakBytes()), e.resolution);
@@ -198,9 +214,13 @@ std::vector<int> Fit::keepMemoryBudget(std::vector<int> resolutions, const Texel
 }
 
 FitSummary Fit::run(bool resumeRequested) {
+  const fs::path checkpointPath = w_.dir / "checkpoint.bin";
+  std::optional<Checkpoint> checkpoint;
+  if (resumeRequested && pathExists(checkpointPath)) checkpoint.emplace(Checkpoint::read(checkpointPath));
   const TexelSpace init(w_, w_.initResolution);
   std::vector<int> resolutions = chooseResolutions(init);
-  if (c_.memoryBudgetMib > 0) resolutions = keepMemoryBudget(std::move(resolutions), init);
+  if (c_.memoryBudgetMib > 0)
+    resolutions = keepMemoryBudget(std::move(resolutions), init, checkpoint ? &*checkpoint : nullptr);
   // Valid texels scale with the area: estimated from the init resolution, no texel map needed.
   stages_ = buildSchedule(c_, resolutions, [&](int r) -> size_t {
     const size_t f = static_cast<size_t>(r / init.resolution);
@@ -221,11 +241,8 @@ FitSummary Fit::run(bool resumeRequested) {
     spdlog::info("fit: frame gains estimated ({}{})", enumName(gains_.mode()),
                  c_.frameGains == FrameGainMode::Auto ? ": some 8/16-bit frames have no recorded exposure" : "");
 
-  const fs::path checkpointPath = w_.dir / "checkpoint.bin";
   FitPosition at;
-  std::unique_ptr<TexelSpace> space = resumeRequested && pathExists(checkpointPath)
-                                          ? resume(Checkpoint::read(checkpointPath), stages_.size(), at)
-                                          : start(stages_.front());
+  std::unique_ptr<TexelSpace> space = checkpoint ? resume(*checkpoint, stages_.size(), at) : start(stages_.front());
   FitSummary summary;
   for (size_t si = at.stage; si < stages_.size(); ++si) {
     const Stage& st = stages_[si];
@@ -636,6 +653,10 @@ void Fit::writeCheckpoint(size_t stage, int iteration, const TexelSpace& space) 
                  lastLoss_};
   CheckpointIo io = CheckpointIo::writer(ck);
   at.serialise(io, 0);
+  if (memoryPlan_) {
+    std::vector<int> resolution{memoryPlan_->resolution};
+    io.array(kMemoryResolutionKey, resolution);
+  }
   serialiseState(io);
   ck.write(w_.dir / "checkpoint.bin");
 }

@@ -1,6 +1,8 @@
 // Progress: the ETA's arithmetic, durations as text, and bars nested in a phase's bar.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <tbb/parallel_for.h>
 
 #include "core/system.h"
@@ -47,7 +49,8 @@ TEST(Progress, ByteSizesParseFromWhatAPersonTypes) {
   EXPECT_EQ(parseByteSize("1T"), 1024 * gib);
   EXPECT_EQ(parseByteSize("1000"), 1000.0);
   EXPECT_EQ(parseByteSize("1000B"), 1000.0);
-  for (const char* bad : {"", "G", "2X", "2GG", "-1G", "2 G", "1..5G", "1e400", "2Gi", "5P"})
+  EXPECT_EQ(parseByteSize("4611686018427387904"), std::ldexp(1.0, 62));
+  for (const char* bad : {"", "G", "2X", "2GG", "-1G", "2 G", "1..5G", "1e400", "2Gi", "5P", "2iB", "9999999999T"})
     EXPECT_FALSE(parseByteSize(bad).has_value()) << bad;
   EXPECT_EQ(formatBytes(200), "200 B");
   EXPECT_EQ(formatBytes(1.5 * gib), "1.50 GiB");

@@ -333,8 +333,6 @@ TEST(Checkpoint, RoundTripAndCorruptFiles) {
   fs::remove(path);
 }
 
-// Found by fuzz_checkpoint: a length or header integer written as a huge float (1.6e85) was cast
-// to an integer by nlohmann (undefined behaviour); both are now checked integers.
 // An array put in place is written from the caller's memory as it is when the file is written
 // (no copy held), in the same name order as the copied ones, and reads back like them.
 TEST(Checkpoint, ArraysPutInPlaceAreWrittenFromTheCallersMemory) {
@@ -360,6 +358,8 @@ TEST(Checkpoint, ArraysPutInPlaceAreWrittenFromTheCallersMemory) {
   fs::remove(path);
 }
 
+// Found by fuzz_checkpoint: a length or header integer written as a huge float (1.6e85) was cast
+// to an integer by nlohmann (undefined behaviour); both are now checked integers.
 TEST(Checkpoint, NumbersThatAreNotIntegersInRangeAreCleanErrors) {
   const fs::path path = fs::temp_directory_path() / "relume_ck_numbers_test.bin";
   auto writeRaw = [&](const std::string& header, const std::string& payload) {

@@ -5,6 +5,8 @@
 #include <fstream>
 #include <iterator>
 
+#include <tbb/global_control.h>
+
 #include "core/error.h"
 #include "io/json.h"
 #include "product/fit.h"
@@ -105,25 +107,47 @@ TEST(MemoryBudget, BytesPerTexelAreWhatAFitHolds) {
   EXPECT_NEAR(modelled / held, 1.0, 0.03) << "held " << held << " bytes, modelled " << modelled << ": " << m.dump();
 }
 
-// The room prepared at 64^2 and 128^2: a budget between their predicted peaks fits at 64^2, one
-// below both refuses the fit before its first iteration.
-TEST(FitMemoryBudget, TakesTheCoarserResolutionOrRefusesUpFront) {
+namespace {
+
+// The room prepared at 64^2 and 128^2 in a fresh folder; returns the work folder.
+fs::path roomAtTwoResolutions(const std::string& name) {
   SynthCaptureOptions so;
-  so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 2, so.testSpp = 2, so.atlasResolution = 128;
-  // The atlas's gutters at the coarser resolution (each prepared resolution is a multiple of it).
-  const fs::path dir = fs::temp_directory_path() / "relume_memory_budget_fit";
+  so.frames = 16, so.testFrames = 1, so.width = 64, so.height = 48, so.spp = 2, so.testSpp = 2;
+  so.atlasResolution = 128;
+  const fs::path dir = fs::temp_directory_path() / ("relume_" + name);
   fs::remove_all(dir);
   so.out = dir / "capture";
   writeSynthCapture(so);
   PrepareOptions po;
   po.resolutions = {64, 128};
-  po.atlas.gutterResolution = 64;
-  const fs::path work = dir / "work";
-  prepareCapture(so.out, work, po);
+  po.atlas.gutterResolution = 64;  // at the coarser resolution: each prepared one is a multiple of it
+  prepareCapture(so.out, dir / "work", po);
+  return dir / "work";
+}
 
+// A short fit to 128^2 (the finer of the two).
+FitConfig shortFit() {
   FitConfig c;
   c.batchTexels = 256, c.framesPerTexel = 2, c.maxDepth = 3, c.maxResolution = 128;
   c.emissionIterations = 4, c.materialIterations = 4, c.emissionTextureIterations = 2, c.albedoPasses = 1;
+  return c;
+}
+
+// The predicted peak at 128^2 of a fit on `threads` threads, from its materials.json.
+double finePrediction(const fs::path& work, FitConfig c, int threads) {
+  const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(threads));
+  c.memoryBudgetMib = 1e6;
+  EXPECT_EQ(runFit(work, c, false).finalResolution, 128);
+  return readJson(work / "result" / "materials.json").at("memory_budget").at("predicted")[1].at("peak_bytes");
+}
+
+}  // namespace
+
+// A budget between the two resolutions' predicted peaks fits at 64^2; one below both refuses the
+// fit before its first iteration.
+TEST(FitMemoryBudget, TakesTheCoarserResolutionOrRefusesUpFront) {
+  const fs::path work = roomAtTwoResolutions("memory_budget_fit");
+  FitConfig c = shortFit();
   c.memoryBudgetMib = 1e6;
   EXPECT_EQ(runFit(work, c, false).finalResolution, 128);
   const Json plan = readJson(work / "result" / "materials.json").at("memory_budget");
@@ -148,4 +172,30 @@ TEST(FitMemoryBudget, TakesTheCoarserResolutionOrRefusesUpFront) {
   EXPECT_NE(refused.find("is too small for this fit"), std::string::npos) << refused;
   EXPECT_EQ(iterations, 0);
   EXPECT_FALSE(fs::exists(work / "result"));
+}
+
+// A resumed fit keeps the resolution the interrupted run planned, which its schedule and
+// checkpoint were built for, although its own prediction differs: the path records are per
+// thread, so on 2 threads the 128^2 prediction is above a budget that held it on 1.
+TEST(FitMemoryBudget, AResumedFitKeepsTheInterruptedRunsResolution) {
+  const fs::path work = roomAtTwoResolutions("memory_budget_resume");
+  FitConfig c = shortFit();
+  const double one = finePrediction(work, c, 1), two = finePrediction(work, c, 2);
+  ASSERT_LT(one, two);
+  c.memoryBudgetMib = static_cast<float>(0.5 * (one + two) / (1 - MemoryPlan::kReserve) / kMiB);
+  fs::remove_all(work / "result");
+  {
+    const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+    c.stopAfterIterations = 6;  // in the first albedo stage
+    EXPECT_TRUE(runFit(work, c, false).stopped);
+  }
+  c.stopAfterIterations = 0;
+  const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+  const FitSummary resumed = runFit(work, c, true);
+  EXPECT_EQ(resumed.finalResolution, 128);
+  const Json m = readJson(work / "result" / "materials.json");
+  EXPECT_EQ(m.at("albedo_resolution").get<int>(), 128);
+  EXPECT_EQ(m.at("memory_budget").at("resolution").get<int>(), 128);
+  fs::remove_all(work / "result");
+  EXPECT_EQ(runFit(work, c, false).finalResolution, 64);  // a new fit on 2 threads plans its own
 }

@@ -58,53 +58,45 @@ TEST(MemoryBudget, TakesTheFinestResolutionThatFitsAndRefusesWhenNoneDoes) {
       << refused;
 }
 
-TEST(MemoryBudget, TheSettlingStageHoldsWhatTheOptimiserAllocates) {
-  FitConfig c;
-  const TexelBytes gn = texelBytes(c, 0.5);
-  // Gauss-Newton with standard errors: numerator, curvature, visits, residual and weight squares.
-  EXPECT_EQ(gn.stepState, 12 + 12 + 6 + 12 + 12);
-  EXPECT_EQ(gn.gradients, 2 * 13);
-  c.albedoStandardError = false;
-  EXPECT_EQ(texelBytes(c, 0.5).stepState, 30);
-  c.albedoStep = AlbedoStep::Adam;
-  EXPECT_EQ(texelBytes(c, 0.5).gradients, 13);  // no curvature
-  c.polyakFraction = 0;
-  EXPECT_EQ(texelBytes(c, 0.5).average, 0);
-}
-
 // The bytes per texel the plan counts are what a fit holds at its largest stage (fitMemory's
 // parts that grow with the resolution), so the model follows the code: a per-texel array added to
-// the fit and not to the model fails this.
+// the fit and not to the model fails this. Under the defaults (Gauss-Newton with standard errors,
+// Polyak average) and under the paper's Adam step without an average.
 TEST(MemoryBudget, BytesPerTexelAreWhatAFitHolds) {
   const fs::path work = smallPreparedRoom("memory_budget_bytes") / "work";
   FitConfig c;
   c.batchTexels = 256, c.framesPerTexel = 2, c.maxDepth = 3;
   c.emissionIterations = 6, c.materialIterations = 8, c.emissionTextureIterations = 0, c.albedoPasses = 2;
   c.checkpointEvery = 1000000;
-  FitHooks hooks;
-  hooks.writeFiles = false;
-  double texels = 0, sampleable = 0;
-  Json m;  // the settling stage's (materials: the albedo at its finest, and its average)
-  hooks.afterIteration = [&](const FitIteration& it) {
-    texels = static_cast<double>(it.appearance.albedo.rgb.size() / 3);
-    if (it.stage == "materials") m = it.stageMemory;
-    return true;
-  };
-  runFit(work, c, false, hooks);
-  ASSERT_GT(texels, 0);
-  ASSERT_GT(m.at("averages").get<double>(), 0) << m.dump();
-  double held = 0;
-  for (const char* part : {"parameters", "gradients", "optimiser_state", "averages", "texel_map"})
-    held += m.at(part).get<double>();
-  // The sampleable fraction from the texel map's part: 4 bytes of index and 1 of flag per texel,
-  // 4 per sampleable texel.
-  sampleable = (m.at("texel_map").get<double>() / texels - 5) / 4;
-  ASSERT_GT(sampleable, 0.05);
-  const TexelBytes b = texelBytes(c, sampleable);
-  // The model counts the sampleable list at twice its size (the vector's growth) and leaves out
-  // the per-object parameters and the gradient logs' bookkeeping.
-  const double modelled = (b.stage() - 4 * sampleable) * texels;
-  EXPECT_NEAR(modelled / held, 1.0, 0.03) << "held " << held << " bytes, modelled " << modelled << ": " << m.dump();
+  FitConfig adam = c;
+  adam.albedoStep = AlbedoStep::Adam, adam.polyakFraction = 0, adam.materialPolyakFraction = 0;
+  for (const FitConfig& config : {c, adam}) {
+    FitHooks hooks;
+    hooks.writeFiles = false;
+    double texels = 0;
+    Json m;  // the settling stage's (materials: the albedo at its finest, and its average)
+    hooks.afterIteration = [&](const FitIteration& it) {
+      texels = static_cast<double>(it.appearance.albedo.rgb.size() / 3);
+      if (it.stage == "materials") m = it.stageMemory;
+      return true;
+    };
+    runFit(work, config, false, hooks);
+    ASSERT_GT(texels, 0);
+    EXPECT_EQ(m.at("averages").get<double>() > 0, config.polyakFraction > 0) << m.dump();
+    double held = 0;
+    for (const char* part : {"parameters", "gradients", "optimiser_state", "averages", "texel_map"})
+      held += m.at(part).get<double>();
+    // The sampleable fraction from the texel map's part: 4 bytes of index and 1 of flag per texel,
+    // 4 per sampleable texel.
+    const double sampleable = (m.at("texel_map").get<double>() / texels - 5) / 4;
+    ASSERT_GT(sampleable, 0.05);
+    const TexelBytes b = texelBytes(config, sampleable);
+    // The model counts the sampleable list at twice its size (the vector's growth) and leaves out
+    // the per-object parameters and the gradient logs' bookkeeping.
+    const double modelled = (b.stage() - 4 * sampleable) * texels;
+    EXPECT_NEAR(modelled / held, 1.0, 0.03)
+        << enumName(config.albedoStep) << ": held " << held << " bytes, modelled " << modelled << ": " << m.dump();
+  }
 }
 
 namespace {

@@ -185,8 +185,7 @@ std::vector<int> Fit::keepMemoryBudget(std::vector<int> resolutions, const Texel
   const double fixed = kProcessBytes + kBytesPerTriangle * static_cast<double>(w_.mesh.triangles.size()) +
                        meshBytes(w_.mesh) + static_cast<double>(w_.scene->bytes()) +
                        static_cast<double>(w_.vis.bytes()) + static_cast<double>(w_.store->mappedBytes()) +
-                       double(threadCount()) * adjointRecordBytesPerThread(c_.maxDepth) +
-                       rays * (sizeof(BatchRay) + 2 * sizeof(uint32_t) + sizeof(int) + 4 * sizeof(Color));
+                       pathRecordBytes(c_.maxDepth) + rays * batchBytesPerRay();
   const double sampleableFraction =
       static_cast<double>(init.sampleable.size()) / std::max<size_t>(1, init.map.texelCount());
   memoryPlan_ = planMemory(double(c_.memoryBudgetMib) * (1 << 20), resolutions, fixed,

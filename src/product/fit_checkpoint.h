@@ -26,27 +26,21 @@ class CheckpointIo {
   // A named array; when reading, `data` must already have the stored size.
   template <typename T>
   void array(const std::string& name, std::span<T> data) {
-    if (out_)
-      out_->put(name, std::span<const T>(data));
-    else
-      in_->get(name, data);
+    transfer(name, data, false);
   }
   template <typename T>
   void array(const std::string& name, std::vector<T>& data) {
-    array(name, std::span<T>(data));
+    transfer(name, std::span<T>(data), false);
   }
   // The same for an array that stays alive and unchanged until the checkpoint is written: a
   // writer refers to it instead of copying it (Checkpoint::putInPlace; the per-texel state).
   template <typename T>
   void arrayInPlace(const std::string& name, std::span<T> data) {
-    if (out_)
-      out_->putInPlace(name, std::span<const T>(data));
-    else
-      in_->get(name, data);
+    transfer(name, data, true);
   }
   template <typename T>
   void arrayInPlace(const std::string& name, std::vector<T>& data) {
-    arrayInPlace(name, std::span<T>(data));
+    transfer(name, std::span<T>(data), true);
   }
   // A one-entry array.
   template <typename T>
@@ -67,6 +61,15 @@ class CheckpointIo {
 
  private:
   CheckpointIo(Checkpoint* out, const Checkpoint* in) : out_(out), in_(in) {}
+  template <typename T>
+  void transfer(const std::string& name, std::span<T> data, bool inPlace) {
+    if (!out_)
+      in_->get(name, data);
+    else if (inPlace)
+      out_->putInPlace(name, std::span<const T>(data));
+    else
+      out_->put(name, std::span<const T>(data));
+  }
   Checkpoint* out_;
   const Checkpoint* in_;
 };

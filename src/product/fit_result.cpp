@@ -97,6 +97,12 @@ double meshBytes(const TriangleMesh& m) {
                              m.triangles.size() * (sizeof(Eigen::Vector3i) + sizeof(int32_t)));
 }
 
+double batchBytesPerRay() {
+  return static_cast<double>(sizeof(BatchRay) + 2 * sizeof(uint32_t) + sizeof(int) + 4 * sizeof(Color));
+}
+
+double pathRecordBytes(int maxDepth) { return double(threadCount()) * adjointRecordBytesPerThread(maxDepth); }
+
 Json fitMemory(const Workspace& w, Appearance& appearance, const TexelSpace& space, Gradients& grads,
                const Batch& batch, const AdjointSettings& settings, const GroupOptimiser& optimiser,
                const LightSampler* lights) {
@@ -106,9 +112,8 @@ Json fitMemory(const Workspace& w, Appearance& appearance, const TexelSpace& spa
     parameters += floats(g.values.size()), gradients += floats(g.grads.size());
   const double texels = space.map.bytes() + space.sampleable.size() * sizeof(uint32_t) + space.updatable.size();
   const double mesh = meshBytes(w.mesh);
-  const double batchBytes =
-      batch.rays.size() * (sizeof(BatchRay) + 2 * sizeof(uint32_t) + sizeof(int) + 4 * sizeof(Color));
-  const double records = double(threadCount()) * adjointRecordBytesPerThread(settings.path.maxDepth);
+  const double batchBytes = static_cast<double>(batch.rays.size()) * batchBytesPerRay();
+  const double records = pathRecordBytes(settings.path.maxDepth);
   Json j = {{"parameters", parameters},
             {"gradients", gradients},
             {"optimiser_state", optimiser.stateBytes()},

@@ -35,6 +35,10 @@ std::filesystem::path writeFitResult(const Workspace& w, const Appearance& appea
 
 // Bytes of the workspace's mesh arrays (the scene's BVH and face records: Scene::bytes).
 double meshBytes(const TriangleMesh& m);
+// Bytes a batch holds per ray (the ray, its texel and frame, its object, its colours).
+double batchBytesPerRay();
+// Bytes of the path records of every thread at path depth `maxDepth`.
+double pathRecordBytes(int maxDepth);
 
 // Bytes the fit holds, by part, once a stage's buffers are allocated; "total" leaves out the
 // frame cache, a mapping of frames.bin of which only the pages the sampler touches are resident.

@@ -68,6 +68,13 @@ CLI::Option* addEnumOption(CLI::App* c, const std::string& name, E& target, cons
 }
 constexpr int kMaxSide = 65536, kMaxSpp = 1 << 20, kMaxDepthLimit = 1024;
 
+// --memory-budget's value in bytes.
+double parseMemoryBudget(const std::string& text) {
+  const std::optional<double> bytes = parseByteSize(text);
+  if (!bytes || *bytes < 1 << 20) fail("--memory-budget: '{}' is not a size of 1M or more (2G, 800M)", text);
+  return *bytes;
+}
+
 constexpr const char* kMaxDepthHelp =
     "scattering vertices per path, each with light sampling (1 = direct light only; Cycles' max bounces B is depth B + "
     "1)";
@@ -115,7 +122,12 @@ void registerPrepare(CLI::App& app, CommandTable& table) {
                 "objects: the mesh's own ids, computed from the mesh and the frames, or auto (computed when the mesh "
                 "has a single object)");
   c->add_flag("--force", o->force, "redo every phase");
+  auto memory = std::make_shared<std::string>();
+  c->add_option("--memory-budget", *memory,
+                "stay within this memory (2G, 1.5G, 800M): the init phase planned to fit, or a refusal before any "
+                "work");
   table[c] = [=] {
+    if (!memory->empty()) o->memoryBudgetBytes = parseMemoryBudget(*memory);
     o->resolutions.clear();
     std::stringstream ss(*res);
     std::string item;
@@ -253,9 +265,7 @@ void registerFit(CLI::App& app, CommandTable& table) {
       cfg.timeBudget = static_cast<float>(*seconds);
     }
     if (!memory->empty()) {
-      const std::optional<double> bytes = parseByteSize(*memory);
-      if (!bytes || *bytes < 1 << 20) fail("--memory-budget: '{}' is not a size of 1M or more (2G, 800M)", *memory);
-      cfg.memoryBudgetMib = static_cast<float>(*bytes / (1 << 20));
+      cfg.memoryBudgetMib = static_cast<float>(parseMemoryBudget(*memory) / (1 << 20));
     }
     // Its checkpoint is written atomically into the work folder: clear what killed runs left.
     if (const size_t stale = removeStaleTemporaries(*work))

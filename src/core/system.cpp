@@ -1,5 +1,6 @@
 #include "core/system.h"
 
+#include <malloc.h>
 #include <sys/resource.h>
 
 #include <fmt/format.h>
@@ -43,6 +44,7 @@ double statusMiB(std::string_view field) {
 
 double peakRssMiB() { return statusMiB("VmHWM:"); }
 double currentRssMiB() { return statusMiB("VmRSS:"); }
+void releaseFreeHeap() { malloc_trim(0); }
 
 double processCpuSeconds() {
   rusage u{};

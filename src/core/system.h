@@ -20,6 +20,9 @@ int threadCount();
 
 double peakRssMiB();     // VmHWM of this process
 double currentRssMiB();  // VmRSS of this process
+// Returns the heap's free pages to the system (glibc's malloc_trim), so that the resident set
+// read next is what the process holds, not what it held once.
+void releaseFreeHeap();
 // User + system CPU seconds of this process, all threads: a cost that other processes sharing
 // the cores do not inflate (wall time does).
 double processCpuSeconds();

@@ -21,6 +21,7 @@
 #include "io/json.h"
 #include "product/confidence.h"
 #include "product/frame_gains.h"
+#include "product/prepare_memory.h"
 #include "scene/scene.h"
 #include "scene/segmentation.h"
 #include "scene/texel_map.h"
@@ -305,16 +306,25 @@ class TexelObservations {
     });
   }
 
-  // Calls add(texel, frame, radiance) for every observation. Frames in order and, inside a frame,
-  // its tiles in parallel: a texel (and its tile's bits) is only ever updated by one thread at a
-  // time, so nothing needs atomics.
-  void pass(const char* label, const std::function<void(size_t, uint32_t, const Color&)>& add) {
-    const bool traced = passes_++ > 0;
+  // Calls add(texel, frame, radiance) for every observation of the texels in tile rows
+  // [rows.first, rows.second) (all of them by default). Frames in order and, inside a frame, its
+  // tiles in parallel: a texel (and its tile's bits) is only ever updated by one thread at a time,
+  // so nothing needs atomics. The first pass traces, and must cover every row.
+  void pass(const std::string& label, const std::function<void(size_t, uint32_t, const Color&)>& add,
+            std::pair<int, int> rows = {0, std::numeric_limits<int>::max()}) {
     const int initRes = map_.resolution(), tilesPerSide = initRes / tileTexels_;
+    const bool traced = passes_++ > 0;
+    CHECK(traced || (rows.first == 0 && rows.second >= tilesPerSide));
+    const uint32_t first = static_cast<uint32_t>(rows.first * tilesPerSide),
+                   last = static_cast<uint32_t>(std::min(rows.second, tilesPerSide) * tilesPerSide);
     Progress progress(label, kept_.size());
     for (size_t k : kept_) {
-      tbb::parallel_for(size_t{0}, tilesOf_[k].size(), [&](size_t i) {
-        const auto [tile, slot] = tilesOf_[k][i];
+      // A frame's tiles are in increasing order (the index lists frames tile by tile).
+      const auto& tiles = tilesOf_[k];
+      const auto begin = std::lower_bound(tiles.begin(), tiles.end(), std::pair<uint32_t, uint32_t>{first, 0});
+      const auto end = std::lower_bound(begin, tiles.end(), std::pair<uint32_t, uint32_t>{last, 0});
+      tbb::parallel_for(size_t{0}, static_cast<size_t>(end - begin), [&](size_t i) {
+        const auto [tile, slot] = begin[static_cast<std::ptrdiff_t>(i)];
         std::vector<uint64_t>& bits = seenBits_[tile];
         const int tx = static_cast<int>(tile) % tilesPerSide, ty = static_cast<int>(tile) / tilesPerSide;
         for (int y = ty * tileTexels_; y < (ty + 1) * tileTexels_; ++y)
@@ -361,9 +371,9 @@ class TexelObservations {
 // written to frame_gains.json: what the fit starts its frame gains from, and a check of recorded
 // exposures.
 constexpr size_t kConsistencyTexels = 65536;
+size_t defaultGainStride(size_t texels) { return std::max<size_t>(1, texels / kConsistencyTexels); }
 ConsistencyGains consistencyGains(TexelObservations& observations, const TexelMap& initMap, const FrameStore& store,
-                                  const std::vector<size_t>& kept, const fs::path& work) {
-  const size_t stride = std::max<size_t>(1, initMap.texelCount() / kConsistencyTexels);
+                                  const std::vector<size_t>& kept, size_t stride, const fs::path& work) {
   std::vector<std::vector<GainObservation>> sampled((initMap.texelCount() + stride - 1) / stride);
   observations.pass("frame gains", [&](size_t t, uint32_t f, const Color& c) {
     const FrameStats& s = store.stats(f);
@@ -418,7 +428,7 @@ Json agreementPass(TexelObservations& observations, const FrameStore& store, con
 // Initial albedo: the streaming median (or mean) of each texel's observed radiance, and how many
 // observations each texel had (coverage).
 Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, const std::vector<size_t>& kept,
-               const fs::path& work, const PrepareOptions& o) {
+               const InitPhasePlan& plan, const fs::path& work, const PrepareOptions& o) {
   const TriangleMesh& mesh = scene.mesh();
   const int initRes = initMap.resolution();
   const size_t skippedBefore = scene.skippedRays();
@@ -429,42 +439,68 @@ Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, 
          store.frameCount(), cap.frames.size());
   TexelObservations observations(scene, initMap, cap, kept, vis, store, o.tileTexels);
   const size_t texels = initMap.texelCount();
-  MedianSketch sketch(texels);
-  std::vector<Eigen::Array3d> sum(o.init == InitStatistic::Mean ? texels : 0, Eigen::Array3d::Zero());
   std::vector<uint32_t> coverage(texels, 0);
-  const ConsistencyGains gains = consistencyGains(observations, initMap, store, kept, work);
+  const ConsistencyGains gains = consistencyGains(observations, initMap, store, kept, plan.gainStride, work);
   // The init averages radiance: frames whose gains the fit estimates are divided by them first.
   const bool corrected = resolveFrameGains(FrameGainMode::Auto, cap.frames, store,
                                            std::vector<uint32_t>(kept.begin(), kept.end())) != FrameGainMode::None;
   const auto radiance = [&](uint32_t f, const Color& c) { return corrected ? Color(c / gains.gain[f]) : c; };
-  if (o.init == InitStatistic::Median) {
-    observations.pass("median (coarse)",
-                      [&](size_t t, uint32_t f, const Color& c) { sketch.addCoarse(t, radiance(f, c)); });
-    sketch.startFine();
-    observations.pass("median (fine)",
-                      [&](size_t t, uint32_t f, const Color& c) { sketch.addFine(t, radiance(f, c)); });
-    for (size_t t = 0; t < texels; ++t) coverage[t] = sketch.count(t);
-  } else {
-    observations.pass(
-        "mean", [&](size_t t, uint32_t f, const Color& c) { sum[t] += radiance(f, c).cast<double>(), ++coverage[t]; });
-  }
+  releaseFreeHeap();  // the gain sample's many small arrays, freed inside the heap: not held through the median
   Image albedo(initRes, initRes), cov(initRes, initRes);
   size_t valid = 0, unobserved = 0;
   std::vector<Eigen::Array4d> objectMean(mesh.objectCount, Eigen::Array4d::Zero());
-  for (size_t t = 0; t < texels; ++t) {
-    if (!initMap.valid(t)) continue;
-    ++valid;
-    cov.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes),
-            Color::Constant(static_cast<float>(coverage[t])));
-    if (coverage[t] == 0) {
-      ++unobserved;
-      continue;
+  // Band by band of tile rows (the memory plan's bands): a band's texels are the contiguous range
+  // [first, first + count), and each texel's statistic is the same whichever band it is in.
+  const int tileRows = initRes / o.tileTexels;
+  const int rowsPerBand = (tileRows + plan.bands - 1) / plan.bands;
+  const size_t bandTexels = static_cast<size_t>(rowsPerBand) * o.tileTexels * initRes;
+  std::optional<MedianSketch> sketch;  // one for every band, freed before the agreement pass
+  if (o.init == InitStatistic::Median) sketch.emplace(bandTexels);
+  std::vector<Eigen::Array3d> sum(o.init == InitStatistic::Mean ? bandTexels : 0);
+  for (int row = 0; row < tileRows; row += rowsPerBand) {
+    const std::pair<int, int> rows{row, std::min(row + rowsPerBand, tileRows)};
+    const size_t first = static_cast<size_t>(rows.first) * o.tileTexels * initRes;
+    const size_t count = static_cast<size_t>(rows.second - rows.first) * o.tileTexels * initRes;
+    const std::string band = plan.bands > 1 ? fmt::format(", tile rows {}-{}", rows.first, rows.second - 1) : "";
+    std::function<Color(size_t)> statistic;
+    if (sketch && row > 0) sketch->restart();
+    std::fill(sum.begin(), sum.end(), Eigen::Array3d::Zero());
+    if (sketch) {
+      observations.pass(
+          "median (coarse" + band + ")",
+          [&](size_t t, uint32_t f, const Color& c) { sketch->addCoarse(t - first, radiance(f, c)); }, rows);
+      sketch->startFine();
+      observations.pass(
+          "median (fine" + band + ")",
+          [&](size_t t, uint32_t f, const Color& c) { sketch->addFine(t - first, radiance(f, c)); }, rows);
+      for (size_t t = first; t < first + count; ++t) coverage[t] = sketch->count(t - first);
+      statistic = [&](size_t t) { return sketch->median(t - first); };
+    } else {
+      observations.pass(
+          "mean" + band,
+          [&](size_t t, uint32_t f, const Color& c) {
+            sum[t - first] += radiance(f, c).cast<double>(), ++coverage[t];
+          },
+          rows);
+      statistic = [&](size_t t) { return Color((sum[t - first] / coverage[t]).cast<float>()); };
     }
-    const Color v = o.init == InitStatistic::Median ? sketch.median(t) : Color((sum[t] / coverage[t]).cast<float>());
-    albedo.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes), v);
-    const Eigen::Array3d vd = v.cast<double>();
-    objectMean[mesh.faceObject[initMap.triangle(t)]] += Eigen::Array4d(vd[0], vd[1], vd[2], 1.0);
+    for (size_t t = first; t < first + count; ++t) {
+      if (!initMap.valid(t)) continue;
+      ++valid;
+      cov.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes),
+              Color::Constant(static_cast<float>(coverage[t])));
+      if (coverage[t] == 0) {
+        ++unobserved;
+        continue;
+      }
+      const Color v = statistic(t);
+      albedo.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes), v);
+      const Eigen::Array3d vd = v.cast<double>();
+      objectMean[mesh.faceObject[initMap.triangle(t)]] += Eigen::Array4d(vd[0], vd[1], vd[2], 1.0);
+    }
   }
+  sketch.reset();
+  std::vector<Eigen::Array3d>().swap(sum);
   // Texels no frame saw start from their object's average (or mid-grey).
   for (size_t t = 0; t < texels; ++t) {
     if (!initMap.valid(t) || coverage[t] > 0) continue;
@@ -487,6 +523,41 @@ Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, 
               {"texels_geometric_normal", observations.texelsWithGeometricNormal()},
               {"agreement", agreementSummary},
               {"skipped_rays", scene.skippedRays() - skippedBefore}};
+}
+
+// The init phase's plan (product/prepare_memory.h) from what the process holds now, with the
+// heap's free pages returned first (the atlas phase's, reused by the init phase's arrays).
+InitPhasePlan planInit(const TexelMap& initMap, const Capture& cap, const std::vector<size_t>& kept, const fs::path& work,
+                       const PrepareOptions& o) {
+  const size_t texels = initMap.texelCount();
+  InitPhaseSize size;
+  size.texels = texels;
+  size.tileTexels = static_cast<size_t>(o.tileTexels);
+  size.tileRows = initMap.resolution() / o.tileTexels;
+  size.defaultGainStride = defaultGainStride(texels);
+  size.keptFrames = kept.size();
+  if (o.memoryBudgetBytes <= 0) return planInitPhase(0, size);
+  const VisibilityIndex vis = VisibilityIndex::read(work / "visibility.bin", cap.frames.size());
+  size.visibilityEntries = vis.frames.size();
+  size.frameCacheBytes = static_cast<double>(fileSize(work / "frames.bin"));
+  const int tilesPerSide = size.tileRows, res = initMap.resolution();
+  for (int t = 0; t + 1 < static_cast<int>(vis.offsets.size()); ++t) {
+    const double frames = vis.offsets[t + 1] - vis.offsets[t];
+    if (frames == 0) continue;
+    size_t validTexels = 0;
+    const int tx = t % tilesPerSide, ty = t / tilesPerSide;
+    for (int y = ty * o.tileTexels; y < (ty + 1) * o.tileTexels; ++y)
+      for (int x = tx * o.tileTexels; x < (tx + 1) * o.tileTexels; ++x)
+        validTexels += initMap.valid(static_cast<size_t>(y) * res + x);
+    size.sampleObservationsAtStride1 += frames * static_cast<double>(validTexels);
+  }
+  releaseFreeHeap();
+  size.heldBytes = currentRssMiB() * (1 << 20);
+  const InitPhasePlan plan = planInitPhase(o.memoryBudgetBytes, size);
+  spdlog::info("prepare: memory budget {}: the init phase is predicted at {} (median in {} band(s), one texel in {} "
+               "sampled for the frame gains)",
+               formatBytes(o.memoryBudgetBytes), formatBytes(plan.peakBytes()), plan.bands, plan.gainStride);
+  return plan;
 }
 
 }  // namespace
@@ -528,6 +599,13 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   for (int r : o.resolutions)
     if (r < o.atlas.gutterResolution || r % o.atlas.gutterResolution != 0)
       fail("prepare: resolution {} must be a multiple of the atlas gutter resolution {}", r, o.atlas.gutterResolution);
+  if (o.memoryBudgetBytes > 0) {  // refused before any work when even the leanest plan cannot fit
+    double frameCache = 0;
+    for (const Frame& f : cap.frames)
+      frameCache += 6.0 * std::ceil(double(f.camera.width) / o.downscale) * std::ceil(double(f.camera.height) / o.downscale);
+    checkPrepareBudgetUpFront(o.memoryBudgetBytes, loadMesh(meshPath).triangles.size(), frameCache,
+                              static_cast<size_t>(initRes) * initRes);
+  }
 
   // A phase is current when its fingerprint (inputs + options + the previous phase) is unchanged.
   auto runPhase = [&](const char* name, const std::string& fingerprint, const std::vector<fs::path>& outputs,
@@ -542,10 +620,11 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
     Json result = body();
     result["fingerprint"] = fingerprint;
     result["seconds"] = t.seconds();
+    result["peak_rss_mib_so_far"] = peakRssMiB();  // the run's peak at the phase's end: which phase raised it
     phases[name] = result;
     report["phases"] = phases;
     writeJson(work / "prepare.json", report);  // after each phase: an interrupted run keeps its progress
-    spdlog::info("prepare: {} done in {:.1f}s", name, t.seconds());
+    spdlog::info("prepare: {} done in {:.1f}s (peak RSS so far {:.0f} MiB)", name, t.seconds(), peakRssMiB());
   };
 
   // Frames: convert, then filter.
@@ -604,13 +683,22 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   runPhase("visibility", visPrint, {work / "visibility.bin"},
            [&] { return visibilityPhase(scene, initMap, cap, kept, work, o); });
 
-  // Initial albedo (streaming median of observed radiance) and coverage.
-  // "init2": with the frame gains of the frames' agreement.
-  const std::string initPrint = fingerprintOf({}, fmt::format("init2 {} {}", visPrint, static_cast<int>(o.init)));
+  // Initial albedo (streaming median of observed radiance) and coverage, planned to the budget.
+  const InitPhasePlan plan = planInit(initMap, cap, kept, work, o);
+  // "init2": with the frame gains of the frames' agreement. A thinner gain sample is a different
+  // result; the median's bands are not.
+  const std::string sample =
+      plan.gainStride == defaultGainStride(initMap.texelCount()) ? "" : fmt::format(" sample {}", plan.gainStride);
+  const std::string initPrint =
+      fingerprintOf({}, fmt::format("init2 {} {}{}", visPrint, static_cast<int>(o.init), sample));
   runPhase("init", initPrint,
            {work / "albedo_init.exr", work / "coverage.exr", work / "coverage.png", work / "frame_gains.json",
             work / "agreement.exr"},
-           [&] { return initPhase(scene, initMap, cap, kept, work, o); });
+           [&] {
+             Json result = initPhase(scene, initMap, cap, kept, plan, work, o);
+             if (o.memoryBudgetBytes > 0) result["memory_budget"] = plan.toJson();
+             return result;
+           });
 
   PrepareSummary s;
   s.frames = cap.frames.size();

@@ -54,6 +54,9 @@ struct PrepareOptions {
   SegmentationOptions segmentationOptions;
   FaceAppearanceOptions faceAppearance;
   bool force = false;  // redo every phase
+  // Stay within this many bytes (0: no budget): the init phase planned to fit, or refused before
+  // any work (product/prepare_memory.h).
+  double memoryBudgetBytes = 0;
   AtlasOptions atlas;
 };
 

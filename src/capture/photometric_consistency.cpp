@@ -50,7 +50,9 @@ ConsistencyGains solveConsistencyGains(const std::vector<std::vector<GainObserva
           const double wi = weight[x][i];
           A(fi, fi) += wi;
           r[fi] += wi * (std::log(obs[i].value[c]) - mean);
-          for (size_t j = 0; j < obs.size(); ++j) A(fi, index[obs[j].frame]) -= wi * weight[x][j] / W;
+          // Column fi, written down its rows (A is symmetric and column-major; the observations are
+          // in frame order): a stream, where writing row fi strode across the matrix.
+          for (size_t j = 0; j < obs.size(); ++j) A(index[obs[j].frame], fi) -= wi * weight[x][j] / W;
         }
       }
       // The gauge: the log gains sum to 0 (A's null space is the constant vector); a frame tied to

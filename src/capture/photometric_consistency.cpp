@@ -50,8 +50,8 @@ ConsistencyGains solveConsistencyGains(const std::vector<std::vector<GainObserva
           const double wi = weight[x][i];
           A(fi, fi) += wi;
           r[fi] += wi * (std::log(obs[i].value[c]) - mean);
-          // Column fi, written down its rows (A is symmetric and column-major; the observations are
-          // in frame order): a stream, where writing row fi strode across the matrix.
+          // Column fi (A is symmetric): contiguous in the column-major matrix, and walked in frame
+          // order, as the observations are.
           for (size_t j = 0; j < obs.size(); ++j) A(index[obs[j].frame], fi) -= wi * weight[x][j] / W;
         }
       }

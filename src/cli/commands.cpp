@@ -124,8 +124,8 @@ void registerPrepare(CLI::App& app, CommandTable& table) {
   c->add_flag("--force", o->force, "redo every phase");
   auto memory = std::make_shared<std::string>();
   c->add_option("--memory-budget", *memory,
-                "stay within this memory (2G, 1.5G, 800M): the init phase planned to fit, or a refusal before any "
-                "work");
+                "stay within this memory (2G, 1.5G, 800M): the init phase planned to fit, or a refusal before it "
+                "(before any work when even the atlas or the leanest init phase cannot fit)");
   table[c] = [=] {
     if (!memory->empty()) o->memoryBudgetBytes = parseMemoryBudget(*memory);
     o->resolutions.clear();

@@ -294,8 +294,10 @@ class TexelObservations {
     for (size_t t = 0; t + 1 < vis.offsets.size(); ++t)
       for (uint32_t k = vis.offsets[t]; k < vis.offsets[t + 1]; ++k)
         tilesOf_[vis.frames[k]].push_back({static_cast<uint32_t>(t), k - vis.offsets[t]});
-    for (size_t t = 0; t + 1 < vis.offsets.size(); ++t)
-      seenBits_[t].assign((tileArea_ * (vis.offsets[t + 1] - vis.offsets[t]) + 63) / 64, 0);
+    for (size_t t = 0; t + 1 < vis.offsets.size(); ++t) {
+      framesOfTile_.push_back(vis.offsets[t + 1] - vis.offsets[t]);
+      seenBits_[t].assign((tileArea_ * framesOfTile_[t] + 63) / 64, 0);
+    }
     // Each texel's surface point and normal, computed once rather than once per frame.
     tbb::parallel_for(size_t{0}, initMap.texelCount(), [&](size_t t) {
       if (!initMap.valid(t)) return;
@@ -315,8 +317,8 @@ class TexelObservations {
     const int initRes = map_.resolution(), tilesPerSide = initRes / tileTexels_;
     const bool traced = passes_++ > 0;
     CHECK(traced || (rows.first == 0 && rows.second >= tilesPerSide));
-    const uint32_t first = static_cast<uint32_t>(rows.first * tilesPerSide),
-                   last = static_cast<uint32_t>(std::min(rows.second, tilesPerSide) * tilesPerSide);
+    const auto tileAt = [&](int row) { return static_cast<uint32_t>(static_cast<size_t>(row) * tilesPerSide); };
+    const uint32_t first = tileAt(rows.first), last = tileAt(std::min(rows.second, tilesPerSide));
     Progress progress(label, kept_.size());
     for (size_t k : kept_) {
       // A frame's tiles are in increasing order (the index lists frames tile by tile).
@@ -351,6 +353,12 @@ class TexelObservations {
     }
   }
   size_t texelsWithGeometricNormal() const { return fellBack_.load(); }
+  // The frames that see texel t's tile: the most observations it can have.
+  size_t framesOfTexel(size_t t) const {
+    const int res = map_.resolution(), tilesPerSide = res / tileTexels_;
+    const size_t tile = (t / res / tileTexels_) * tilesPerSide + (t % res) / tileTexels_;
+    return framesOfTile_[tile];
+  }
 
  private:
   const Scene& scene_;
@@ -361,6 +369,7 @@ class TexelObservations {
   const int tileTexels_;
   const size_t tileArea_;
   std::vector<std::vector<std::pair<uint32_t, uint32_t>>> tilesOf_;
+  std::vector<uint32_t> framesOfTile_;
   std::vector<std::vector<uint64_t>> seenBits_;  // per tile: one bit per (texel, frame of the tile)
   std::vector<Vec3> texelPoint_, texelNormal_;
   std::atomic<size_t> fellBack_{0};
@@ -375,6 +384,10 @@ size_t defaultGainStride(size_t texels) { return std::max<size_t>(1, texels / kC
 ConsistencyGains consistencyGains(TexelObservations& observations, const TexelMap& initMap, const FrameStore& store,
                                   const std::vector<size_t>& kept, size_t stride, const fs::path& work) {
   std::vector<std::vector<GainObservation>> sampled((initMap.texelCount() + stride - 1) / stride);
+  // Each sampled texel holds room for every frame of its tile, its most, so that what the sample
+  // holds is what the memory plan counts (growth by doubling would hold up to twice what it keeps).
+  for (size_t i = 0; i < sampled.size(); ++i)
+    if (initMap.valid(i * stride)) sampled[i].reserve(observations.framesOfTexel(i * stride));
   observations.pass("frame gains", [&](size_t t, uint32_t f, const Color& c) {
     const FrameStats& s = store.stats(f);
     if (t % stride == 0 && (c > s.clipLow).all() && (c < s.clipHigh).all() && (c > 0.0f).all())
@@ -452,7 +465,7 @@ Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, 
   // Band by band of tile rows (the memory plan's bands): a band's texels are the contiguous range
   // [first, first + count), and each texel's statistic is the same whichever band it is in.
   const int tileRows = initRes / o.tileTexels;
-  const int rowsPerBand = (tileRows + plan.bands - 1) / plan.bands;
+  const int rowsPerBand = plan.rowsPerBand;
   const size_t bandTexels = static_cast<size_t>(rowsPerBand) * o.tileTexels * initRes;
   std::optional<MedianSketch> sketch;  // one for every band, freed before the agreement pass
   if (o.init == InitStatistic::Median) sketch.emplace(bandTexels);
@@ -531,7 +544,8 @@ InitPhasePlan planInit(const TexelMap& initMap, const Capture& cap, const std::v
                        const PrepareOptions& o) {
   const size_t texels = initMap.texelCount();
   InitPhaseSize size;
-  size.texels = texels;
+  size.resolution = initMap.resolution();
+  size.median = o.init == InitStatistic::Median;
   size.tileTexels = static_cast<size_t>(o.tileTexels);
   size.tileRows = initMap.resolution() / o.tileTexels;
   size.defaultGainStride = defaultGainStride(texels);
@@ -683,18 +697,18 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   runPhase("visibility", visPrint, {work / "visibility.bin"},
            [&] { return visibilityPhase(scene, initMap, cap, kept, work, o); });
 
-  // Initial albedo (streaming median of observed radiance) and coverage, planned to the budget.
-  const InitPhasePlan plan = planInit(initMap, cap, kept, work, o);
-  // "init2": with the frame gains of the frames' agreement. A thinner gain sample is a different
-  // result; the median's bands are not.
-  const std::string sample =
-      plan.gainStride == defaultGainStride(initMap.texelCount()) ? "" : fmt::format(" sample {}", plan.gainStride);
+  // Initial albedo (streaming median of observed radiance) and coverage, planned to the budget
+  // when the phase runs. "init2": with the frame gains of the frames' agreement. The budget is an
+  // input: the plan it leads to follows what the process holds, which differs between runs, and a
+  // sparser gain sample is a different result.
+  const std::string budget = o.memoryBudgetBytes > 0 ? fmt::format(" budget {}", o.memoryBudgetBytes) : "";
   const std::string initPrint =
-      fingerprintOf({}, fmt::format("init2 {} {}{}", visPrint, static_cast<int>(o.init), sample));
+      fingerprintOf({}, fmt::format("init2 {} {}{}", visPrint, static_cast<int>(o.init), budget));
   runPhase("init", initPrint,
            {work / "albedo_init.exr", work / "coverage.exr", work / "coverage.png", work / "frame_gains.json",
             work / "agreement.exr"},
            [&] {
+             const InitPhasePlan plan = planInit(initMap, cap, kept, work, o);
              Json result = initPhase(scene, initMap, cap, kept, plan, work, o);
              if (o.memoryBudgetBytes > 0) result["memory_budget"] = plan.toJson();
              return result;

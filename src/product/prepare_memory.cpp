@@ -16,17 +16,19 @@ constexpr size_t kSparsestSample = 64;  // the leanest plan samples 64x fewer te
 InitPhasePlan predict(double budgetBytes, const InitPhaseSize& s, int bands, size_t stride) {
   InitPhasePlan p;
   p.budgetBytes = budgetBytes;
-  p.bands = bands;
+  p.rowsPerBand = (s.tileRows + bands - 1) / bands;
+  p.bands = (s.tileRows + p.rowsPerBand - 1) / p.rowsPerBand;
   p.gainStride = stride;
-  const double texels = static_cast<double>(s.texels);
-  const double bandTexels = std::ceil(static_cast<double>(s.tileRows) / bands) * s.tileTexels * std::sqrt(texels);
+  const double texels = static_cast<double>(s.resolution) * s.resolution;
+  const double bandTexels = static_cast<double>(p.rowsPerBand) * static_cast<double>(s.tileTexels) * s.resolution;
   const double tileBits = static_cast<double>(s.tileTexels * s.tileTexels) / 8 + 8;  // bits, and the tile list
   p.fixedBytes = s.heldBytes + s.frameCacheBytes + static_cast<double>(s.visibilityEntries) * tileBits;
   const double frames = static_cast<double>(s.keptFrames);
-  p.samplePassBytes = 28 * texels +
+  p.samplePassBytes = 28 * texels + texels / static_cast<double>(stride) * kGainTexelBytes +
                       s.sampleObservationsAtStride1 / static_cast<double>(stride) * kGainObservationBytes +
                       3 * sizeof(double) * frames * frames;  // the normal matrix, its gauge term and its LDLT
-  p.medianPassBytes = kInitBytesPerTexel * texels + MedianSketch::kBytesPerTexel * bandTexels;
+  const double statistic = s.median ? MedianSketch::kBytesPerTexel : 24;  // the sketch, or the mean's sums
+  p.medianPassBytes = kInitBytesPerTexel * texels + statistic * bandTexels;
   p.agreementPassBytes = (kInitBytesPerTexel + kAgreementBytesPerTexel) * texels;
   return p;
 }
@@ -39,7 +41,7 @@ double InitPhasePlan::peakBytes() const {
 }
 
 Json InitPhasePlan::toJson() const {
-  return Json{{"budget_bytes", budgetBytes},         {"median_bands", bands},
+  return Json{{"budget_bytes", budgetBytes},         {"median_bands", bands}, {"tile_rows_per_band", rowsPerBand},
               {"gain_sample_stride", gainStride},     {"predicted_peak_bytes", peakBytes()},
               {"fixed_bytes", fixedBytes},            {"sample_pass_bytes", samplePassBytes},
               {"median_pass_bytes", medianPassBytes}, {"agreement_pass_bytes", agreementPassBytes}};
@@ -57,12 +59,12 @@ InitPhasePlan planInitPhase(double budgetBytes, const InitPhaseSize& size) {
       if (bands == size.tileRows) break;
     }
   const InitPhasePlan leanest = predict(budgetBytes, size, size.tileRows, size.defaultGainStride * kSparsestSample);
-  fail("prepare: --memory-budget {} is too small: the init phase needs {} at the least ({} of it the frame cache, "
-       "which --downscale 2 quarters; {} the texels of the init resolution, which a smaller first --res "
-       "quarters per halving)",
+  const double own = std::max({leanest.samplePassBytes, leanest.medianPassBytes, leanest.agreementPassBytes});
+  fail("prepare: --memory-budget {} is too small: the init phase needs {} at the least ({} held by the process "
+       "(the mesh, its scene, the libraries), {} the frame cache, which --downscale 2 quarters, {} the phase's own "
+       "arrays at {}^2, which a smaller first --res quarters per halving)",
        formatBytes(budgetBytes), formatBytes(leanest.peakBytes() / (1 - InitPhasePlan::kReserve)),
-       formatBytes(size.frameCacheBytes),
-       formatBytes(std::max({leanest.samplePassBytes, leanest.medianPassBytes, leanest.agreementPassBytes})));
+       formatBytes(size.heldBytes), formatBytes(size.frameCacheBytes), formatBytes(own), size.resolution);
 }
 
 void checkPrepareBudgetUpFront(double budgetBytes, size_t triangles, double frameCacheBytes, size_t texels) {

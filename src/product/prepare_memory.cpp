@@ -26,7 +26,7 @@ InitPhasePlan predict(double budgetBytes, const InitPhaseSize& s, int bands, siz
   const double frames = static_cast<double>(s.keptFrames);
   p.samplePassBytes = 28 * texels + texels / static_cast<double>(stride) * kGainTexelBytes +
                       s.sampleObservationsAtStride1 / static_cast<double>(stride) * kGainObservationBytes +
-                      3 * sizeof(double) * frames * frames;  // the normal matrix, its gauge term and its LDLT
+                      2 * sizeof(double) * frames * frames;  // the normal matrix and its LDLT's copy
   const double statistic = s.median ? MedianSketch::kBytesPerTexel : 24;  // the sketch, or the mean's sums
   p.medianPassBytes = kInitBytesPerTexel * texels + statistic * bandTexels;
   p.agreementPassBytes = (kInitBytesPerTexel + kAgreementBytesPerTexel) * texels;

@@ -6,8 +6,9 @@
 // is trimmed), plus the whole frame-cache mapping (file-backed: its pages count towards the
 // resident set once read), the occlusion bits and tile lists of the visibility entries, plus the
 // largest of its three passes:
-//  - the frame gains' sample: at most `frames of its tile` observations per sampled texel, each
-//    with its weight in the solve, and the solve's dense normal equations over the kept frames;
+//  - the frame gains' sample: room for `frames of its tile` observations per sampled texel, each
+//    with its weight in the solve, and the solve's dense normal matrix over the kept frames and its
+//    factorisation's copy;
 //  - the median: the texels' points and normals, coverage and the two output images, and the
 //    median sketch of one band of tile rows (a band's texels are a contiguous range);
 //  - the agreement: the same arrays and the agreement's own.

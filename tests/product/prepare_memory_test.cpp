@@ -43,7 +43,7 @@ std::string fileBytes(const fs::path& p) {
 
 // Worked by hand: fixed = 100 + 10 MiB + 1000 entries x (128 + 8) B; at one band the median pass
 // is 52 + 223 B per texel (275 MiB), the sample 28 B per texel + 48 B per sampled texel + 50e6 / 16
-// x 24 B + 3 x 8 x 100^2 (102.8 MiB), the agreement 88 MiB.
+// x 24 B + 2 x 8 x 100^2 (102.7 MiB), the agreement 88 MiB.
 TEST(PrepareMemory, TakesBandsThenASparserSampleAndRefusesBelowTheLeanest) {
   const InitPhaseSize s = aCapture();
   const double texels = 1024.0 * 1024.0, fixed = 110 * kMiB + 1000 * 136.0;
@@ -52,7 +52,7 @@ TEST(PrepareMemory, TakesBandsThenASparserSampleAndRefusesBelowTheLeanest) {
   EXPECT_EQ(free.gainStride, 16u);
   EXPECT_NEAR(free.fixedBytes, fixed, 1);
   EXPECT_NEAR(free.medianPassBytes, (52 + MedianSketch::kBytesPerTexel) * texels, 1);
-  EXPECT_NEAR(free.samplePassBytes, 28 * texels + texels / 16 * 48 + 50e6 / 16 * 24 + 3 * 8 * 1e4, 1);
+  EXPECT_NEAR(free.samplePassBytes, 28 * texels + texels / 16 * 48 + 50e6 / 16 * 24 + 2 * 8 * 1e4, 1);
   EXPECT_NEAR(free.agreementPassBytes, 88 * texels, 1);
   EXPECT_NEAR(free.peakBytes(), fixed + free.medianPassBytes, 1);
 
@@ -70,7 +70,7 @@ TEST(PrepareMemory, TakesBandsThenASparserSampleAndRefusesBelowTheLeanest) {
   // the median takes what is left.
   InitPhaseSize dense = s;
   dense.sampleObservationsAtStride1 = 8 * 50e6;
-  const double thin = (fixed + 28 * texels + texels / 64 * 48 + 8 * 50e6 / 64 * 24 + 3 * 8 * 1e4) / 0.95 + kMiB;
+  const double thin = (fixed + 28 * texels + texels / 64 * 48 + 8 * 50e6 / 64 * 24 + 2 * 8 * 1e4) / 0.95 + kMiB;
   const InitPhasePlan thinned = planInitPhase(thin, dense);
   EXPECT_EQ(thinned.gainStride, 64u);
   EXPECT_EQ(thinned.bands, 2);  // 163.5 MiB of median fits beside 172 of sample; 275 does not

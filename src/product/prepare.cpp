@@ -540,8 +540,8 @@ Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, 
 
 // The init phase's plan (product/prepare_memory.h) from what the process holds now, with the
 // heap's free pages returned first (the atlas phase's, reused by the init phase's arrays).
-InitPhasePlan planInit(const TexelMap& initMap, const Capture& cap, const std::vector<size_t>& kept, const fs::path& work,
-                       const PrepareOptions& o) {
+InitPhasePlan planInit(const TexelMap& initMap, const Capture& cap, const std::vector<size_t>& kept,
+                       const fs::path& work, const PrepareOptions& o) {
   const size_t texels = initMap.texelCount();
   InitPhaseSize size;
   size.resolution = initMap.resolution();
@@ -615,8 +615,8 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
       fail("prepare: resolution {} must be a multiple of the atlas gutter resolution {}", r, o.atlas.gutterResolution);
   if (o.memoryBudgetBytes > 0) {  // refused before any work when even the leanest plan cannot fit
     double frameCache = 0;
-    for (const Frame& f : cap.frames)
-      frameCache += 6.0 * std::ceil(double(f.camera.width) / o.downscale) * std::ceil(double(f.camera.height) / o.downscale);
+    const auto stored = [&](int side) { return std::ceil(static_cast<double>(side) / o.downscale); };
+    for (const Frame& f : cap.frames) frameCache += 6.0 * stored(f.camera.width) * stored(f.camera.height);
     checkPrepareBudgetUpFront(o.memoryBudgetBytes, loadMesh(meshPath).triangles.size(), frameCache,
                               static_cast<size_t>(initRes) * initRes);
   }

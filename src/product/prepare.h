@@ -54,8 +54,8 @@ struct PrepareOptions {
   SegmentationOptions segmentationOptions;
   FaceAppearanceOptions faceAppearance;
   bool force = false;  // redo every phase
-  // Stay within this many bytes (0: no budget): the init phase planned to fit, or refused before
-  // any work (product/prepare_memory.h).
+  // Stay within this many bytes (0: no budget): the init phase planned to fit, or the run refused
+  // before it, or before any work when even the leanest plan cannot fit (product/prepare_memory.h).
   double memoryBudgetBytes = 0;
   AtlasOptions atlas;
 };

@@ -76,8 +76,8 @@ void checkPrepareBudgetUpFront(double budgetBytes, size_t triangles, double fram
   const double needed = std::max(atlas, init);
   if (needed <= (1 - InitPhasePlan::kReserve) * budgetBytes) return;
   if (atlas >= init)
-    fail("prepare: --memory-budget {} is too small: charting the mesh's {} triangles needs {}", formatBytes(budgetBytes),
-         triangles, formatBytes(needed / (1 - InitPhasePlan::kReserve)));
+    fail("prepare: --memory-budget {} is too small: charting the mesh's {} triangles needs {}",
+         formatBytes(budgetBytes), triangles, formatBytes(needed / (1 - InitPhasePlan::kReserve)));
   fail("prepare: --memory-budget {} is too small: the init phase needs {} at the least ({} for the mesh's {} "
        "triangles, {} the frame cache, which --downscale 2 quarters; {} the texels of the init resolution, which a "
        "smaller first --res quarters per halving)",

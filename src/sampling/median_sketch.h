@@ -19,7 +19,11 @@ class MedianSketch {
   // coarse one): a sketch reused by restart() never reallocates, so the heap does not grow in
   // steps as it would with arrays freed and allocated again at other sizes.
   explicit MedianSketch(size_t texels)
-      : hist_(texels * 3 * kSub, 0), count_(texels, 0), target_(texels * 3), below_(texels * 3), binIndex_(texels * 3) {}
+      : hist_(texels * 3 * kSub, 0),
+        count_(texels, 0),
+        target_(texels * 3),
+        below_(texels * 3),
+        binIndex_(texels * 3) {}
   // The bytes a texel holds: its histogram (sub-bins), bin, rank and count.
   static constexpr double kBytesPerTexel = 3.0 * kSub * sizeof(uint16_t) + 3.0 * (2 * sizeof(uint32_t) + 1) + 4;
   // Empty again, for another set of texels (no more than the constructor's).

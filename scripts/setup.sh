@@ -2,8 +2,9 @@
 # Shared by demo.sh and test.sh: install missing Debian packages, configure and build Release into build/.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+# Open MPI: `mpirun -np N relume fit` and its tests; relume builds without it too.
 PACKAGES=(cmake g++ make pkg-config libembree-dev libtbb-dev libeigen3-dev libopenimageio-dev
-  libopenexr-dev nlohmann-json3-dev libcli11-dev libfmt-dev libspdlog-dev libtinygltf-dev
+  libopenmpi-dev openmpi-bin libopenexr-dev nlohmann-json3-dev libcli11-dev libfmt-dev libspdlog-dev libtinygltf-dev
   libtinyobjloader-dev libgtest-dev)
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -7,6 +7,7 @@
 #include "core/error.h"
 #include "core/system.h"
 #include "core/random_streams.h"
+#include "core/ranks.h"
 
 namespace relume {
 
@@ -218,6 +219,17 @@ class RecordedWave {
 
 Color safeRadiance(const Color& c) { return isFinite(c) ? c : Color::Zero(); }
 
+// body(begin, end) over the chunks of [0, count) this rank traces (all of them in one process), in
+// parallel; every ray's result depends on its index alone, so the split never changes it.
+void forOwnedChunks(size_t count, const std::function<void(size_t, size_t)>& body) {
+  const size_t chunks = (count + Gradients::kChunkRays - 1) / Gradients::kChunkRays;
+  tbb::parallel_for(size_t{0}, chunks, [&](size_t c) {
+    if (!Ranks::world().ownsChunk(c)) return;
+    const size_t begin = c * Gradients::kChunkRays;
+    body(begin, std::min(count, begin + Gradients::kChunkRays));
+  });
+}
+
 }  // namespace
 
 size_t adjointRecordBytes() { return sizeof(VertexRecord); }
@@ -235,10 +247,10 @@ std::vector<Color> traceRays(const Scene& scene, const LightSampler& lights, con
                              const std::vector<BatchRay>& rays, const PathSettings& path,
                              const std::function<uint64_t(size_t)>& seedOf) {
   std::vector<Color> estimate(rays.size());
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
+  forOwnedChunks(rays.size(), [&](size_t begin, size_t end) {
     std::vector<PathSlot> paths;
     NullPathObserver none;
-    forEachWave(range.begin(), range.end(), kWavefrontWidth, [&](size_t b, size_t e) {
+    forEachWave(begin, end, kWavefrontWidth, [&](size_t b, size_t e) {
       paths.clear();
       for (size_t j = b; j < e; ++j) paths.emplace_back(rays[j].origin, rays[j].dir, Pcg32(seedOf(j)));
       tracePaths(scene, lights, scope, path, std::span<PathSlot>(paths),
@@ -246,6 +258,7 @@ std::vector<Color> traceRays(const Scene& scene, const LightSampler& lights, con
       for (size_t j = b; j < e; ++j) estimate[j] = safeRadiance(paths[j - b].L);
     });
   });
+  Ranks::world().shareChunks(estimate, Gradients::kChunkRays);
   return estimate;
 }
 
@@ -260,10 +273,10 @@ std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, 
   RecordBuffers buffers(settings.path.maxDepth);
   std::vector<Color> estimate(rays.size());
   albedoSensitivity->assign(rays.size(), Color::Zero());
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
+  forOwnedChunks(rays.size(), [&](size_t begin, size_t end) {
     RecordedWave wave(appearance, buffers, 0);
     NoScatter none;
-    forEachWave(range.begin(), range.end(), buffers.width(), [&](size_t b, size_t e) {
+    forEachWave(begin, end, buffers.width(), [&](size_t b, size_t e) {
       wave.clear();
       for (size_t j = b; j < e; ++j) wave.add(rays[j].origin, rays[j].dir, primalSeed(settings, iteration, j));
       wave.trace(scene, lights, scope, settings.path);
@@ -275,6 +288,8 @@ std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, 
       }
     });
   });
+  Ranks::world().shareChunks(estimate, Gradients::kChunkRays);
+  Ranks::world().shareChunks(*albedoSensitivity, Gradients::kChunkRays);
   return estimate;
 }
 
@@ -399,6 +414,9 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
         });
       },
       settings.splatVertices());
+  // Written by the rays' own chunks: over MPI ranks, each rank holds its chunks' (core/ranks.h).
+  Ranks::world().shareChunks(loss, Gradients::kChunkRays);
+  if (estimates) Ranks::world().shareChunks(*estimates, Gradients::kChunkRays);
   result.times.adjoint = t.seconds();
   double lossSum = 0;
   for (double l : loss) lossSum += l;

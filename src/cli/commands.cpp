@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/ranks.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
 #include "io/file_system.h"
@@ -267,11 +268,18 @@ void registerFit(CLI::App& app, CommandTable& table) {
     if (!memory->empty()) {
       cfg.memoryBudgetMib = static_cast<float>(parseMemoryBudget(*memory) / (1 << 20));
     }
+    // Over MPI ranks the root writes every file; the others hold the same state (core/ranks.h).
+    const Ranks& ranks = Ranks::world();
     // Its checkpoint is written atomically into the work folder: clear what killed runs left.
-    if (const size_t stale = removeStaleTemporaries(*work))
-      spdlog::info("fit: removed {} temporaries of killed runs", stale);
-    const FitSummary s = runFit(*work, cfg, *resume);
-    if (s.stopped) return 0;
+    if (ranks.root())
+      if (const size_t stale = removeStaleTemporaries(*work))
+        spdlog::info("fit: removed {} temporaries of killed runs", stale);
+    if (ranks.distributed())
+      spdlog::info("fit: {} MPI ranks, {} thread(s) each; rank 0 writes the files", ranks.size(), threadCount());
+    FitHooks hooks;
+    hooks.writeFiles = ranks.root();
+    const FitSummary s = runFit(*work, cfg, *resume, hooks);
+    if (s.stopped || !ranks.root()) return 0;
     spdlog::info("fit: {} iterations in {:.0f}s, albedo {}^2, {} light source(s), result in {}", s.iterations,
                  s.seconds, s.finalResolution, s.emitters.size(), s.resultDir.string());
     if (!*noReport) writeFitReport(*work);  // re-renders a few frames: tens of seconds

@@ -3,13 +3,17 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <csignal>
+#include <cstdlib>
 #include <filesystem>
 #include <new>
 #include <system_error>
+#include <thread>
 
 #include "cli/commands.h"
 #include "core/error.h"
+#include "core/ranks.h"
 #include "core/system.h"
 
 namespace {
@@ -17,6 +21,19 @@ namespace {
 // little memory); 70 (EX_SOFTWARE, sysexits.h) for an exception relume's code never meant to throw.
 // A failed CHECK aborts (core/check.h); command-line parse errors keep CLI11's codes.
 constexpr int kInputError = 1, kInternalError = 70;
+
+// Only the fit splits its work between MPI ranks; any other command run as several would repeat
+// the same work and write the same files from every rank.
+void checkRanksFor(const std::string& command) {
+  const char* size = std::getenv("OMPI_COMM_WORLD_SIZE") ? std::getenv("OMPI_COMM_WORLD_SIZE") : std::getenv("PMI_SIZE");
+  const int launched = size ? std::atoi(size) : 1;
+  if (launched > 1 && !relume::MpiSession::available())
+    relume::fail("relume was built without MPI: run it as one process, or rebuild with Open MPI installed "
+                 "(libopenmpi-dev) to run `mpirun -np {} relume fit`", launched);
+  if (relume::Ranks::world().distributed() && command != "fit")
+    relume::fail("`relume {}` runs as one process; only `relume fit` splits its work between MPI ranks (this job "
+                 "has {})", command, relume::Ranks::world().size());
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -42,28 +59,45 @@ int main(int argc, char** argv) {
   spdlog::set_default_logger(spdlog::stderr_color_mt("relume"));
   spdlog::set_level(spdlog::level::from_str(logLevel));
   spdlog::set_pattern("[%T] %^%l%$ %v");
+  // Under mpirun (core/ranks.h): the root logs; the other ranks say only what goes wrong on them.
+  const relume::MpiSession mpi;
+  relume::Ranks& ranks = relume::Ranks::world();
+  if (ranks.distributed()) {
+    spdlog::set_pattern(fmt::format("[%T] rank {} %^%l%$ %v", ranks.rank()));
+    if (!ranks.root()) spdlog::set_level(spdlog::level::err);
+    // The host's cores shared between its ranks, unless --threads says otherwise.
+    if (threads == 0)
+      threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / ranks.ranksOnThisHost());
+  }
   auto pool = relume::initThreads(threads);
+  // An error ends the whole job: the other ranks would otherwise wait for this one.
+  auto failed = [&](int code) {
+    if (ranks.distributed()) ranks.abort(code);
+    return code;
+  };
   try {
-    const int rc = commands.at(app.get_subcommands().front())();
+    const CLI::App* command = app.get_subcommands().front();
+    checkRanksFor(command->get_name());
+    const int rc = commands.at(command)();
     spdlog::info("peak RSS {:.0f} MiB", relume::peakRssMiB());
     return rc;
   } catch (const relume::Error& e) {
     spdlog::error("{}", e.what());
-    return kInputError;
+    return failed(kInputError);
   } catch (const std::filesystem::filesystem_error& e) {
     // Every filesystem call on a user's path reports its own relume::Error (io/file_system.h): one
     // that gets here is a call that was missed.
     spdlog::error("internal error: {}", e.what());
-    return kInternalError;
+    return failed(kInternalError);
   } catch (const std::system_error& e) {
     // The environment, not relume: a print into a closed pipe (SIGPIPE is ignored, above).
     spdlog::error("{}", e.what());
-    return kInputError;
+    return failed(kInputError);
   } catch (const std::bad_alloc&) {
     spdlog::error("out of memory (peak RSS {:.0f} MiB)", relume::peakRssMiB());
-    return kInputError;
+    return failed(kInputError);
   } catch (const std::exception& e) {
     spdlog::error("internal error: {}", e.what());
-    return kInternalError;
+    return failed(kInternalError);
   }
 }

@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <bit>
+#include <cstring>
 
 #include "core/check.h"
 #include "core/error.h"
+#include "core/ranks.h"
 
 namespace relume {
 
@@ -88,10 +90,13 @@ void Gradients::accumulate(size_t count, const std::function<void(Chunk&, size_t
     const size_t last = std::min(count, first + subBatch);
     const size_t chunks = (last - first + kChunkRays - 1) / kChunkRays;
     CHECK(chunks <= chunks_.size());  // every chunk of a sub-batch has its own log
+    const size_t firstChunk = first / kChunkRays;
     tbb::parallel_for(size_t{0}, chunks, [&](size_t c) {
+      if (!Ranks::world().ownsChunk(firstChunk + c)) return;  // another rank's (core/ranks.h)
       const size_t begin = first + c * kChunkRays;
       trace(chunks_[c], begin, std::min(last, begin + kChunkRays));
     });
+    shareChunks(firstChunk, chunks);
     apply(chunks);
     for (size_t c = 0; c < chunks; ++c) {
       for (size_t i = 0; i < objectSum.size(); ++i) objectSum[i] += chunks_[c].objects_[i];
@@ -99,6 +104,63 @@ void Gradients::accumulate(size_t count, const std::function<void(Chunk&, size_t
     }
   }
   for (size_t i = 0; i < objects.size(); ++i) objects[i] += static_cast<float>(objectSum[i]);
+}
+
+// Over MPI ranks: each rank's chunks' logs and per-object sums, to every rank, so that each applies
+// every chunk's in chunk order as one process would. Only the splats travel: the entries the
+// batch reached, not the texture.
+void Gradients::shareChunks(size_t firstChunk, size_t chunks) {
+  Ranks& ranks = Ranks::world();
+  if (!ranks.distributed()) return;
+  std::vector<uint8_t> mine;
+  auto put = [&](const void* p, size_t n) {
+    mine.insert(mine.end(), static_cast<const uint8_t*>(p), static_cast<const uint8_t*>(p) + n);
+  };
+  for (size_t c = 0; c < chunks; ++c) {
+    if (!ranks.ownsChunk(firstChunk + c)) continue;
+    const Chunk& chunk = chunks_[c];
+    const uint32_t index = static_cast<uint32_t>(c);
+    put(&index, sizeof index);
+    for (const auto& splats : chunk.buckets_) {
+      const uint32_t n = static_cast<uint32_t>(splats.size());
+      put(&n, sizeof n);
+      put(splats.data(), n * sizeof(Chunk::Splat));
+    }
+    uint32_t nonZero = 0;
+    for (double v : chunk.objects_) nonZero += v != 0.0;
+    put(&nonZero, sizeof nonZero);
+    for (uint32_t i = 0; i < chunk.objects_.size(); ++i)
+      if (chunk.objects_[i] != 0.0) put(&i, sizeof i), put(&chunk.objects_[i], sizeof(double));
+  }
+  const std::vector<std::vector<uint8_t>> all = ranks.allGather(mine);
+  for (int r = 0; r < ranks.size(); ++r) {
+    if (r == ranks.rank()) continue;
+    const std::vector<uint8_t>& in = all[static_cast<size_t>(r)];
+    size_t at = 0;
+    auto get = [&](void* p, size_t n) {
+      CHECK(at + n <= in.size());  // every rank writes the layout above
+      std::memcpy(p, in.data() + at, n);
+      at += n;
+    };
+    while (at < in.size()) {
+      uint32_t index = 0, n = 0, nonZero = 0;
+      get(&index, sizeof index);
+      CHECK(index < chunks && !ranks.ownsChunk(firstChunk + index));
+      Chunk& chunk = chunks_[index];
+      for (auto& splats : chunk.buckets_) {
+        get(&n, sizeof n);
+        splats.resize(n);
+        get(splats.data(), n * sizeof(Chunk::Splat));
+      }
+      get(&nonZero, sizeof nonZero);
+      for (uint32_t k = 0; k < nonZero; ++k) {
+        uint32_t i = 0;
+        get(&i, sizeof i);
+        CHECK(i < chunk.objects_.size());
+        get(&chunk.objects_[i], sizeof(double));
+      }
+    }
+  }
 }
 
 void Gradients::apply(size_t chunks) {

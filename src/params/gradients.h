@@ -85,6 +85,7 @@ class Gradients {
   static constexpr size_t kSubBatchRays = 64 * kChunkRays;
   static constexpr size_t kMinSubBatchChunks = 8;
   static constexpr uint32_t kBuckets = 64;
+  void shareChunks(size_t firstChunk, size_t chunks);
   void apply(size_t chunks);
   float* texelData(uint32_t entry);
 

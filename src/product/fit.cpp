@@ -8,6 +8,7 @@
 #include "core/check.h"
 #include "core/error.h"
 #include "core/random_streams.h"
+#include "core/ranks.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
 #include "io/file_system.h"
@@ -94,6 +95,9 @@ class Fit {
   double fitSeconds() const {
     return elapsedBefore_ + (hooks_.clock ? hooks_.clock() - clockStart_ : total_.seconds() - hookSeconds_);
   }
+  // fitSeconds() as the root rank measured it, for the time budget's decisions: every rank then
+  // plans the same stage lengths (core/ranks.h). Collective over MPI ranks.
+  double agreedFitSeconds() const { return Ranks::world().rootValue(fitSeconds()); }
   Json memoryBreakdown(Gradients& grads, const Batch& batch, const AdjointSettings& settings, const TexelSpace& space) {
     return fitMemory(w_, appearance_, space, grads, batch, settings, optimiser_, lights_ ? &*lights_ : nullptr);
   }
@@ -398,10 +402,11 @@ void Fit::iterate(size_t stageIndex, int firstIteration, const TexelSpace& space
   std::vector<Color> estimates;  // each ray's, for gain_refine
   Json stageMemory;              // the stage's largest memoryBreakdown
   if (budget_) {
-    const double now = fitSeconds();
+    const double now = agreedFitSeconds();
     budget_->recordBoundary(now - lastIterationEnd_);
     lastIterationEnd_ = now;
   }
+  const uint64_t sharedAtStart = Ranks::world().bytesShared();  // over MPI ranks: what this rank sent
   for (int it = firstIteration; it < st.iterations; ++it) {
     const uint64_t iteration = static_cast<uint64_t>(globalIteration_);
     FitPhaseTimes now;
@@ -466,9 +471,10 @@ void Fit::iterate(size_t stageIndex, int firstIteration, const TexelSpace& space
                                               *w_.scene, *lights_, settings, !grads.albedoCurvature.empty(),
                                               appearance_, w_.mesh, peakMemory_, stageMemory});
       hookSeconds_ += th.seconds();
+      go = Ranks::world().allTrue(go);  // a stop on any rank stops them all at the same iteration
     }
     if (budget_) {
-      const double end = fitSeconds();
+      const double end = agreedFitSeconds();
       budget_->recordIteration(stageIndex, end - lastIterationEnd_);
       lastIterationEnd_ = end;
       if (budget_->due(stageIndex, st, it + 1)) {
@@ -494,6 +500,9 @@ void Fit::iterate(size_t stageIndex, int firstIteration, const TexelSpace& space
                    {"lr_scale", st.settles.bits != 0 ? st.settleScale(it, c_.lrFinalFraction) : 1.0f},
                    {"sampler", batch.stats.toJson()},
                    {"seconds", times.toJson()}};
+      if (Ranks::world().distributed())
+        line["shared_bytes_per_iteration"] =
+            static_cast<double>(Ranks::world().bytesShared() - sharedAtStart) / (it + 1 - firstIteration);
       if (st.active.active(ParamKind::Roughness))  // the fitted objects' trajectories: how settled they are
         for (int o = 0; o < appearance_.objectCount(); ++o)
           if (roles_.highlight[o])
@@ -515,6 +524,9 @@ void Fit::iterate(size_t stageIndex, int firstIteration, const TexelSpace& space
       "optimiser {:.1f} ms",
       st.name, st.iterations - firstIteration, lastLoss_, 1e3 * times.sample / done, 1e3 * times.primal / done,
       1e3 * times.adjoint / done, 1e3 * times.optimiser / done);
+  if (Ranks::world().distributed())
+    spdlog::info("fit: stage {}: rank 0 sent {} per iteration to the other ranks", st.name,
+                 formatBytes(static_cast<double>(Ranks::world().bytesShared() - sharedAtStart) / done));
 }
 
 // The lengths of stage `stageIndex` (`done` iterations run) and those after it, for the time left
@@ -522,7 +534,7 @@ void Fit::iterate(size_t stageIndex, int firstIteration, const TexelSpace& space
 void Fit::planBudget(size_t stageIndex, int done) {
   std::vector<bool> runs;
   for (const Stage& st : stages_) runs.push_back(!skips(st));
-  lastPlan_ = budget_->plan(stages_, stageIndex, done, fitSeconds(), runs);
+  lastPlan_ = budget_->plan(stages_, stageIndex, done, agreedFitSeconds(), runs);
   std::string lengths;
   for (const Json& stage : lastPlan_["iterations"])
     lengths += fmt::format("{} {}, ", stage[0].get<std::string>(), stage[1].get<int>());

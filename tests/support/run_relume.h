@@ -21,11 +21,11 @@ inline std::filesystem::path relumeBinary() {
   return std::filesystem::read_symlink("/proc/self/exe").parent_path().parent_path() / "relume";
 }
 
-// `args` is passed through the shell: quote paths with spaces.
-inline RelumeRun runRelume(const std::string& args) {
+// Runs `command` through the shell; its exit code and everything it printed.
+inline RelumeRun runShell(const std::string& command) {
   const std::filesystem::path log =
       std::filesystem::temp_directory_path() / ("relume_run_" + std::to_string(getpid()) + ".log");
-  const int status = std::system((relumeBinary().string() + " " + args + " > " + log.string() + " 2>&1").c_str());
+  const int status = std::system((command + " > " + log.string() + " 2>&1").c_str());
   RelumeRun run;
   if (WIFEXITED(status)) run.exitCode = WEXITSTATUS(status);
   std::stringstream out;
@@ -33,6 +33,21 @@ inline RelumeRun runRelume(const std::string& args) {
   run.output = out.str();
   std::filesystem::remove(log);
   return run;
+}
+
+// `args` is passed through the shell: quote paths with spaces.
+inline RelumeRun runRelume(const std::string& args) { return runShell(relumeBinary().string() + " " + args); }
+
+// The mpirun (Open MPI) that starts RANKS processes: allowed as root (CI's containers), with more
+// ranks than cores, without the single-copy transport containers forbid (it would only warn).
+inline std::string mpirunCommand(int ranks) {
+  return "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun -np " + std::to_string(ranks) +
+         " --oversubscribe --mca btl_vader_single_copy_mechanism none";
+}
+
+// `relume ARGS` as RANKS MPI ranks.
+inline RelumeRun runRelumeRanks(int ranks, const std::string& args) {
+  return runShell(mpirunCommand(ranks) + " " + relumeBinary().string() + " " + args);
 }
 
 }  // namespace relume

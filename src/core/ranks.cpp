@@ -1,0 +1,114 @@
+#include "core/ranks.h"
+
+#include <climits>
+#include <cstdlib>
+
+#ifdef RELUME_WITH_MPI
+#include <mpi.h>
+#endif
+
+namespace relume {
+
+Ranks& Ranks::world() {
+  static Ranks ranks;
+  return ranks;
+}
+
+bool MpiSession::available() {
+#ifdef RELUME_WITH_MPI
+  return true;
+#else
+  return false;
+#endif
+}
+
+bool MpiSession::launchedAsRank() {
+  for (const char* v : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK"})
+    if (std::getenv(v)) return true;
+  return false;
+}
+
+#ifdef RELUME_WITH_MPI
+namespace {
+void checkMpi(int rc, const char* what) {
+  if (rc == MPI_SUCCESS) return;
+  char text[MPI_MAX_ERROR_STRING];
+  int n = 0;
+  MPI_Error_string(rc, text, &n);
+  std::fprintf(stderr, "relume: %s failed: %.*s\n", what, n, text);
+  MPI_Abort(MPI_COMM_WORLD, 1);
+  std::abort();  // MPI_Abort does not return
+}
+}  // namespace
+
+MpiSession::MpiSession() {
+  if (!launchedAsRank()) return;
+  int provided = 0;
+  // Only the main thread exchanges; TBB's workers never call MPI.
+  checkMpi(MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided), "MPI_Init_thread");
+  started_ = true;
+  Ranks& w = Ranks::world();
+  MPI_Comm_rank(MPI_COMM_WORLD, &w.rank_);
+  MPI_Comm_size(MPI_COMM_WORLD, &w.size_);
+  MPI_Comm host;
+  MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &host);
+  MPI_Comm_size(host, &w.local_);
+  MPI_Comm_free(&host);
+}
+
+MpiSession::~MpiSession() {
+  if (started_) MPI_Finalize();
+}
+
+std::vector<std::vector<uint8_t>> Ranks::allGather(const std::vector<uint8_t>& mine) {
+  if (!distributed()) return {mine};
+  bytesShared_ += mine.size();
+  std::vector<uint64_t> sizes(static_cast<size_t>(size_));
+  const uint64_t own = mine.size();
+  checkMpi(MPI_Allgather(&own, 1, MPI_UINT64_T, sizes.data(), 1, MPI_UINT64_T, MPI_COMM_WORLD), "MPI_Allgather");
+  std::vector<int> counts(sizes.size()), offsets(sizes.size());
+  uint64_t total = 0;
+  for (size_t r = 0; r < sizes.size(); ++r) {
+    CHECK(total + sizes[r] <= static_cast<uint64_t>(INT_MAX));  // one exchange is a batch's, megabytes
+    counts[r] = static_cast<int>(sizes[r]), offsets[r] = static_cast<int>(total);
+    total += sizes[r];
+  }
+  std::vector<uint8_t> joined(total);
+  checkMpi(MPI_Allgatherv(mine.data(), counts[static_cast<size_t>(rank_)], MPI_BYTE, joined.data(), counts.data(),
+                          offsets.data(), MPI_BYTE, MPI_COMM_WORLD),
+           "MPI_Allgatherv");
+  std::vector<std::vector<uint8_t>> all(sizes.size());
+  for (size_t r = 0; r < sizes.size(); ++r)
+    all[r].assign(joined.begin() + offsets[r], joined.begin() + offsets[r] + counts[r]);
+  return all;
+}
+
+double Ranks::rootValue(double value) {
+  if (distributed()) checkMpi(MPI_Bcast(&value, 1, MPI_DOUBLE, 0, MPI_COMM_WORLD), "MPI_Bcast");
+  return value;
+}
+
+bool Ranks::allTrue(bool value) {
+  if (!distributed()) return value;
+  int v = value ? 1 : 0, all = 0;
+  checkMpi(MPI_Allreduce(&v, &all, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD), "MPI_Allreduce");
+  return all == 1;
+}
+
+void Ranks::abort(int code) {
+  if (distributed()) MPI_Abort(MPI_COMM_WORLD, code);
+  std::exit(code);
+}
+
+#else
+
+MpiSession::MpiSession() {}
+MpiSession::~MpiSession() {}
+std::vector<std::vector<uint8_t>> Ranks::allGather(const std::vector<uint8_t>& mine) { return {mine}; }
+double Ranks::rootValue(double value) { return value; }
+bool Ranks::allTrue(bool value) { return value; }
+void Ranks::abort(int code) { std::exit(code); }
+
+#endif
+
+}  // namespace relume

@@ -1,0 +1,120 @@
+// `mpirun -np N relume fit` (core/ranks.h): the ranks split every pass's rays and exchange what they
+// traced, so the fit ends bit for bit as one process does; a checkpoint written at one rank count
+// resumes at another; a rank killed mid-fit ends the job, and `--resume` then ends as the
+// uninterrupted run. Skipped where relume was built without MPI or mpirun is not installed.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include "core/ranks.h"
+#include "io/image.h"
+#include "io/json.h"
+#include "support/prepared_capture.h"
+#include "support/run_relume.h"
+
+using namespace relume;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string fileBytes(const fs::path& f) {
+  std::ifstream in(f, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// What two runs of the same fit must agree on: the albedo's pixels, the scene, its lights, the
+// frames' gains, and every object's fitted values (materials.json's other keys are the run's own
+// memory and seconds).
+void expectSameResult(const fs::path& a, const fs::path& b, const std::string& what) {
+  EXPECT_EQ(readImage(a / "result" / "albedo.exr").rgb, readImage(b / "result" / "albedo.exr").rgb) << what;
+  for (const char* f : {"scene.json", "lights.json", "frames.json"})
+    EXPECT_TRUE(fileBytes(a / "result" / f) == fileBytes(b / "result" / f)) << f << ": " << what;
+  EXPECT_EQ(readJson(a / "result" / "materials.json")["objects"], readJson(b / "result" / "materials.json")["objects"])
+      << what;
+}
+
+class DistributedFit : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!MpiSession::available()) GTEST_SKIP() << "relume was built without MPI (install libopenmpi-dev)";
+    if (std::system("command -v mpirun > /dev/null 2>&1") != 0) GTEST_SKIP() << "mpirun is not installed";
+    dir_ = smallPreparedRoom(std::string("distributed_fit_") +
+                             ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::ofstream(dir_ / "fit.json") << R"({"batch_texels": 1024, "max_depth": 3, "emission_iterations": 40,
+      "material_iterations": 20, "albedo_passes": 20, "emission_texture_iterations": 20, "checkpoint_every": 7})";
+    std::ofstream(dir_ / "stop.json") << R"({"batch_texels": 1024, "max_depth": 3, "emission_iterations": 40,
+      "material_iterations": 20, "albedo_passes": 20, "emission_texture_iterations": 20, "checkpoint_every": 7,
+      "stop_after_iterations": 60})";
+  }
+  // A fresh copy of the prepared work folder, named `name`.
+  fs::path work(const std::string& name) {
+    const fs::path w = dir_ / name;
+    fs::remove_all(w);
+    fs::copy(dir_ / "work", w, fs::copy_options::recursive);
+    return w;
+  }
+  std::string fit(const fs::path& w, const std::string& config, bool resume = false) const {
+    return "--log warn fit '" + w.string() + "' --config '" + (dir_ / config).string() + "' --no-report" +
+           (resume ? " --resume" : "");
+  }
+  fs::path dir_;
+};
+
+}  // namespace
+
+TEST_F(DistributedFit, TwoRanksEndAsOneProcessAndACheckpointResumesAtAnotherRankCount) {
+  const fs::path one = work("one"), two = work("two"), twoThenOne = work("two_then_one"),
+                 oneThenTwo = work("one_then_two");
+  RelumeRun run = runRelume(fit(one, "fit.json"));
+  ASSERT_EQ(run.exitCode, 0) << run.output;
+  run = runRelumeRanks(2, fit(two, "fit.json"));
+  ASSERT_EQ(run.exitCode, 0) << run.output;
+  expectSameResult(one, two, "one process and 2 ranks");
+  // Rank 0 alone writes: the metrics hold each line once, with what the ranks exchanged.
+  auto lines = [](const fs::path& f) {
+    std::vector<Json> v;
+    std::ifstream in(f);
+    for (std::string line; std::getline(in, line);) v.push_back(Json::parse(line));
+    return v;
+  };
+  const std::vector<Json> metricsOne = lines(one / "metrics.jsonl"), metricsTwo = lines(two / "metrics.jsonl");
+  ASSERT_EQ(metricsTwo.size(), metricsOne.size());
+  EXPECT_FALSE(metricsOne.back().contains("shared_bytes_per_iteration"));
+  EXPECT_GT(metricsTwo.back().value("shared_bytes_per_iteration", 0.0), 0.0);
+
+  // Stopped mid-fit at one rank count, resumed at the other.
+  run = runRelumeRanks(2, fit(twoThenOne, "stop.json"));
+  ASSERT_EQ(run.exitCode, 0) << run.output;
+  ASSERT_FALSE(fs::exists(twoThenOne / "result"));
+  run = runRelume(fit(twoThenOne, "fit.json", true));
+  ASSERT_EQ(run.exitCode, 0) << run.output;
+  expectSameResult(one, twoThenOne, "stopped at 2 ranks, resumed as one process");
+  run = runRelume(fit(oneThenTwo, "stop.json"));
+  ASSERT_EQ(run.exitCode, 0) << run.output;
+  run = runRelumeRanks(2, fit(oneThenTwo, "fit.json", true));
+  ASSERT_EQ(run.exitCode, 0) << run.output;
+  expectSameResult(one, oneThenTwo, "stopped as one process, resumed at 2 ranks");
+}
+
+// A rank killed while the others wait for its share: the job ends with an error (not a hang), no
+// result is left, and the fit resumed from the last checkpoint ends as the uninterrupted run.
+TEST_F(DistributedFit, ARankKilledEndsTheJobAndTheFitResumes) {
+  const fs::path one = work("one"), killed = work("killed");
+  RelumeRun run = runRelume(fit(one, "fit.json"));
+  ASSERT_EQ(run.exitCode, 0) << run.output;
+  // mpirun starts the ranks as its children (listed in /proc); the last is rank 1. The fit above
+  // took seconds.
+  run = runShell("(" + mpirunCommand(2) + " " + relumeBinary().string() + " " + fit(killed, "fit.json") +
+                 " & M=$!; sleep 1.5; kill -KILL $(tr ' ' '\\n' < /proc/$M/task/$M/children | grep . | tail -1);"
+                 " wait $M)");
+  ASSERT_NE(run.exitCode, 0) << "the fit ended before the kill, or the job went on without a rank:\n" << run.output;
+  EXPECT_FALSE(fs::exists(killed / "result" / "materials.json")) << run.output;
+  run = runRelume(fit(killed, "fit.json", true));
+  ASSERT_EQ(run.exitCode, 0) << run.output;
+  expectSameResult(one, killed, "a rank killed, then resumed");
+  for (const auto& e : fs::directory_iterator(killed))
+    EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path() << " left behind";
+}

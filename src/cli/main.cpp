@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <csignal>
-#include <cstdlib>
 #include <filesystem>
 #include <new>
 #include <system_error>
@@ -25,8 +24,7 @@ constexpr int kInputError = 1, kInternalError = 70;
 // Only the fit splits its work between MPI ranks; any other command run as several would repeat
 // the same work and write the same files from every rank.
 void checkRanksFor(const std::string& command) {
-  const char* size = std::getenv("OMPI_COMM_WORLD_SIZE") ? std::getenv("OMPI_COMM_WORLD_SIZE") : std::getenv("PMI_SIZE");
-  const int launched = size ? std::atoi(size) : 1;
+  const int launched = relume::MpiSession::launchedRanks();
   if (launched > 1 && !relume::MpiSession::available())
     relume::fail("relume was built without MPI: run it as one process, or rebuild with Open MPI installed "
                  "(libopenmpi-dev) to run `mpirun -np {} relume fit`", launched);

@@ -1,5 +1,6 @@
 #include "core/ranks.h"
 
+#include <algorithm>
 #include <climits>
 #include <cstdlib>
 
@@ -22,10 +23,10 @@ bool MpiSession::available() {
 #endif
 }
 
-bool MpiSession::launchedAsRank() {
-  for (const char* v : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK"})
-    if (std::getenv(v)) return true;
-  return false;
+int MpiSession::launchedRanks() {
+  for (const char* v : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE"})  // Open MPI's mpirun; MPICH's and Slurm's PMI
+    if (const char* size = std::getenv(v)) return std::max(1, std::atoi(size));
+  return 1;
 }
 
 #ifdef RELUME_WITH_MPI
@@ -42,7 +43,7 @@ void checkMpi(int rc, const char* what) {
 }  // namespace
 
 MpiSession::MpiSession() {
-  if (!launchedAsRank()) return;
+  if (launchedRanks() < 2) return;
   int provided = 0;
   // Only the main thread exchanges; TBB's workers never call MPI.
   checkMpi(MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided), "MPI_Init_thread");

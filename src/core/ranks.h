@@ -55,8 +55,8 @@ class Ranks {
   uint64_t bytesShared_ = 0;
 };
 
-// Starts MPI when the process was launched by mpirun (Open MPI, MPICH and PMIx set their variables)
-// and relume was built with it; ends it when destroyed. Without either, a single rank.
+// Starts MPI when the process was launched by mpirun as one of several and relume was built with
+// MPI; ends it when destroyed. Otherwise a single rank.
 class MpiSession {
  public:
   MpiSession();
@@ -65,8 +65,8 @@ class MpiSession {
   MpiSession& operator=(const MpiSession&) = delete;
   // Whether this build can run over MPI ranks.
   static bool available();
-  // The environment says a launcher started this process as one of several.
-  static bool launchedAsRank();
+  // How many processes the launcher that started this one started (1 without a launcher).
+  static int launchedRanks();
 
  private:
   bool started_ = false;
@@ -100,7 +100,7 @@ void Ranks::shareChunks(std::vector<T>& items, size_t chunkItems) {
       size_t b, e;
       span(c, b, e);
       CHECK(at + (e - b) * sizeof(T) <= all[r].size());  // every rank splits the same length the same way
-      std::memcpy(items.data() + b, all[r].data() + at, (e - b) * sizeof(T));
+      std::memcpy(static_cast<void*>(items.data() + b), all[r].data() + at, (e - b) * sizeof(T));
       at += (e - b) * sizeof(T);
     }
     CHECK(at == all[r].size());

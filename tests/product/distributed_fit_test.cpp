@@ -97,6 +97,13 @@ TEST_F(DistributedFit, TwoRanksEndAsOneProcessAndACheckpointResumesAtAnotherRank
   run = runRelumeRanks(2, fit(oneThenTwo, "fit.json", true));
   ASSERT_EQ(run.exitCode, 0) << run.output;
   expectSameResult(one, oneThenTwo, "stopped as one process, resumed at 2 ranks");
+
+  // Any other command would do its work twice: refused, before it writes anything.
+  run = runRelumeRanks(2, "--log warn prepare '" + (dir_ / "capture").string() + "' --out '" +
+                              (dir_ / "prepared_twice").string() + "'");
+  EXPECT_NE(run.exitCode, 0);
+  EXPECT_NE(run.output.find("only `relume fit` splits its work between MPI ranks"), std::string::npos) << run.output;
+  EXPECT_FALSE(fs::exists(dir_ / "prepared_twice"));
 }
 
 // A rank killed while the others wait for its share: the job ends with an error (not a hang), no
@@ -107,9 +114,10 @@ TEST_F(DistributedFit, ARankKilledEndsTheJobAndTheFitResumes) {
   ASSERT_EQ(run.exitCode, 0) << run.output;
   // mpirun starts the ranks as its children (listed in /proc); the last is rank 1. The fit above
   // took seconds.
-  run = runShell("(" + mpirunCommand(2) + " " + relumeBinary().string() + " " + fit(killed, "fit.json") +
-                 " & M=$!; sleep 1.5; kill -KILL $(tr ' ' '\\n' < /proc/$M/task/$M/children | grep . | tail -1);"
-                 " wait $M)");
+  std::string script = "(";  // appended, not `"(" + ...`: GCC 12 warns falsely (-Wrestrict) on that
+  script += mpirunCommand(2) + " " + relumeBinary().string() + " " + fit(killed, "fit.json") +
+            " & M=$!; sleep 1.5; kill -KILL $(tr ' ' '\\n' < /proc/$M/task/$M/children | grep . | tail -1); wait $M)";
+  run = runShell(script);
   ASSERT_NE(run.exitCode, 0) << "the fit ended before the kill, or the job went on without a rank:\n" << run.output;
   EXPECT_FALSE(fs::exists(killed / "result" / "materials.json")) << run.output;
   run = runRelume(fit(killed, "fit.json", true));

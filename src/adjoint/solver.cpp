@@ -243,10 +243,12 @@ size_t adjointRecordBytesPerThread(int maxDepth) {
   return kRecordedWaves * wavePaths(maxDepth) * static_cast<size_t>(maxDepth + 1) * sizeof(VertexRecord);
 }
 
-std::vector<Color> traceRays(const Scene& scene, const LightSampler& lights, const AppearanceScope& scope,
-                             const std::vector<BatchRay>& rays, const PathSettings& path,
-                             const std::function<uint64_t(size_t)>& seedOf) {
-  std::vector<Color> estimate(rays.size());
+namespace {
+// The estimates of the rays of this rank's chunks (all rays in one process); the others are zero.
+std::vector<Color> traceOwnedRays(const Scene& scene, const LightSampler& lights, const AppearanceScope& scope,
+                                  const std::vector<BatchRay>& rays, const PathSettings& path,
+                                  const std::function<uint64_t(size_t)>& seedOf) {
+  std::vector<Color> estimate(rays.size(), Color::Zero());
   forOwnedChunks(rays.size(), [&](size_t begin, size_t end) {
     std::vector<PathSlot> paths;
     NullPathObserver none;
@@ -258,20 +260,32 @@ std::vector<Color> traceRays(const Scene& scene, const LightSampler& lights, con
       for (size_t j = b; j < e; ++j) estimate[j] = safeRadiance(paths[j - b].L);
     });
   });
+  return estimate;
+}
+}  // namespace
+
+std::vector<Color> traceRays(const Scene& scene, const LightSampler& lights, const AppearanceScope& scope,
+                             const std::vector<BatchRay>& rays, const PathSettings& path,
+                             const std::function<uint64_t(size_t)>& seedOf) {
+  std::vector<Color> estimate = traceOwnedRays(scene, lights, scope, rays, path, seedOf);
   Ranks::world().shareChunks(estimate, Gradients::kChunkRays);
   return estimate;
 }
 
 std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
                               const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration,
-                              std::vector<Color>* albedoSensitivity) {
-  if (!albedoSensitivity)
-    return traceRays(scene, lights, AppearanceScope::uniform(appearance), rays, settings.path,
-                     [&](size_t j) { return primalSeed(settings, iteration, j); });
+                              std::vector<Color>* albedoSensitivity, bool ownChunksOnly) {
+  if (!albedoSensitivity) {
+    std::vector<Color> estimate =
+        traceOwnedRays(scene, lights, AppearanceScope::uniform(appearance), rays, settings.path,
+                       [&](size_t j) { return primalSeed(settings, iteration, j); });
+    if (!ownChunksOnly) Ranks::world().shareChunks(estimate, Gradients::kChunkRays);
+    return estimate;
+  }
   // The same paths, recorded, to read the first vertex's albedo sensitivity off them.
   const AppearanceScope scope = AppearanceScope::uniform(appearance);
   RecordBuffers buffers(settings.path.maxDepth);
-  std::vector<Color> estimate(rays.size());
+  std::vector<Color> estimate(rays.size(), Color::Zero());
   albedoSensitivity->assign(rays.size(), Color::Zero());
   forOwnedChunks(rays.size(), [&](size_t begin, size_t end) {
     RecordedWave wave(appearance, buffers, 0);
@@ -288,8 +302,10 @@ std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, 
       }
     });
   });
-  Ranks::world().shareChunks(estimate, Gradients::kChunkRays);
-  Ranks::world().shareChunks(*albedoSensitivity, Gradients::kChunkRays);
+  if (!ownChunksOnly) {
+    Ranks::world().shareChunks(estimate, Gradients::kChunkRays);
+    Ranks::world().shareChunks(*albedoSensitivity, Gradients::kChunkRays);
+  }
   return estimate;
 }
 
@@ -346,22 +362,27 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
     Timer t;
     const bool curvature = !grads.albedoCurvature.empty();
     std::vector<Color> sensitivity;
-    const std::vector<Color> estimate =
-        primalPass(scene, appearance, lights, rays, settings, iteration, curvature ? &sensitivity : nullptr);
+    // Over MPI ranks a ray's adjoint is traced by the rank that traced its primal: the estimates
+    // stay with their rank unless the caller wants them all (core/ranks.h).
+    const std::vector<Color> estimate = primalPass(scene, appearance, lights, rays, settings, iteration,
+                                                   curvature ? &sensitivity : nullptr, !estimates);
     result.times.primal = t.seconds();
     Timer tl;
     std::vector<Color> delta(rays.size());
-    double loss = 0;
+    std::vector<double> loss(rays.size());
     for (size_t j = 0; j < rays.size(); ++j) {
-      loss += lossOf(j, estimate[j]);
+      loss[j] = lossOf(j, estimate[j]);
       delta[j] = deltaOf(j, estimate[j]);
       if (curvature) sensitivity[j] *= slopeOf(j, estimate[j]);
     }
-    result.loss = loss * invN;
     result.times.loss = tl.seconds();
     Timer ta;
     adjointPass(scene, appearance, lights, rays, delta, settings, iteration, grads, curvature ? &sensitivity : nullptr);
+    Ranks::world().shareChunks(loss, Gradients::kChunkRays);  // another rank's rays' losses, after its adjoint
     result.times.adjoint = ta.seconds();
+    double lossSum = 0;
+    for (double l : loss) lossSum += l;  // in ray order: the same at any thread or rank count
+    result.loss = lossSum * invN;
     if (estimates) *estimates = estimate;
     return result;
   }

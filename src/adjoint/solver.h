@@ -77,9 +77,11 @@ std::vector<Color> traceRays(const Scene& scene, const LightSampler& lights, con
 
 // Primal pass only: radiance estimates with seed s1; with `albedoSensitivity`, also each ray's
 // dI/d(albedo) at its first vertex (the paths are then recorded, as in the adjoint pass).
+// `ownChunksOnly`: over MPI ranks, only the rays of this rank's chunks are filled (the others are
+// zero), which is all its adjoint pass reads (core/ranks.h).
 std::vector<Color> primalPass(const Scene& scene, const Appearance& appearance, const LightSampler& lights,
                               const std::vector<BatchRay>& rays, const AdjointSettings& settings, uint64_t iteration,
-                              std::vector<Color>* albedoSensitivity = nullptr);
+                              std::vector<Color>* albedoSensitivity = nullptr, bool ownChunksOnly = false);
 
 // Adjoint pass only: scatters sum_j delta_j . dr(I_hat_j)/dtheta (paths traced with seed s2 along
 // the ray's adjointDirection(), r the ray's loss residual) into `grads`, and, when `grads` has

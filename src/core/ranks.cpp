@@ -1,5 +1,7 @@
 #include "core/ranks.h"
 
+#include "core/system.h"
+
 #include <algorithm>
 #include <climits>
 #include <cstdlib>
@@ -63,6 +65,7 @@ MpiSession::~MpiSession() {
 
 std::vector<std::vector<uint8_t>> Ranks::allGather(const std::vector<uint8_t>& mine) {
   if (!distributed()) return {mine};
+  const Timer timer;
   bytesShared_ += mine.size();
   std::vector<uint64_t> sizes(static_cast<size_t>(size_));
   const uint64_t own = mine.size();
@@ -81,6 +84,7 @@ std::vector<std::vector<uint8_t>> Ranks::allGather(const std::vector<uint8_t>& m
   std::vector<std::vector<uint8_t>> all(sizes.size());
   for (size_t r = 0; r < sizes.size(); ++r)
     all[r].assign(joined.begin() + offsets[r], joined.begin() + offsets[r] + counts[r]);
+  exchangeSeconds_ += timer.seconds();
   return all;
 }
 

@@ -406,7 +406,9 @@ void Fit::iterate(size_t stageIndex, int firstIteration, const TexelSpace& space
     budget_->recordBoundary(now - lastIterationEnd_);
     lastIterationEnd_ = now;
   }
-  const uint64_t sharedAtStart = Ranks::world().bytesShared();  // over MPI ranks: what this rank sent
+  // Over MPI ranks: what this rank sent, and its time in exchanges.
+  const uint64_t sharedAtStart = Ranks::world().bytesShared();
+  const double exchangeAtStart = Ranks::world().exchangeSeconds();
   for (int it = firstIteration; it < st.iterations; ++it) {
     const uint64_t iteration = static_cast<uint64_t>(globalIteration_);
     FitPhaseTimes now;
@@ -500,9 +502,11 @@ void Fit::iterate(size_t stageIndex, int firstIteration, const TexelSpace& space
                    {"lr_scale", st.settles.bits != 0 ? st.settleScale(it, c_.lrFinalFraction) : 1.0f},
                    {"sampler", batch.stats.toJson()},
                    {"seconds", times.toJson()}};
-      if (Ranks::world().distributed())
-        line["shared_bytes_per_iteration"] =
-            static_cast<double>(Ranks::world().bytesShared() - sharedAtStart) / (it + 1 - firstIteration);
+      if (Ranks::world().distributed()) {
+        const double n = it + 1 - firstIteration;
+        line["shared_bytes_per_iteration"] = static_cast<double>(Ranks::world().bytesShared() - sharedAtStart) / n;
+        line["exchange_seconds_per_iteration"] = (Ranks::world().exchangeSeconds() - exchangeAtStart) / n;
+      }
       if (st.active.active(ParamKind::Roughness))  // the fitted objects' trajectories: how settled they are
         for (int o = 0; o < appearance_.objectCount(); ++o)
           if (roles_.highlight[o])
@@ -525,8 +529,9 @@ void Fit::iterate(size_t stageIndex, int firstIteration, const TexelSpace& space
       st.name, st.iterations - firstIteration, lastLoss_, 1e3 * times.sample / done, 1e3 * times.primal / done,
       1e3 * times.adjoint / done, 1e3 * times.optimiser / done);
   if (Ranks::world().distributed())
-    spdlog::info("fit: stage {}: rank 0 sent {} per iteration to the other ranks", st.name,
-                 formatBytes(static_cast<double>(Ranks::world().bytesShared() - sharedAtStart) / done));
+    spdlog::info("fit: stage {}: rank 0 sent {} per iteration to the other ranks, exchanges took {:.1f} ms", st.name,
+                 formatBytes(static_cast<double>(Ranks::world().bytesShared() - sharedAtStart) / done),
+                 1e3 * (Ranks::world().exchangeSeconds() - exchangeAtStart) / done);
 }
 
 // The lengths of stage `stageIndex` (`done` iterations run) and those after it, for the time left

@@ -25,10 +25,10 @@ def redundant(n, a):
 
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--work", type=float, default=0.444, help="W, core-seconds of tracing per iteration")
-    p.add_argument("--redundant", type=float, default=0.013, help="R, seconds per iteration on every rank")
-    p.add_argument("--bytes", type=float, default=4.8e6, help="S, bytes exchanged per iteration, all ranks")
-    p.add_argument("--exchanges", type=int, default=12, help="E, collective calls per iteration")
+    p.add_argument("--work", type=float, default=0.431, help="W, core-seconds of tracing per iteration")
+    p.add_argument("--redundant", type=float, default=0.012, help="R, seconds per iteration on every rank")
+    p.add_argument("--bytes", type=float, default=4.0e6, help="S, bytes exchanged per iteration, all ranks")
+    p.add_argument("--exchanges", type=int, default=8, help="E, collective calls per iteration")
     p.add_argument("--cores", type=int, default=2, help="c, cores (threads) per rank")
     p.add_argument("--latency", type=float, default=10e-6, help="alpha, seconds (25 Gb/s Ethernet: ~10 us)")
     p.add_argument("--bandwidth", type=float, default=25e9 / 8, help="beta, bytes per second")

@@ -3,9 +3,9 @@
 
     T(N) = W / (N c) + R + X(N),   X(N) = E * alpha * ceil(log2 N) + S * (N - 1) / N / beta
 
-W: core-seconds of tracing per iteration (split between the ranks), c: cores per rank, R: seconds
-every rank spends on the same work (batch sampling, loss, optimiser step, applying every rank's
-splats), S: bytes all ranks exchange per iteration together, E: exchanges per iteration, alpha:
+W: core-seconds of tracing per iteration (split between the ranks; applying the splats is counted
+in it), c: cores per rank, R: seconds every rank spends on the same work (batch sampling, loss,
+optimiser step), S: bytes all ranks exchange per iteration together, E: exchanges per iteration, alpha:
 network latency, beta: bandwidth. The defaults are the demo room's albedo stage at the default
 batch (B = 8192), measured on 2 cores (docs/notes/2026-11-28-fit-over-mpi.md).
 """

@@ -363,9 +363,9 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
     const bool curvature = !grads.albedoCurvature.empty();
     std::vector<Color> sensitivity;
     // Over MPI ranks a ray's adjoint is traced by the rank that traced its primal: the estimates
-    // stay with their rank unless the caller wants them all (core/ranks.h).
-    const std::vector<Color> estimate = primalPass(scene, appearance, lights, rays, settings, iteration,
-                                                   curvature ? &sensitivity : nullptr, !estimates);
+    // and sensitivities stay with their rank (core/ranks.h).
+    std::vector<Color> estimate =
+        primalPass(scene, appearance, lights, rays, settings, iteration, curvature ? &sensitivity : nullptr, true);
     result.times.primal = t.seconds();
     Timer tl;
     std::vector<Color> delta(rays.size());
@@ -383,7 +383,10 @@ GradientResult computeGradients(const Scene& scene, const Appearance& appearance
     double lossSum = 0;
     for (double l : loss) lossSum += l;  // in ray order: the same at any thread or rank count
     result.loss = lossSum * invN;
-    if (estimates) *estimates = estimate;
+    if (estimates) {
+      Ranks::world().shareChunks(estimate, Gradients::kChunkRays);  // every ray's, for the caller
+      *estimates = std::move(estimate);
+    }
     return result;
   }
 

@@ -1,5 +1,6 @@
 // The relume executable: parses subcommands and calls the pipeline; holds no algorithm.
 #include <CLI/CLI.hpp>
+#include <sched.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
@@ -63,9 +64,15 @@ int main(int argc, char** argv) {
   if (ranks.distributed()) {
     spdlog::set_pattern(fmt::format("[%T] rank {} %^%l%$ %v", ranks.rank()));
     if (!ranks.root()) spdlog::set_level(spdlog::level::err);
-    // The host's cores shared between its ranks, unless --threads says otherwise.
-    if (threads == 0)
-      threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / ranks.ranksOnThisHost());
+    // The host's cores shared between its ranks, within the cores the launcher bound this rank to
+    // (Open MPI binds a rank to one core up to 2 ranks: `--bind-to none` leaves them all), unless
+    // --threads says otherwise.
+    if (threads == 0) {
+      const int host = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+      cpu_set_t bound;
+      const int usable = sched_getaffinity(0, sizeof bound, &bound) == 0 ? CPU_COUNT(&bound) : host;
+      threads = std::max(1, std::min(usable, host / ranks.ranksOnThisHost()));
+    }
   }
   auto pool = relume::initThreads(threads);
   // An error ends the whole job: the other ranks would otherwise wait for this one.

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <climits>
 #include <cstdlib>
+#include <cstring>
 
 #ifdef RELUME_WITH_MPI
 #include <mpi.h>
@@ -26,7 +27,8 @@ bool MpiSession::available() {
 }
 
 int MpiSession::launchedRanks() {
-  for (const char* v : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE"})  // Open MPI's mpirun; MPICH's and Slurm's PMI
+  // Open MPI's mpirun; MPICH's (and Slurm's PMI-2); a Slurm job step (srun), whatever its PMI.
+  for (const char* v : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "SLURM_STEP_NUM_TASKS"})
     if (const char* size = std::getenv(v)) return std::max(1, std::atoi(size));
   return 1;
 }
@@ -50,6 +52,10 @@ MpiSession::MpiSession() {
   // Only the main thread exchanges; TBB's workers never call MPI.
   checkMpi(MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided), "MPI_Init_thread");
   started_ = true;
+  if (provided < MPI_THREAD_FUNNELED) {
+    std::fprintf(stderr, "relume: this MPI library cannot run beside threads (MPI_THREAD_FUNNELED)\n");
+    MPI_Abort(MPI_COMM_WORLD, 1);
+  }
   Ranks& w = Ranks::world();
   MPI_Comm_rank(MPI_COMM_WORLD, &w.rank_);
   MPI_Comm_size(MPI_COMM_WORLD, &w.size_);
@@ -88,6 +94,15 @@ std::vector<std::vector<uint8_t>> Ranks::allGather(const std::vector<uint8_t>& m
   return all;
 }
 
+bool Ranks::agree(uint64_t value) {
+  if (!distributed()) return true;
+  std::vector<uint8_t> mine(sizeof value);
+  std::memcpy(mine.data(), &value, sizeof value);
+  for (const std::vector<uint8_t>& other : allGather(mine))
+    if (other != mine) return false;
+  return true;
+}
+
 double Ranks::rootValue(double value) {
   if (distributed()) checkMpi(MPI_Bcast(&value, 1, MPI_DOUBLE, 0, MPI_COMM_WORLD), "MPI_Bcast");
   return value;
@@ -110,6 +125,7 @@ void Ranks::abort(int code) {
 MpiSession::MpiSession() {}
 MpiSession::~MpiSession() {}
 std::vector<std::vector<uint8_t>> Ranks::allGather(const std::vector<uint8_t>& mine) { return {mine}; }
+bool Ranks::agree(uint64_t) { return true; }
 double Ranks::rootValue(double value) { return value; }
 bool Ranks::allTrue(bool value) { return value; }
 void Ranks::abort(int code) { std::exit(code); }

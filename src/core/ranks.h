@@ -35,6 +35,8 @@ class Ranks {
   std::vector<std::vector<uint8_t>> allGather(const std::vector<uint8_t>& mine);
   // The root's value on every rank (a measured time that must not differ between ranks).
   double rootValue(double value);
+  // True when every rank has the same `value` (a fingerprint of what each rank read).
+  bool agree(uint64_t value);
   // True when `value` is true on every rank.
   bool allTrue(bool value);
   // Ends every rank of the job with this exit code (an error on one rank would otherwise leave the

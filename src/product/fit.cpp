@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <fstream>
+#include <iterator>
 #include <optional>
 
 #include "core/check.h"
@@ -68,6 +69,7 @@ class Fit {
   FitSummary run(bool resume);
 
  private:
+  void checkRanksAgree(uintmax_t checkpointBytes) const;
   std::vector<int> chooseResolutions(const TexelSpace& init);
   std::vector<int> keepMemoryBudget(std::vector<int> resolutions, const TexelSpace& init, const Checkpoint* resumed);
   std::unique_ptr<TexelSpace> start(const Stage& first);
@@ -211,15 +213,32 @@ std::vector<int> Fit::keepMemoryBudget(std::vector<int> resolutions, const Texel
   spdlog::info("fit: memory budget {}: predicted peak {}the process holding {} now; albedo up to {}^2",
                formatBytes(memoryPlan_->budgetBytes), predicted, formatBytes(currentRssMiB() * (1 << 20)),
                memoryPlan_->resolution);
+  // Every rank takes the root's plan: a rank with other threads or another host predicts otherwise.
+  memoryPlan_->resolution = static_cast<int>(Ranks::world().rootValue(memoryPlan_->resolution));
   std::erase_if(resolutions, [&](int r) { return r > memoryPlan_->resolution; });
   finalRes_ = resolutions.back();
   return resolutions;
+}
+
+// Over MPI ranks, every rank must start from the same work folder, config and checkpoint: rank 0
+// alone writes checkpoints, so on hosts without a shared filesystem the others would not resume.
+void Fit::checkRanksAgree(uintmax_t checkpointBytes) const {
+  if (!Ranks::world().distributed()) return;
+  std::ifstream prepared(w_.dir / "prepare.json");
+  const std::string preparedText{std::istreambuf_iterator<char>(prepared), std::istreambuf_iterator<char>()};
+  const uint64_t fingerprint = hashTuple({std::hash<std::string>{}(c_.toJson().dump()),
+                                          std::hash<std::string>{}(preparedText), checkpointBytes});
+  if (!Ranks::world().agree(fingerprint))
+    fail("{}: the MPI ranks read different work folders, configs or checkpoints (every host must see the same "
+         "folder, on a shared filesystem)",
+         w_.dir.string());
 }
 
 FitSummary Fit::run(bool resumeRequested) {
   const fs::path checkpointPath = w_.dir / "checkpoint.bin";
   std::optional<Checkpoint> checkpoint;
   if (resumeRequested && pathExists(checkpointPath)) checkpoint.emplace(Checkpoint::read(checkpointPath));
+  checkRanksAgree(checkpoint ? fileSize(checkpointPath) : 0);
   const TexelSpace init(w_, w_.initResolution);
   std::vector<int> resolutions = chooseResolutions(init);
   if (c_.memoryBudgetMib > 0)

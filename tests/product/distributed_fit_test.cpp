@@ -56,8 +56,9 @@ class DistributedFit : public ::testing::Test {
     fs::copy(dir_ / "work", w, fs::copy_options::recursive);
     return w;
   }
-  std::string fit(const fs::path& w, const std::string& config, bool resume = false) const {
-    return "--log warn fit '" + w.string() + "' --config '" + (dir_ / config).string() + "' --no-report" +
+  std::string fit(const fs::path& w, const std::string& config, bool resume = false,
+                  const std::string& log = "warn") const {
+    return "--log " + log + " fit '" + w.string() + "' --config '" + (dir_ / config).string() + "' --no-report" +
            (resume ? " --resume" : "");
   }
   fs::path dir_;
@@ -82,6 +83,8 @@ TEST_F(DistributedFit, TwoRanksEndAsOneProcessAndACheckpointResumesAtAnotherRank
   };
   const std::vector<Json> metricsOne = lines(one / "metrics.jsonl"), metricsTwo = lines(two / "metrics.jsonl");
   ASSERT_EQ(metricsTwo.size(), metricsOne.size());
+  for (size_t i = 0; i < metricsOne.size(); ++i)
+    EXPECT_EQ(metricsTwo[i].value("loss", -1.0), metricsOne[i].value("loss", -1.0)) << "metrics line " << i;
   EXPECT_FALSE(metricsOne.back().contains("shared_bytes_per_iteration"));
   EXPECT_GT(metricsTwo.back().value("shared_bytes_per_iteration", 0.0), 0.0);
 
@@ -106,22 +109,50 @@ TEST_F(DistributedFit, TwoRanksEndAsOneProcessAndACheckpointResumesAtAnotherRank
   EXPECT_FALSE(fs::exists(dir_ / "prepared_twice"));
 }
 
+// Three ranks, a batch of several sub-batches (so chunks are numbered from a sub-batch's first
+// ray, not 0) and the crossfit pairing, whose per-ray losses are written inside the traced chunks.
+TEST_F(DistributedFit, ThreeRanksWithCrossfitPairingOverSeveralSubBatchesEndAsOneProcess) {
+  std::ofstream(dir_ / "crossfit.json") << R"({"batch_texels": 8192, "pairing": "crossfit", "max_depth": 3,
+    "emission_iterations": 8, "material_iterations": 4, "albedo_passes": 4, "emission_texture_iterations": 4,
+    "metrics_every": 1})";
+  const fs::path one = work("one"), three = work("three");
+  RelumeRun run = runRelume(fit(one, "crossfit.json"));
+  ASSERT_EQ(run.exitCode, 0) << run.output;
+  run = runRelumeRanks(3, fit(three, "crossfit.json"));
+  ASSERT_EQ(run.exitCode, 0) << run.output;
+  expectSameResult(one, three, "one process and 3 ranks");
+  std::ifstream a(one / "metrics.jsonl"), b(three / "metrics.jsonl");
+  int lines = 0, severalSubBatches = 0;
+  for (std::string la, lb; std::getline(a, la) && std::getline(b, lb); ++lines) {
+    const Json ja = Json::parse(la), jb = Json::parse(lb);
+    EXPECT_EQ(ja.value("loss", -1.0), jb.value("loss", -1.0)) << "line " << lines;
+    EXPECT_GT(jb.value("shared_bytes_per_iteration", 0.0), 0.0) << "line " << lines;
+    severalSubBatches += ja.value("rays", 0) > 16384;  // a sub-batch: 64 chunks of 256 rays (params/gradients.h)
+  }
+  EXPECT_GT(lines, 10);
+  EXPECT_GT(severalSubBatches, 0);
+}
+
 // A rank killed while the others wait for its share: the job ends with an error (not a hang), no
 // result is left, and the fit resumed from the last checkpoint ends as the uninterrupted run.
-TEST_F(DistributedFit, ARankKilledEndsTheJobAndTheFitResumes) {
+TEST_F(DistributedFit, ARankKilledEndsTheJobAndTheFitResumesFromItsCheckpoint) {
   const fs::path one = work("one"), killed = work("killed");
   RelumeRun run = runRelume(fit(one, "fit.json"));
   ASSERT_EQ(run.exitCode, 0) << run.output;
-  // mpirun starts the ranks as its children (listed in /proc); the last is rank 1. The fit above
-  // took seconds.
+  // Once rank 0 has written its first checkpoint (iteration 7 of about 230), the last of
+  // mpirun's children (listed in /proc) is killed: rank 1.
+  const std::string checkpoint = (killed / "checkpoint.bin").string();
   std::string script = "(";  // appended, not `"(" + ...`: GCC 12 warns falsely (-Wrestrict) on that
   script += mpirunCommand(2) + " " + relumeBinary().string() + " " + fit(killed, "fit.json") +
-            " & M=$!; sleep 1.5; kill -KILL $(tr ' ' '\\n' < /proc/$M/task/$M/children | grep . | tail -1); wait $M)";
+            " & M=$!; for i in $(seq 1200); do [ -f '" + checkpoint + "' ] && break; sleep 0.05; done;"
+            " kill -KILL $(tr ' ' '\\n' < /proc/$M/task/$M/children | grep . | tail -1); wait $M)";
   run = runShell(script);
   ASSERT_NE(run.exitCode, 0) << "the fit ended before the kill, or the job went on without a rank:\n" << run.output;
   EXPECT_FALSE(fs::exists(killed / "result" / "materials.json")) << run.output;
-  run = runRelume(fit(killed, "fit.json", true));
+  ASSERT_TRUE(fs::exists(killed / "checkpoint.bin")) << "nothing to resume from:\n" << run.output;
+  run = runRelume(fit(killed, "fit.json", true, "info"));
   ASSERT_EQ(run.exitCode, 0) << run.output;
+  EXPECT_NE(run.output.find("resumed at stage"), std::string::npos) << run.output;
   expectSameResult(one, killed, "a rank killed, then resumed");
   for (const auto& e : fs::directory_iterator(killed))
     EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path() << " left behind";

@@ -101,6 +101,16 @@ TEST_F(DistributedFit, TwoRanksEndAsOneProcessAndACheckpointResumesAtAnotherRank
   ASSERT_EQ(run.exitCode, 0) << run.output;
   expectSameResult(one, oneThenTwo, "stopped as one process, resumed at 2 ranks");
 
+  // Ranks that read different inputs (hosts without a shared filesystem; here two configs) would
+  // not fit the same thing: refused before the first iteration.
+  const fs::path mixed = work("mixed");
+  run = runShell(mpirunCommand(1) + " " + relumeBinary().string() + " " + fit(mixed, "fit.json") + " : -np 1 " +
+                 relumeBinary().string() + " " + fit(mixed, "stop.json"));
+  EXPECT_NE(run.exitCode, 0);
+  EXPECT_NE(run.output.find("the MPI ranks read different work folders, configs or checkpoints"), std::string::npos)
+      << run.output;
+  EXPECT_FALSE(fs::exists(mixed / "checkpoint.bin"));
+
   // Any other command would do its work twice: refused, before it writes anything.
   run = runRelumeRanks(2, "--log warn prepare '" + (dir_ / "capture").string() + "' --out '" +
                               (dir_ / "prepared_twice").string() + "'");

@@ -76,6 +76,7 @@ std::vector<std::vector<uint8_t>> Ranks::allGather(const std::vector<uint8_t>& m
   std::vector<uint64_t> sizes(static_cast<size_t>(size_));
   const uint64_t own = mine.size();
   checkMpi(MPI_Allgather(&own, 1, MPI_UINT64_T, sizes.data(), 1, MPI_UINT64_T, MPI_COMM_WORLD), "MPI_Allgather");
+  waitSeconds_ += timer.seconds();
   std::vector<int> counts(sizes.size()), offsets(sizes.size());
   uint64_t total = 0;
   for (size_t r = 0; r < sizes.size(); ++r) {

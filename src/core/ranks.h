@@ -50,14 +50,17 @@ class Ranks {
 
   // Bytes this rank has put into exchanges since the start (each reaches the N-1 other ranks).
   uint64_t bytesShared() const { return bytesShared_; }
-  // Seconds this rank has spent in exchanges, waiting for the slowest rank included.
+  // Seconds this rank has spent in exchanges, waiting for the slowest rank included; and of them,
+  // in the first step of each (every rank's size, which no rank passes before all have arrived):
+  // mostly waiting.
   double exchangeSeconds() const { return exchangeSeconds_; }
+  double waitSeconds() const { return waitSeconds_; }
 
  private:
   friend class MpiSession;
   int rank_ = 0, size_ = 1, local_ = 1;
   uint64_t bytesShared_ = 0;
-  double exchangeSeconds_ = 0;
+  double exchangeSeconds_ = 0, waitSeconds_ = 0;
 };
 
 // Starts MPI when the process was launched by mpirun as one of several and relume was built with

@@ -427,7 +427,7 @@ void Fit::iterate(size_t stageIndex, int firstIteration, const TexelSpace& space
   }
   // Over MPI ranks: what this rank sent, and its time in exchanges.
   const uint64_t sharedAtStart = Ranks::world().bytesShared();
-  const double exchangeAtStart = Ranks::world().exchangeSeconds();
+  const double exchangeAtStart = Ranks::world().exchangeSeconds(), waitAtStart = Ranks::world().waitSeconds();
   for (int it = firstIteration; it < st.iterations; ++it) {
     const uint64_t iteration = static_cast<uint64_t>(globalIteration_);
     FitPhaseTimes now;
@@ -525,6 +525,7 @@ void Fit::iterate(size_t stageIndex, int firstIteration, const TexelSpace& space
         const double n = it + 1 - firstIteration;
         line["shared_bytes_per_iteration"] = static_cast<double>(Ranks::world().bytesShared() - sharedAtStart) / n;
         line["exchange_seconds_per_iteration"] = (Ranks::world().exchangeSeconds() - exchangeAtStart) / n;
+        line["exchange_wait_seconds_per_iteration"] = (Ranks::world().waitSeconds() - waitAtStart) / n;
       }
       if (st.active.active(ParamKind::Roughness))  // the fitted objects' trajectories: how settled they are
         for (int o = 0; o < appearance_.objectCount(); ++o)
@@ -548,9 +549,11 @@ void Fit::iterate(size_t stageIndex, int firstIteration, const TexelSpace& space
       st.name, st.iterations - firstIteration, lastLoss_, 1e3 * times.sample / done, 1e3 * times.primal / done,
       1e3 * times.adjoint / done, 1e3 * times.optimiser / done);
   if (Ranks::world().distributed())
-    spdlog::info("fit: stage {}: rank 0 sent {} per iteration to the other ranks, exchanges took {:.1f} ms", st.name,
-                 formatBytes(static_cast<double>(Ranks::world().bytesShared() - sharedAtStart) / done),
-                 1e3 * (Ranks::world().exchangeSeconds() - exchangeAtStart) / done);
+    spdlog::info("fit: stage {}: rank 0 sent {} per iteration to the other ranks; exchanges took {:.1f} ms, {:.1f} of "
+                 "them waiting for the slowest rank",
+                 st.name, formatBytes(static_cast<double>(Ranks::world().bytesShared() - sharedAtStart) / done),
+                 1e3 * (Ranks::world().exchangeSeconds() - exchangeAtStart) / done,
+                 1e3 * (Ranks::world().waitSeconds() - waitAtStart) / done);
 }
 
 // The lengths of stage `stageIndex` (`done` iterations run) and those after it, for the time left

@@ -75,11 +75,8 @@ float* Gradients::texelData(uint32_t entry) {
 
 void Gradients::accumulate(size_t count, const std::function<void(Chunk&, size_t, size_t)>& trace,
                            size_t splatVertices) {
-  // Over MPI ranks each rank traces a sub-batch's worth of rays between two exchanges: fewer
-  // exchanges, each a point where the ranks wait for the slowest (core/ranks.h).
-  const size_t ranks = static_cast<size_t>(Ranks::world().size());
   if (chunks_.empty()) {
-    chunks_.resize(ranks * kSubBatchRays / kChunkRays);
+    chunks_.resize(kSubBatchRays / kChunkRays);
     for (Chunk& c : chunks_) {
       c.buckets_.resize(bucketCount_);
       c.objects_.assign(objects.size(), 0.0);
@@ -88,7 +85,7 @@ void Gradients::accumulate(size_t count, const std::function<void(Chunk&, size_t
   for (Chunk& c : chunks_) c.owner_ = this;  // this object may have moved since
   std::vector<double> objectSum(objects.size(), 0.0);
   const size_t subBatch =
-      kChunkRays * std::max(ranks * kMinSubBatchChunks, chunks_.size() / std::max<size_t>(1, splatVertices));
+      kChunkRays * std::max(kMinSubBatchChunks, chunks_.size() / std::max<size_t>(1, splatVertices));
   for (size_t first = 0; first < count; first += subBatch) {
     const size_t last = std::min(count, first + subBatch);
     const size_t chunks = (last - first + kChunkRays - 1) / kChunkRays;

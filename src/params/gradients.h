@@ -80,8 +80,8 @@ class Gradients {
   static constexpr size_t kChunkRays = 256;  // fixed: the per-object sums are grouped by it
 
  private:
-  // Rays traced before their splats are applied (per MPI rank): bounds the logs' memory (constant
-  // per ray), at one splatting vertex per ray; never fewer chunks than keep every core busy.
+  // Rays traced before their splats are applied: bounds the logs' memory (constant per ray), at
+  // one splatting vertex per ray; never fewer chunks than keep every core busy.
   static constexpr size_t kSubBatchRays = 64 * kChunkRays;
   static constexpr size_t kMinSubBatchChunks = 8;
   static constexpr uint32_t kBuckets = 64;

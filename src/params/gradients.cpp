@@ -138,6 +138,7 @@ void Gradients::shareChunks(size_t firstChunk, size_t chunks) {
     const std::vector<uint8_t>& in = all[static_cast<size_t>(r)];
     size_t at = 0;
     auto get = [&](void* p, size_t n) {
+      if (n == 0) return;  // an empty bucket's data() may be null, which memcpy must not be given
       CHECK(at + n <= in.size());  // every rank writes the layout above
       std::memcpy(p, in.data() + at, n);
       at += n;

@@ -40,9 +40,17 @@ inline RelumeRun runRelume(const std::string& args) { return runShell(relumeBina
 
 // The mpirun (Open MPI) that starts RANKS processes: allowed as root (CI's containers), with more
 // ranks than cores, without the single-copy transport containers forbid (it would only warn).
+// Under AddressSanitizer without leak detection: Open MPI leaves about 116 KB at MPI_Finalize, in
+// plugins it has unloaded by then, which no suppression can name (the same fits run as one
+// process keep it).
 inline std::string mpirunCommand(int ranks) {
-  return "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun -np " + std::to_string(ranks) +
-         " --oversubscribe --mca btl_vader_single_copy_mechanism none";
+#ifdef __SANITIZE_ADDRESS__
+  const std::string sanitizers = "ASAN_OPTIONS=\"$ASAN_OPTIONS:detect_leaks=0\" ";
+#else
+  const std::string sanitizers;
+#endif
+  return sanitizers + "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun -np " +
+         std::to_string(ranks) + " --oversubscribe --mca btl_vader_single_copy_mechanism none";
 }
 
 // `relume ARGS` as RANKS MPI ranks.

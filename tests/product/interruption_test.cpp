@@ -9,7 +9,6 @@
 #include <chrono>
 #include <cstdlib>
 #include <fstream>
-#include <iterator>
 #include <map>
 #include <string>
 #include <vector>
@@ -19,6 +18,7 @@
 #include "io/image.h"
 #include "io/json.h"
 #include "scenes/synth.h"
+#include "support/file_bytes.h"
 #include "support/prepared_capture.h"
 
 using namespace relume;
@@ -68,11 +68,6 @@ std::vector<std::string> temporaries(const fs::path& dir) {
     if (name[0] == '.' && name.find(".tmp") != std::string::npos) names.push_back(name);
   }
   return names;
-}
-
-std::string fileBytes(const fs::path& f) {
-  std::ifstream in(f, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
 // prepare.json without what differs between any two runs: the seconds and the peak memories.

@@ -2,13 +2,13 @@
 
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 
 #include "core/error.h"
 #include "io/json.h"
 #include "product/prepare_memory.h"
 #include "sampling/median_sketch.h"
 #include "scenes/synth.h"
+#include "support/file_bytes.h"
 #include "support/run_relume.h"
 
 using namespace relume;
@@ -31,12 +31,6 @@ InitPhaseSize aCapture() {
   s.defaultGainStride = 16;
   s.keptFrames = 100;
   return s;
-}
-
-std::string fileBytes(const fs::path& p) {
-  std::stringstream s;
-  s << std::ifstream(p, std::ios::binary).rdbuf();
-  return s.str();
 }
 
 }  // namespace

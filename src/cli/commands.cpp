@@ -247,6 +247,11 @@ void registerFit(CLI::App& app, CommandTable& table) {
   c->add_option("--res", *maxRes, "cap on the final albedo resolution (default: what the frames resolve)")
       ->check(CLI::NonNegativeNumber);
   c->add_flag("--resume", *resume, "continue from WORK/checkpoint.bin");
+  auto quality = std::make_shared<std::string>("default");
+  c->add_option("--quality", *quality,
+                "draft (about a third of the default's time), default, or best (the albedo stages up to twice as "
+                "long): the schedule --config's keys and --time-budget then apply over")
+      ->capture_default_str();
   auto budget = std::make_shared<std::string>();
   c->add_option("--time-budget", *budget,
                 "end the fit in this time (600, 90s, 10m, 1.5h): the stage lengths follow from the measured cost of "
@@ -258,7 +263,11 @@ void registerFit(CLI::App& app, CommandTable& table) {
   auto noReport = std::make_shared<bool>(false);
   c->add_flag("--no-report", *noReport, "skip WORK/report/ (`relume report WORK` writes it later)");
   table[c] = [=] {
-    FitConfig cfg = config->empty() ? FitConfig{} : FitConfig::load(*config);
+    const FitConfig base = FitConfig::forQuality(parseEnum<FitQuality>(*quality, "--quality"));
+    FitConfig cfg = config->empty() ? base : FitConfig::load(*config, base);
+    spdlog::info("fit: quality {}: emission {}, albedo stages at most {}, materials {}, emission textures {} iterations",
+                 *quality, base.emissionIterations, base.maxStageIterations, base.materialIterations,
+                 base.emissionTextureIterations);
     if (*maxRes > 0) cfg.maxResolution = *maxRes;
     if (!budget->empty()) {
       const std::optional<double> seconds = parseDuration(*budget);

@@ -175,8 +175,33 @@ void FitConfig::validate(const std::string& where) const {
   need(c.stopAfterIterations >= 0, "stop_after_iterations must be >= 0 (0 = run to the end)");
 }
 
-FitConfig FitConfig::load(const std::filesystem::path& path) {
-  return fromJson(readJson(path), path.string(), FitConfig{});
+// Measured in docs/notes/2026-11-28-quality-presets.md. The albedo stages carry most of the cost
+// (73% on the demo capture) and most of what a longer fit buys: `draft` cuts them to a quarter
+// and halves the other stages (the lights and their emission hold at a third of the emission
+// stage); `best` lets them run twice the default's cap, which the albedo of captures with many
+// texels per frame needs (the 1K room) and others do not.
+FitConfig FitConfig::forQuality(FitQuality quality) {
+  FitConfig c;
+  switch (quality) {
+    case FitQuality::Draft:
+      c.emissionIterations = 100;
+      c.maxStageIterations = 500;
+      c.materialIterations = 150;
+      c.emissionTextureIterations = 50;
+      break;
+    case FitQuality::Default:
+      break;
+    case FitQuality::Best:
+      c.maxStageIterations = 4000;
+      break;
+  }
+  return c;
+}
+
+FitConfig FitConfig::load(const std::filesystem::path& path) { return load(path, FitConfig{}); }
+
+FitConfig FitConfig::load(const std::filesystem::path& path, FitConfig base) {
+  return fromJson(readJson(path), path.string(), std::move(base));
 }
 
 FitConfig FitConfig::fromJson(const Json& j, const std::string& where, FitConfig c) {

@@ -29,6 +29,9 @@ enum class AlbedoSmoothing { None, Albedo, GuideEdges };
 // on the Cycles White Room it moved 1 cm position errors to 3.5 cm (docs/notes, pose refinement).
 enum class RefinePoses { Auto, On, Off };
 enum class UnalignedFrames { Keep, Drop };  // a frame the refinement cannot align: kept at its pose, or dropped
+// `relume fit --quality`: the schedule a user picks without reading the measurements behind it
+// (FitConfig::forQuality; docs/user/fit-config.md#quality).
+enum class FitQuality { Draft, Default, Best };
 
 template <>
 struct EnumNames<SamplerKind> {
@@ -54,6 +57,11 @@ template <>
 struct EnumNames<UnalignedFrames> {
   static constexpr std::array<std::pair<UnalignedFrames, std::string_view>, 2> values{
       {{UnalignedFrames::Keep, "keep"}, {UnalignedFrames::Drop, "drop"}}};
+};
+template <>
+struct EnumNames<FitQuality> {
+  static constexpr std::array<std::pair<FitQuality, std::string_view>, 3> values{
+      {{FitQuality::Draft, "draft"}, {FitQuality::Default, "default"}, {FitQuality::Best, "best"}}};
 };
 template <>
 struct EnumNames<LightTest> {
@@ -192,7 +200,12 @@ struct FitConfig {
   int checkpointEvery = 100, metricsEvery = 10;
   int stopAfterIterations = 0;  // stop (with a checkpoint) after this many iterations; 0 = run to the end
 
-  static FitConfig load(const std::filesystem::path& path);  // unknown key or wrong value: one-line error
+  // The schedule of a quality; a config file's keys and the command line's options apply over it.
+  // Only stage lengths differ: every choice of the method stays the default.
+  static FitConfig forQuality(FitQuality quality);
+  // The defaults, or `base`, with the keys of the file at `path` (unknown key or wrong value: one-line error).
+  static FitConfig load(const std::filesystem::path& path);
+  static FitConfig load(const std::filesystem::path& path, FitConfig base);
   // `base` with the keys `j` gives (the same checks; `where` names the source in errors).
   static FitConfig fromJson(const Json& j, const std::string& where, FitConfig base);
   Json toJson() const;  // every key, enums by name

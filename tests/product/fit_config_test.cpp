@@ -2,6 +2,7 @@
 // reads, with the code's defaults; enumerations are named in JSON and rejected with the choices.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -76,6 +77,51 @@ TEST(FitConfig, EnumerationsAreNamesAndOthersAreRejectedWithTheChoices) {
     EXPECT_STREQ(e.what(), "fit.json: 'albedo_step' must be gauss-newton or adam, not \"newton\"");
   }
   EXPECT_THROW(FitConfig::fromJson(Json::parse(R"({"sampler": 1})"), "fit.json", FitConfig{}), Error);
+}
+
+// `relume fit --quality`: a quality is a schedule, never another method, and what docs/user
+// lists for it; a config file's keys apply over it.
+TEST(FitConfig, QualitiesAreSchedulesAsDocumentedAndAConfigFileAppliesOverThem) {
+  const std::vector<std::string> lengths = {"emission_iterations", "max_stage_iterations", "material_iterations",
+                                            "emission_texture_iterations"};
+  const Json standard = FitConfig{}.toJson();
+  EXPECT_EQ(FitConfig::forQuality(FitQuality::Default).toJson(), standard);
+  const Json draft = FitConfig::forQuality(FitQuality::Draft).toJson();
+  const Json best = FitConfig::forQuality(FitQuality::Best).toJson();
+  for (const auto& [key, value] : standard.items()) {
+    if (std::find(lengths.begin(), lengths.end(), key) != lengths.end()) continue;
+    EXPECT_EQ(draft[key], value) << key << " differs in draft";
+    EXPECT_EQ(best[key], value) << key << " differs in best";
+  }
+  for (const std::string& key : lengths) {
+    EXPECT_LT(draft[key].get<int>(), standard[key].get<int>()) << key;
+    EXPECT_GE(best[key].get<int>(), standard[key].get<int>()) << key;
+  }
+  EXPECT_GT(best["max_stage_iterations"].get<int>(), standard["max_stage_iterations"].get<int>());
+
+  // docs/user/fit-config.md's table: "| `draft` | 100 | 500 | 150 | 50 |", in the order of `lengths`.
+  std::ifstream in(std::filesystem::path(RELUME_TEST_DATA) / ".." / ".." / "docs" / "user" / "fit-config.md");
+  const std::regex row(R"(^\| `(draft|default|best)` \| (\d+) \| (\d+) \| (\d+) \| (\d+) \|)");
+  std::map<std::string, Json> documented;
+  for (std::string line; std::getline(in, line);) {
+    std::smatch m;
+    if (!std::regex_search(line, m, row)) continue;
+    Json& q = documented[m[1]];
+    for (size_t i = 0; i < lengths.size(); ++i) q[lengths[i]] = std::stoi(m[i + 2]);
+  }
+  ASSERT_EQ(documented.size(), 3u) << "docs/user/fit-config.md has no row for some quality";
+  for (const FitQuality q : {FitQuality::Draft, FitQuality::Default, FitQuality::Best}) {
+    const Json code = FitConfig::forQuality(q).toJson();
+    for (const std::string& key : lengths) EXPECT_EQ(documented[enumName(q)][key], code[key]) << enumName(q) << " " << key;
+  }
+
+  const std::filesystem::path file = std::filesystem::temp_directory_path() / "relume_quality_over.json";
+  std::ofstream(file) << R"({"material_iterations": 77})";
+  const FitConfig over = FitConfig::load(file, FitConfig::forQuality(FitQuality::Draft));
+  EXPECT_EQ(over.materialIterations, 77);
+  EXPECT_EQ(over.maxStageIterations, 500);
+  EXPECT_EQ(FitConfig::load(file).maxStageIterations, FitConfig{}.maxStageIterations);
+  std::filesystem::remove(file);
 }
 
 }  // namespace

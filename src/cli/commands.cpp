@@ -266,8 +266,8 @@ void registerFit(CLI::App& app, CommandTable& table) {
     const FitConfig base = FitConfig::forQuality(parseEnum<FitQuality>(*quality, "--quality"));
     FitConfig cfg = config->empty() ? base : FitConfig::load(*config, base);
     spdlog::info("fit: quality {}: emission {}, albedo stages at most {}, materials {}, emission textures {} iterations",
-                 *quality, base.emissionIterations, base.maxStageIterations, base.materialIterations,
-                 base.emissionTextureIterations);
+                 *quality, cfg.emissionIterations, cfg.maxStageIterations, cfg.materialIterations,
+                 cfg.emissionTextureIterations);
     if (*maxRes > 0) cfg.maxResolution = *maxRes;
     if (!budget->empty()) {
       const std::optional<double> seconds = parseDuration(*budget);

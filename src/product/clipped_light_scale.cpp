@@ -62,21 +62,52 @@ double jackknifeError(const std::vector<double>& leftOut) {
 
 using Objects = std::vector<std::vector<const ScaleTexel*>>;
 
+// Of what the frames show of a texel, the diffuse lobe explains at least this share: where the
+// specular lobe would explain more, the texel says little of its albedo, and its log stays finite.
+constexpr double kMinDiffuseShare = 0.1;
+
+// At scales s: what the texel's diffuse lobe receives (s.D + R) and shows (I - s.G - G_R, at
+// least kMinDiffuseShare I; `floored` when held there).
+struct DiffuseTerms {
+  double received = 0, shown = 0;
+  bool floored = false;
+};
+DiffuseTerms diffuseTerms(const ScaleTexel& t, const std::vector<double>& s) {
+  const size_t K = s.size();
+  DiffuseTerms d;
+  d.received = t.mean[K];
+  double specular = t.specular.empty() ? 0.0 : t.specular[K];
+  for (size_t c = 0; c < K; ++c) {
+    d.received += s[c] * t.mean[c];
+    if (!t.specular.empty()) specular += s[c] * t.specular[c];
+  }
+  const double least = kMinDiffuseShare * t.shown;
+  d.floored = t.shown - specular < least;
+  d.shown = d.floored ? least : t.shown - specular;
+  return d;
+}
+
 // One object's term of the negative log-likelihood at light scales s, profiled over its mean
 // log-albedo and its own variance: n/2 log(S/n), S the sum of squared deviations of
-// log I - log(sum_c s_c D_c + R) from their mean, less the paths' noise (the delta method:
-// Var(log X) ~ Var(X) / X^2, X = s.D + R).
+// log(I - s.G - G_R) - log(s.D + R) from their mean, less the paths' noise (the delta method: the
+// variance of the log-albedo is g' C g, g its gradient in the means, C their covariance).
 double objectTerm(const std::vector<const ScaleTexel*>& texels, const std::vector<double>& s) {
   const size_t K = s.size();
   double sum = 0, squares = 0, noise = 0;
   for (const ScaleTexel* t : texels) {
-    double lit = t->mean[K], variance = 0;
-    for (size_t c = 0; c < K; ++c) lit += s[c] * t->mean[c];
-    for (size_t c = 0; c <= K; ++c)
-      for (size_t d = 0; d <= K; ++d)
-        variance += (c < K ? s[c] : 1.0) * (d < K ? s[d] : 1.0) * t->covariance[c * (K + 1) + d];
-    const double logAlbedo = std::log(t->shown) - std::log(lit);
-    sum += logAlbedo, squares += logAlbedo * logAlbedo, noise += variance / (lit * lit);
+    const DiffuseTerms d = diffuseTerms(*t, s);
+    // The covariance's blocks weighted by the scales: diffuse-diffuse, diffuse-specular, specular-specular.
+    const size_t n = t->specular.empty() ? K + 1 : 2 * (K + 1);
+    std::array<double, 3> block{};
+    for (size_t i = 0; i < n; ++i)
+      for (size_t j = 0; j < n; ++j) {
+        const double wi = i % (K + 1) < K ? s[i % (K + 1)] : 1.0, wj = j % (K + 1) < K ? s[j % (K + 1)] : 1.0;
+        block[(i > K) + (j > K)] += wi * wj * t->covariance[i * n + j];
+      }
+    double variance = block[0] / (d.received * d.received);
+    if (!d.floored) variance += 2 * block[1] / (d.received * d.shown) + block[2] / (d.shown * d.shown);
+    const double logAlbedo = std::log(d.shown) - std::log(d.received);
+    sum += logAlbedo, squares += logAlbedo * logAlbedo, noise += variance;
   }
   // The delta method holds for small noise: it may take at most 90% of the spread away.
   const double n = static_cast<double>(texels.size()), spread = squares - sum * sum / n;
@@ -142,6 +173,14 @@ std::vector<double> likelihoodErrors(const Objects& objects, const std::vector<d
   return errors;
 }
 
+// A texel the fit can use: something shown, something received, no negative term.
+bool usableTexel(const ScaleTexel& t, size_t K) {
+  bool valid = t.shown > 0 && t.mean[K] > 0;
+  for (size_t c = 0; c < K; ++c) valid &= t.mean[c] >= 0;
+  for (double g : t.specular) valid &= g >= 0;
+  return valid;
+}
+
 }  // namespace
 
 ScaleFit fitClippedScales(const std::vector<ScaleTexel>& texels, size_t minTexels, double maxLogError) {
@@ -151,10 +190,10 @@ ScaleFit fitClippedScales(const std::vector<ScaleTexel>& texels, size_t minTexel
   Objects byObject(objectCount);
   for (const ScaleTexel& t : texels) {
     CHECK_EQ(t.mean.size(), K + 1);
-    CHECK_EQ(t.covariance.size(), (K + 1) * (K + 1));
-    bool valid = t.shown > 0 && t.mean[K] > 0;
-    for (size_t c = 0; c < K; ++c) valid &= t.mean[c] >= 0;
-    if (valid) byObject[t.object].push_back(&t);
+    CHECK(t.specular.empty() || t.specular.size() == K + 1);
+    const size_t n = t.mean.size() + t.specular.size();
+    CHECK_EQ(t.covariance.size(), n * n);
+    if (usableTexel(t, K)) byObject[t.object].push_back(&t);
   }
   ScaleFit fit;
   fit.scale.assign(K, 1.0);
@@ -208,6 +247,30 @@ ScaleFit fitClippedScales(const std::vector<ScaleTexel>& texels, size_t minTexel
   return fit;
 }
 
+std::vector<int> chooseFirstVertexMaterials(const std::vector<std::vector<ScaleTexel>>& under, int objectCount,
+                                            size_t minTexels) {
+  std::vector<int> choice(objectCount, 0);
+  std::vector<double> least(objectCount, INFINITY);
+  for (size_t h = 0; h < under.size(); ++h) {
+    if (under[h].empty()) continue;
+    const size_t K = under[h].front().mean.size() - 1;
+    Objects byObject(objectCount);
+    for (const ScaleTexel& t : under[h])
+      if (usableTexel(t, K)) byObject[t.object].push_back(&t);
+    for (int o = 0; o < objectCount; ++o) {
+      if (byObject[o].size() < std::max<size_t>(minTexels, 2)) continue;
+      double spread = INFINITY;
+      for (int i = 0; i <= kGridSteps; ++i) {
+        const std::vector<double> common(K, std::exp(gridLog(i, kGridSteps, kRange)));
+        spread = std::min(spread, objectTerm(byObject[o], common));
+      }
+      spread /= static_cast<double>(byObject[o].size());
+      if (spread < least[o]) least[o] = spread, choice[o] = static_cast<int>(h);
+    }
+  }
+  return choice;
+}
+
 Json ClippedLightScale::toJson(const Appearance& a) const {
   Json perLight = Json::array(), perObject = Json::array();
   for (size_t k = 0; k < lights.size(); ++k)
@@ -218,9 +281,16 @@ Json ClippedLightScale::toJson(const Appearance& a) const {
                         {"lower_bound", floors[k].lowerBound},
                         {"darkest_clip", floors[k].darkestClip},
                         {"darker_frame_ev", darkerFrameEv[k]}});
-  for (const auto& [o, scale] : fit.perObject)
-    perObject.push_back(
-        {{"id", o}, {"name", a.names[o]}, {"scale", std::isfinite(scale) ? Json(scale) : Json(nullptr)}});
+  for (const auto& [o, scale] : fit.perObject) {
+    Json entry = {{"id", o}, {"name", a.names[o]}, {"scale", std::isfinite(scale) ? Json(scale) : Json(nullptr)}};
+    if (!firstVertexMaterial.empty()) {
+      const int h = firstVertexMaterial[o];
+      entry["first_vertex_material"] =
+          h == 0 ? Json("fit")
+                 : Json::array({kFirstVertexMaterials[h - 1].roughness, kFirstVertexMaterials[h - 1].specular});
+    }
+    perObject.push_back(std::move(entry));
+  }
   return {{"lights", perLight},   {"common", fit.common},    {"coloured", coloured}, {"objects", fit.objects},
           {"texels", fit.texels}, {"per_object", perObject}, {"applied", applied},   {"why", why}};
 }
@@ -241,25 +311,28 @@ Batch drawTexels(const Workspace& w, const TexelSpace& space, const std::vector<
 double bandOf(const Color& x, int band) { return band < 3 ? x[band] : luminance(x); }
 
 // Per drawn texel, in one band: the mean of what its rays show, and the means over its paths of
-// each traced term (traced[c][i]: term c of traced ray i, which repeats batch ray rayOf[i]) with
-// their covariance. Texels with fewer than two paths are left out.
+// each traced term (traced[c][i]: term c of traced ray i, which repeats batch ray rayOf[i]; the
+// first `diffuse` the diffuse terms D_1..D_K, R, any after them the specular ones G_1..G_K, G_R)
+// with their covariance. Texels with fewer than two paths are left out.
 std::vector<ScaleTexel> texelSums(const Batch& batch, const std::vector<size_t>& rayOf,
                                   const std::vector<std::vector<Color>>& traced, const TexelSpace& space,
-                                  const TriangleMesh& mesh, int band) {
+                                  const TriangleMesh& mesh, int band, size_t diffuse) {
   const size_t terms = traced.size();
   std::vector<ScaleTexel> perTexel(batch.texel.size());
+  std::vector<std::vector<double>> sums(batch.texel.size(), std::vector<double>(terms, 0.0));
   std::vector<double> samples(batch.texel.size(), 0.0);
   for (size_t s = 0; s < perTexel.size(); ++s) {
     perTexel[s].object = space.objectOf(batch.texel[s], mesh);
-    perTexel[s].mean.assign(terms, 0.0), perTexel[s].covariance.assign(terms * terms, 0.0);
+    perTexel[s].covariance.assign(terms * terms, 0.0);
   }
   for (size_t i = 0; i < rayOf.size(); ++i) {
     const size_t j = rayOf[i];
     ScaleTexel& t = perTexel[batch.slot[j]];
+    std::vector<double>& sum = sums[batch.slot[j]];
     t.shown += bandOf(batch.rays[j].reference / batch.rays[j].gain, band);
     for (size_t c = 0; c < terms; ++c) {
       const double x = bandOf(traced[c][i], band);
-      t.mean[c] += x;
+      sum[c] += x;
       for (size_t d = 0; d < terms; ++d) t.covariance[c * terms + d] += x * bandOf(traced[d][i], band);
     }
     samples[batch.slot[j]] += 1;
@@ -272,23 +345,27 @@ std::vector<ScaleTexel> texelSums(const Batch& batch, const std::vector<size_t>&
       continue;
     }
     t.shown /= n;
-    for (double& m : t.mean) m /= n;
+    std::vector<double>& mean = sums[s];
+    for (double& m : mean) m /= n;
     for (size_t c = 0; c < terms; ++c)
       for (size_t d = 0; d < terms; ++d) {
         double& v = t.covariance[c * terms + d];
-        v = (v / n - t.mean[c] * t.mean[d]) / (n - 1);
+        v = (v / n - mean[c] * mean[d]) / (n - 1);
       }
+    t.mean.assign(mean.begin(), mean.begin() + diffuse);
+    t.specular.assign(mean.begin() + diffuse, mean.end());
   }
   std::erase_if(perTexel, [&](const ScaleTexel& t) { return t.shown <= 0; });
   return perTexel;
 }
 
 // Per object and channel, what the frames show of its drawn texels over what the fit renders of
-// them (their albedo in `a` times the traced terms' sum): 1 for objects with fewer than
-// kMinRatioRays rays, and within [1/8, 8].
+// them (their albedo in `a` times the first `diffuse` traced terms' sum, plus the rest): 1 for
+// objects with fewer than kMinRatioRays rays, and within [1/8, 8].
 std::vector<Color> shownOverRendered(const Batch& batch, const std::vector<size_t>& rayOf,
                                      const std::vector<std::vector<Color>>& traced, const Appearance& a,
-                                     const TexelSpace& space, const TriangleMesh& mesh, int objectCount) {
+                                     const TexelSpace& space, const TriangleMesh& mesh, int objectCount,
+                                     size_t diffuse) {
   constexpr size_t kMinRatioRays = 64;
   std::vector<Eigen::Array3d> seen(objectCount, Eigen::Array3d::Zero()), sent(objectCount, Eigen::Array3d::Zero());
   std::vector<size_t> count(objectCount, 0);
@@ -296,11 +373,11 @@ std::vector<Color> shownOverRendered(const Batch& batch, const std::vector<size_
     const size_t j = rayOf[i];
     const uint32_t t = batch.texel[batch.slot[j]];
     const int o = space.objectOf(t, mesh);
-    Eigen::Array3d sum = Eigen::Array3d::Zero();
-    for (const std::vector<Color>& term : traced) sum += term[i].cast<double>();
+    Eigen::Array3d received = Eigen::Array3d::Zero(), specular = Eigen::Array3d::Zero();
+    for (size_t c = 0; c < traced.size(); ++c) (c < diffuse ? received : specular) += traced[c][i].cast<double>();
     const Eigen::Array3d albedo(a.albedo.rgb[3 * t], a.albedo.rgb[3 * t + 1], a.albedo.rgb[3 * t + 2]);
     seen[o] += (batch.rays[j].reference / batch.rays[j].gain).cast<double>();
-    sent[o] += albedo * sum;
+    sent[o] += albedo * received + specular;
     ++count[o];
   }
   std::vector<Color> ratio(objectCount, Color::Ones());
@@ -406,10 +483,47 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
       for (int k = 0; k < settings.pathsPerRay; ++k) rays.push_back(batch.rays[j]), rayOf.push_back(j);
 
   // D_c: reached from the first vertex (albedo 1) straight from clipped light c; R: everything else.
-  const Appearance white = albedoOneAppearance(a);
+  // With the material choice, each through the first vertex's diffuse lobe and, apart, its
+  // specular lobe: both models are affine in the albedo (bsdf.h), so the specular lobe is the BSDF
+  // at albedo 0 and the diffuse lobe the difference from albedo 1, traced along the same paths (the
+  // same random numbers, and sampling with `a` alone). A highlight adds radiance the albedo does
+  // not scale. Without it, as one: apart but at the fit's init materials, the lobes moved the
+  // room's scale by nothing and the single-exposure test capture's the wrong way (the note).
+  const bool lobesApart = settings.materialChoice;
   Appearance none = a, notClipped = a;
   for (int o = 0; o < objectCount; ++o) none.emission[o] = Color::Zero();
   for (int o : out.lights) notClipped.emission[o] = Color::Zero();
+  const LightSampler lights(*w.scene, a);
+  // The terms (D_1..D_K, R, then G_1..G_K, G_R) per traced ray, the first vertex with the roughness
+  // and specular of `firstVertex`, the second's albedo `secondVertex`'s (nullptr: a's).
+  auto traceTerms = [&](const Appearance& firstVertex, const Appearance* secondVertex) {
+    const Appearance white = albedoOneAppearance(firstVertex);
+    Appearance black = white;
+    std::fill(black.albedoConstant.begin(), black.albedoConstant.end(), Color::Zero());
+    std::vector<std::vector<Color>> traced(lobesApart ? 2 * (K + 1) : K + 1);
+    auto traceTerm = [&](size_t term, AppearanceScope scope, uint64_t tag) {
+      auto seedOf = [&](size_t j) { return hashTuple({stream, tag, j}); };
+      scope.bsdfFirst = &white;
+      traced[term] = traceRays(*w.scene, lights, scope, rays, path, seedOf);
+      if (!lobesApart) return;
+      scope.bsdfFirst = &black;
+      traced[K + 1 + term] = traceRays(*w.scene, lights, scope, rays, path, seedOf);
+      for (size_t i = 0; i < rays.size(); ++i) traced[term][i] -= traced[K + 1 + term][i];
+    };
+    for (size_t c = 0; c < K; ++c) {
+      Appearance only = none;
+      only.emission[out.lights[c]] = a.emission[out.lights[c]];
+      traceTerm(c, {&a, &white, &a, &only, &none}, 1 + c);
+    }
+    traceTerm(K, {&a, &white, &a, &notClipped, &a, secondVertex}, 0);
+    return traced;
+  };
+  // Per texel and band (red, green, blue, luminance): the means over its paths, their covariance.
+  auto sumBands = [&](const std::vector<std::vector<Color>>& traced) {
+    std::array<std::vector<ScaleTexel>, 4> bands;
+    for (int band = 0; band < 4; ++band) bands[band] = texelSums(batch, rayOf, traced, space, w.mesh, band, K + 1);
+    return bands;
+  };
   // R is the light the surfaces in view send the texels: what the frames show of them, which a
   // change of scale leaves as it is. Traced, it is their albedo times the light they receive, which
   // falls short of what the frames show wherever the albedo sits at its ceiling of 1 because the
@@ -417,33 +531,39 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
   // where it is. So R is traced again with the albedo at the vertex after the texel (x1) scaled, per
   // object and with no ceiling, by what the frames show of the object over what the fit renders of
   // it. Only there: scaled at every vertex, the light would grow without bound in a closed room.
-  const LightSampler lights(*w.scene, a);
-  std::vector<std::vector<Color>> traced(K + 1);
-  for (size_t c = 0; c < K; ++c) {
-    Appearance only = none;
-    only.emission[out.lights[c]] = a.emission[out.lights[c]];
-    traced[c] = traceRays(*w.scene, lights, {&a, &white, &a, &only, &none}, rays, path, [&](size_t j) {
-      return hashTuple({stream, 1 + c, j});
-    });
-  }
-  AppearanceScope rest{&a, &white, &a, &notClipped, &a};
-  auto traceRest = [&] {
-    traced[K] = traceRays(*w.scene, lights, rest, rays, path, [&](size_t j) { return hashTuple({stream, 0, j}); });
-  };
-  traceRest();
+  std::vector<std::vector<Color>> traced = traceTerms(a, nullptr);
+  Appearance shown = a;
   if (settings.shownRadiance) {
-    Appearance shown = a;
-    const std::vector<Color> ratio = shownOverRendered(batch, rayOf, traced, a, space, w.mesh, objectCount);
+    const std::vector<Color> ratio = shownOverRendered(batch, rayOf, traced, a, space, w.mesh, objectCount, K + 1);
     for (size_t t = 0; t < space.map.texelCount(); ++t)
       if (space.map.valid(t))
         for (int band = 0; band < 3; ++band) shown.albedo.rgb[3 * t + band] *= ratio[space.objectOf(t, w.mesh)][band];
-    rest.bsdfSecond = &shown;
-    traceRest();
+    traced = traceTerms(a, &shown);
   }
-
-  // Per texel and band (red, green, blue, luminance): the means over its paths, their covariance.
-  std::array<std::vector<ScaleTexel>, 4> bands;
-  for (int band = 0; band < 4; ++band) bands[band] = texelSums(batch, rayOf, traced, space, w.mesh, band);
+  std::array<std::vector<ScaleTexel>, 4> bands = sumBands(traced);
+  // The first vertex's roughness and specular are the fit's, which have not seen a highlight yet
+  // (the material stage comes later): at the init's 0.5 and 0.5 the scale of the room's panels
+  // held 10-16% short even with the true albedo, within 2% with the true materials. With the
+  // choice, each object also takes each of kFirstVertexMaterials, and keeps the one under which
+  // its albedo is most uniform (docs/notes/2026-11-28-clipped-lights-materials.md).
+  if (settings.materialChoice) {
+    std::vector<std::array<std::vector<ScaleTexel>, 4>> under = {std::move(bands)};
+    for (const FirstVertexMaterial& m : kFirstVertexMaterials) {
+      Appearance candidate = a;
+      std::fill(candidate.roughness.begin(), candidate.roughness.end(), m.roughness);
+      std::fill(candidate.specular.begin(), candidate.specular.end(), m.specular);
+      under.push_back(sumBands(traceTerms(candidate, settings.shownRadiance ? &shown : nullptr)));
+    }
+    std::vector<std::vector<ScaleTexel>> luminance;
+    for (const auto& u : under) luminance.push_back(u[3]);
+    out.firstVertexMaterial = chooseFirstVertexMaterials(luminance, objectCount, kMinTexels);
+    for (int band = 0; band < 4; ++band) {
+      bands[band].clear();
+      for (size_t h = 0; h < under.size(); ++h)
+        for (const ScaleTexel& t : under[h][band])
+          if (out.firstVertexMaterial[t.object] == static_cast<int>(h)) bands[band].push_back(t);
+    }
+  }
   out.fit = fitClippedScales(bands[3], kMinTexels, settings.maxLogError);
 
   std::string names;
@@ -496,12 +616,15 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
   // refit it).
   std::vector<Eigen::Array3d> logRatio(objectCount, Eigen::Array3d::Zero());
   std::vector<Eigen::Array3d> count(objectCount, Eigen::Array3d::Zero());
-  for (int band = 0; band < 3; ++band)
+  for (int band = 0; band < 3; ++band) {
+    std::vector<double> after(K);
+    for (size_t c = 0; c < K; ++c) after[c] = scale[c][band];
     for (const ScaleTexel& t : bands[band]) {
-      double before = t.mean[K], after = t.mean[K];
-      for (size_t c = 0; c < K; ++c) before += t.mean[c], after += scale[c][band] * t.mean[c];
-      if (before > 0 && after > 0) logRatio[t.object][band] += std::log(before / after), count[t.object][band] += 1;
+      const DiffuseTerms before = diffuseTerms(t, std::vector<double>(K, 1.0)), now = diffuseTerms(t, after);
+      const double ratio = now.shown / before.shown * (before.received / now.received);
+      if (ratio > 0 && std::isfinite(ratio)) logRatio[t.object][band] += std::log(ratio), count[t.object][band] += 1;
     }
+  }
   for (size_t t = 0; t < space.map.texelCount(); ++t) {
     if (!space.map.valid(t)) continue;
     const int o = space.objectOf(t, w.mesh);

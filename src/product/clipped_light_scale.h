@@ -4,19 +4,23 @@
 // A light whose every pixel clips shows only a lower bound on its emission. The surfaces it lights
 // are explained as well by brighter lights and darker surfaces as by the truth: with each texel's
 // albedo free, a texel's albedo absorbs any scale s of the light it receives directly,
-//   a_k(s) = I_k / (s D_k + R_k),
-// I_k what the frames show at texel k, D_k the radiance an albedo-1 texel returns of the light it
-// receives straight from the clipped lights, R_k the rest (the other lights, and the surfaces the
-// frames see, which s does not change since their radiance is observed). What tells s apart is
+//   a_k(s) = (I_k - s G_k - G_R,k) / (s D_k + R_k),
+// I_k what the frames show at texel k, D_k the radiance an albedo-1 texel's diffuse lobe returns
+// of the light it receives straight from the clipped lights, R_k the rest (the other lights, and
+// the surfaces the frames see, which s does not change since their radiance is observed), G_k and
+// G_R,k what its specular lobe returns of each, which the albedo does not scale. What tells s apart is
 // that one material has one albedo where the clipped lights reach it directly and where they do
 // not (a wall's far corner, the floor under a table, the top of a wall beside a ceiling panel):
 // only the true s makes each surface's albedo as uniform as it is. The scale is the s that
 // minimises the spread of the log-albedo within each object (each object's Gaussian likelihood with
 // its own variance, so a textured rug weighs less than a plain wall), pooled over objects, with a
 // jackknife error over objects; with several such lights, each its own where the frames tell them
-// apart. It is applied only when that error is small, and never below what the clipped pixels
-// bound the emission by.
+// apart. The lobes depend on the first vertex's roughness and specular, which no highlight has
+// fixed yet when this runs; optionally the lobes are taken apart and each object takes the
+// material, among the fit's and a few glossy to matte, under which its albedo is most uniform. The scale is applied only when its
+// error is small, and never below what the clipped pixels bound the emission by.
 #pragma once
+#include <array>
 #include <string>
 #include <vector>
 
@@ -29,14 +33,17 @@
 namespace relume {
 
 // One texel: what the frames show (I, luminance) and the means over its paths of what an albedo-1
-// texel returns straight from each clipped light (D_1..D_K) and of everything else (R), with the
-// covariance of those means (the paths' noise, which the fit removes from each object's spread:
-// it shrinks relative to s D + R as s grows, and left in it pulls s up).
+// texel's diffuse lobe returns straight from each clipped light (D_1..D_K) and of everything else
+// (R); where `specular` is given, also what its specular lobe returns of each (G_1..G_K, G_R),
+// which its albedo does not scale: I = a (s.D + R) + s.G + G_R. With the covariance of those
+// means (the paths' noise, which the fit removes from each object's spread: it shrinks relative to
+// s D + R as s grows, and left in it pulls s up).
 struct ScaleTexel {
   int object = 0;
   double shown = 0;
   std::vector<double> mean;        // D_1..D_K, R
-  std::vector<double> covariance;  // of the means, (K+1)^2, row-major
+  std::vector<double> specular;    // G_1..G_K, G_R; empty: no specular lobe
+  std::vector<double> covariance;  // of the means, then the specular ones: row-major, (K+1)^2 or (2K+2)^2
 };
 
 struct ScaleFit {
@@ -56,6 +63,20 @@ struct ScaleFit {
 // grid's edge or when nothing depends on it.
 ScaleFit fitClippedScales(const std::vector<ScaleTexel>& texels, size_t minTexels, double maxLogError);
 
+// The first vertex's roughness and specular each object may take instead of the fit's while its
+// clipped lights are scaled: glossy to matte, as interiors have them.
+struct FirstVertexMaterial {
+  float roughness, specular;
+};
+inline constexpr std::array<FirstVertexMaterial, 4> kFirstVertexMaterials{
+    {{0.15f, 0.9f}, {0.35f, 0.5f}, {0.6f, 0.3f}, {0.9f, 0.15f}}};
+
+// Per object, which of several sets of texels (under[h], each the same texels with the terms
+// traced under material h) makes its albedo most uniform at its own best common scale (the least
+// mean log-spread); 0 for objects with fewer than `minTexels` texels in every set.
+std::vector<int> chooseFirstVertexMaterials(const std::vector<std::vector<ScaleTexel>>& under, int objectCount,
+                                            size_t minTexels);
+
 struct ClippedLightSettings {
   int texelsPerObject = 1024;  // reflector texels drawn per object
   int framesPerTexel = 4;
@@ -66,6 +87,10 @@ struct ClippedLightSettings {
   // R with each object's albedo at the next vertex scaled to what the frames show of it (the .cpp
   // says why); false: the fit's albedo as it is.
   bool shownRadiance = true;
+  // The first vertex's specular lobe apart from its diffuse one (ScaleTexel::specular), and each
+  // object's first vertex also under kFirstVertexMaterials, keeping the material its albedo is
+  // most uniform under (chooseFirstVertexMaterials); false: both lobes as one, the fit's materials.
+  bool materialChoice = false;
 };
 
 // What the clipped pixels of a light seen only saturated say.
@@ -83,6 +108,9 @@ struct ClippedLightScale {
   std::vector<double> darkerFrameEv;
   bool applied = false;
   bool coloured = false;  // each channel scaled by its own fit (else all by the luminance's)
+  // Per object: 0 where the fit's own roughness and specular served, h where
+  // kFirstVertexMaterials[h - 1] did; empty without the choice.
+  std::vector<int> firstVertexMaterial;
   std::string why;        // one line: what was decided and why
   Json toJson(const Appearance& a) const;
 };

@@ -71,6 +71,7 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("light_redecide", ConfigField(&c.lightRedecide));
   fn("clipped_light_scale", ConfigField(&c.clippedLightScale));
   fn("clipped_scale_shown_radiance", ConfigField(&c.clippedScaleShownRadiance));
+  fn("clipped_scale_material_choice", ConfigField(&c.clippedScaleMaterialChoice));
   fn("emission_refit_iterations", ConfigField(&c.emissionRefitIterations));
   fn("lights", ConfigField(&c.lights));
   fn("light_albedo_zero", ConfigField(&c.lightAlbedoZero));

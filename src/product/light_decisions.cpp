@@ -226,7 +226,8 @@ namespace {
 ClippedLightSettings clippedLightSettings(const FitConfig& c) {
   return {.texelsPerObject = 4 * c.lightEvidenceTexels,
           .framesPerTexel = c.framesPerTexel,
-          .shownRadiance = c.clippedScaleShownRadiance};
+          .shownRadiance = c.clippedScaleShownRadiance,
+          .materialChoice = c.clippedScaleMaterialChoice};
 }
 }  // namespace
 
@@ -246,7 +247,13 @@ bool LightDecisions::scaleClippedLights(const TexelSpace& space, const std::stri
   else
     spdlog::warn("fit: after {}: {}", after, scale.why);
   std::string perObject;
-  for (const auto& [o, s] : scale.fit.perObject) perObject += fmt::format(" {} {:.3g};", a_.names[o], s);
+  for (const auto& [o, s] : scale.fit.perObject) {
+    perObject += fmt::format(" {} {:.3g}", a_.names[o], s);
+    if (const int h = scale.firstVertexMaterial.empty() ? 0 : scale.firstVertexMaterial[o]; h > 0)
+      perObject += fmt::format(" (as roughness {:.2g}, specular {:.2g})", kFirstVertexMaterials[h - 1].roughness,
+                               kFirstVertexMaterials[h - 1].specular);
+    perObject += ";";
+  }
   spdlog::info("fit: after {}: each object's most uniform scale:{}", after, perObject);
   Json entry = {{"after", after}, {"clipped_light_scale", scale.toJson(a_)}};
   r_.lightDecisions.push_back(std::move(entry));

@@ -121,3 +121,43 @@ TEST(ClippedLightScale, TooFewObjectsOrTexelsGiveNoError) {
 TEST(ClippedLightScale, AScaleBeyondTheRangeIsNotTakenForOne) {
   EXPECT_FALSE(std::isfinite(fitClippedScales(texels({40.0}, 6, 200, 0.01, 6), 32, 0.1).logError[0]));
 }
+
+// A texel's highlight (what its specular lobe returns, G) is radiance its albedo does not scale;
+// where the clipped light reaches it directly, it is brightest. Counted as diffuse, it makes the
+// directly lit texels look lighter and pulls the scale; given apart, it is taken out exactly.
+TEST(ClippedLightScale, AHighlightTheAlbedoDoesNotScaleIsTakenOut) {
+  const double truth = 1.6;
+  std::vector<ScaleTexel> glossy = texels({truth}, 6, 200, 0.01, 11);
+  for (ScaleTexel& t : glossy) {
+    t.specular = {0.08 * t.mean[0], 0.02 * t.mean[1]};  // a dielectric's lobe, sharper toward the light
+    t.shown += truth * t.specular[0] + t.specular[1];
+    t.covariance.assign(16, 0.0);
+  }
+  std::vector<ScaleTexel> asDiffuse = glossy;
+  for (ScaleTexel& t : asDiffuse) t.specular.clear(), t.covariance.assign(4, 0.0);
+  const double apart = fitClippedScales(glossy, 32, 0.1).scale[0];
+  const double diffuse = fitClippedScales(asDiffuse, 32, 0.1).scale[0];
+  EXPECT_NEAR(apart / truth, 1.0, 0.02);
+  EXPECT_GT(std::abs(diffuse / truth - 1.0), 0.04);
+  std::printf("ClippedLightScale highlight: scale %.3f with the lobe apart, %.3f counted as diffuse (truth %.1f)\n",
+              apart, diffuse, truth);
+}
+
+// Traced under the wrong material, an object's direct share is wrong by a factor that varies
+// over it (a grazing light), and its albedo cannot be uniform at any scale; under its own it can.
+// Each object keeps the set its albedo is most uniform under.
+TEST(ClippedLightScale, EachObjectKeepsTheMaterialItsAlbedoIsMostUniformUnder) {
+  const std::vector<ScaleTexel> exact = texels({1.4}, 4, 200, 0.02, 12);
+  std::vector<ScaleTexel> wrong = exact;
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<double> u(0.5, 1.5);
+  for (ScaleTexel& t : wrong) t.mean[0] *= u(rng);
+  // Objects 0 and 1 were made with the first set's terms, 2 and 3 with the second's: swap theirs.
+  std::vector<ScaleTexel> first = exact, second = wrong;
+  for (size_t i = 0; i < first.size(); ++i)
+    if (first[i].object >= 2) std::swap(first[i], second[i]);
+  EXPECT_EQ(chooseFirstVertexMaterials({first, second}, 4, 32), (std::vector<int>{0, 0, 1, 1}));
+  EXPECT_EQ(chooseFirstVertexMaterials({second, first}, 4, 32), (std::vector<int>{1, 1, 0, 0}));
+  // Too few texels: the fit's own (0).
+  EXPECT_EQ(chooseFirstVertexMaterials({first, second}, 4, 1000), (std::vector<int>{0, 0, 0, 0}));
+}

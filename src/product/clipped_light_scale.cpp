@@ -29,6 +29,7 @@ constexpr int kApartSteps = 80;     // 3.5% apart
 constexpr int kMaxLightsApart = 8;  // beyond, one scale for all
 constexpr int kSweeps = 6;          // of the coordinate descent
 constexpr size_t kMinTexels = 32;   // an object's texels for it to count
+constexpr int kChoiceRounds = 3;    // of choosing the first vertex's materials and fitting the scale again
 
 bool saturated(const BatchRay& r) { return (r.reference >= r.clip.high).any(); }
 bool usable(const BatchRay& r) {
@@ -183,6 +184,12 @@ bool usableTexel(const ScaleTexel& t, size_t K) {
 
 }  // namespace
 
+bool ScaleFit::movesLights() const {
+  for (size_t k = 0; k < scale.size(); ++k)
+    if (std::abs(std::log(scale[k])) > logError[k]) return true;
+  return false;
+}
+
 ScaleFit fitClippedScales(const std::vector<ScaleTexel>& texels, size_t minTexels, double maxLogError) {
   const size_t K = texels.empty() ? 0 : texels.front().mean.size() - 1;
   int objectCount = 0;
@@ -248,27 +255,31 @@ ScaleFit fitClippedScales(const std::vector<ScaleTexel>& texels, size_t minTexel
 }
 
 std::vector<int> chooseFirstVertexMaterials(const std::vector<std::vector<ScaleTexel>>& under, int objectCount,
-                                            size_t minTexels) {
+                                            size_t minTexels, const std::vector<double>& scale) {
   std::vector<int> choice(objectCount, 0);
   std::vector<double> least(objectCount, INFINITY);
   for (size_t h = 0; h < under.size(); ++h) {
     if (under[h].empty()) continue;
     const size_t K = under[h].front().mean.size() - 1;
+    CHECK_EQ(scale.size(), K);
     Objects byObject(objectCount);
     for (const ScaleTexel& t : under[h])
       if (usableTexel(t, K)) byObject[t.object].push_back(&t);
     for (int o = 0; o < objectCount; ++o) {
       if (byObject[o].size() < std::max<size_t>(minTexels, 2)) continue;
-      double spread = INFINITY;
-      for (int i = 0; i <= kGridSteps; ++i) {
-        const std::vector<double> common(K, std::exp(gridLog(i, kGridSteps, kRange)));
-        spread = std::min(spread, objectTerm(byObject[o], common));
-      }
-      spread /= static_cast<double>(byObject[o].size());
+      const double spread = objectTerm(byObject[o], scale) / static_cast<double>(byObject[o].size());
       if (spread < least[o]) least[o] = spread, choice[o] = static_cast<int>(h);
     }
   }
   return choice;
+}
+
+std::vector<ScaleTexel> chosenTexels(const std::vector<std::vector<ScaleTexel>>& under, const std::vector<int>& choice) {
+  std::vector<ScaleTexel> chosen;
+  for (size_t h = 0; h < under.size(); ++h)
+    for (const ScaleTexel& t : under[h])
+      if (choice[t.object] == static_cast<int>(h)) chosen.push_back(t);
+  return chosen;
 }
 
 Json ClippedLightScale::toJson(const Appearance& a) const {
@@ -292,7 +303,8 @@ Json ClippedLightScale::toJson(const Appearance& a) const {
     perObject.push_back(std::move(entry));
   }
   return {{"lights", perLight},   {"common", fit.common},    {"coloured", coloured}, {"objects", fit.objects},
-          {"texels", fit.texels}, {"per_object", perObject}, {"applied", applied},   {"why", why}};
+          {"texels", fit.texels}, {"per_object", perObject}, {"applied", applied},   {"why", why},
+          {"materials_deferred", materialsDeferred}};
 }
 
 namespace {
@@ -546,7 +558,14 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
   // held 10-16% short even with the true albedo, within 2% with the true materials. With the
   // choice, each object also takes each of kFirstVertexMaterials, and keeps the one under which
   // its albedo is most uniform (docs/notes/2026-11-28-clipped-lights-materials.md).
-  if (settings.materialChoice) {
+  // The choice waits until the scale under the fit's own materials has settled (moves the lights
+  // by less than its error): until then the albedo the lights reach most sits at its ceiling of 1,
+  // and a glossy material explains that excess as a highlight, pulling the scale back from where it
+  // is headed (the single-exposure test capture, whose panels start 4x dark: emission error 0.38
+  // with the choice at every probe, 0.29 with it waiting).
+  out.fit = fitClippedScales(bands[3], kMinTexels, settings.maxLogError);
+  out.materialsDeferred = settings.materialChoice && out.fit.movesLights();
+  if (settings.materialChoice && !out.materialsDeferred) {
     std::vector<std::array<std::vector<ScaleTexel>, 4>> under = {std::move(bands)};
     for (const FirstVertexMaterial& m : kFirstVertexMaterials) {
       Appearance candidate = a;
@@ -554,17 +573,24 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
       std::fill(candidate.specular.begin(), candidate.specular.end(), m.specular);
       under.push_back(sumBands(traceTerms(candidate, settings.shownRadiance ? &shown : nullptr)));
     }
+    // Judged at the scale all objects share: each at its own best scale, a glossy material let an
+    // object agree with a scale no other did (the walls of the single-exposure test capture at
+    // half the common one), and the common scale followed them. Chosen, the scale is fitted
+    // again and the choice made again at it, until it repeats.
     std::vector<std::vector<ScaleTexel>> luminance;
     for (const auto& u : under) luminance.push_back(u[3]);
-    out.firstVertexMaterial = chooseFirstVertexMaterials(luminance, objectCount, kMinTexels);
+    for (int round = 0; round < kChoiceRounds; ++round) {
+      std::vector<int> choice = chooseFirstVertexMaterials(luminance, objectCount, kMinTexels, out.fit.scale);
+      if (choice == out.firstVertexMaterial) break;
+      out.firstVertexMaterial = std::move(choice);
+      out.fit = fitClippedScales(chosenTexels(luminance, out.firstVertexMaterial), kMinTexels, settings.maxLogError);
+    }
     for (int band = 0; band < 4; ++band) {
-      bands[band].clear();
-      for (size_t h = 0; h < under.size(); ++h)
-        for (const ScaleTexel& t : under[h][band])
-          if (out.firstVertexMaterial[t.object] == static_cast<int>(h)) bands[band].push_back(t);
+      std::vector<std::vector<ScaleTexel>> inBand;
+      for (const auto& u : under) inBand.push_back(u[band]);
+      bands[band] = chosenTexels(inBand, out.firstVertexMaterial);
     }
   }
-  out.fit = fitClippedScales(bands[3], kMinTexels, settings.maxLogError);
 
   std::string names;
   for (int o : out.lights) names += fmt::format("{}{} ({})", names.empty() ? "" : ", ", o, a.names[o]);

@@ -54,6 +54,8 @@ struct ScaleFit {
   size_t texels = 0;
   // Each object's own common scale (NaN where it lies on the grid's edge): where they agree.
   std::vector<std::pair<int, double>> perObject;
+  // Some light's scale lies further from 1 than its error.
+  bool movesLights() const;
 };
 
 // The fit above. First one scale for all the lights, on a log grid over [1/16, 16] refined by a
@@ -72,10 +74,12 @@ inline constexpr std::array<FirstVertexMaterial, 4> kFirstVertexMaterials{
     {{0.15f, 0.9f}, {0.35f, 0.5f}, {0.6f, 0.3f}, {0.9f, 0.15f}}};
 
 // Per object, which of several sets of texels (under[h], each the same texels with the terms
-// traced under material h) makes its albedo most uniform at its own best common scale (the least
+// traced under material h) makes its albedo most uniform at the lights' scales `scale` (the least
 // mean log-spread); 0 for objects with fewer than `minTexels` texels in every set.
 std::vector<int> chooseFirstVertexMaterials(const std::vector<std::vector<ScaleTexel>>& under, int objectCount,
-                                            size_t minTexels);
+                                            size_t minTexels, const std::vector<double>& scale);
+// The texels of under[h] whose object chose h.
+std::vector<ScaleTexel> chosenTexels(const std::vector<std::vector<ScaleTexel>>& under, const std::vector<int>& choice);
 
 struct ClippedLightSettings {
   int texelsPerObject = 1024;  // reflector texels drawn per object
@@ -90,7 +94,7 @@ struct ClippedLightSettings {
   // The first vertex's specular lobe apart from its diffuse one (ScaleTexel::specular), and each
   // object's first vertex also under kFirstVertexMaterials, keeping the material its albedo is
   // most uniform under (chooseFirstVertexMaterials); false: both lobes as one, the fit's materials.
-  bool materialChoice = false;
+  bool materialChoice = true;
 };
 
 // What the clipped pixels of a light seen only saturated say.
@@ -111,6 +115,8 @@ struct ClippedLightScale {
   // Per object: 0 where the fit's own roughness and specular served, h where
   // kFirstVertexMaterials[h - 1] did; empty without the choice.
   std::vector<int> firstVertexMaterial;
+  // The choice was to be made but waited: the scale under the fit's own materials still moved.
+  bool materialsDeferred = false;
   std::string why;        // one line: what was decided and why
   Json toJson(const Appearance& a) const;
 };

@@ -159,9 +159,11 @@ struct FitConfig {
   // Its light from the surfaces in view taken at what the frames show of them, not at the fit's
   // albedo, which sits at 1 where the lights are still too dark (clipped_light_scale.cpp).
   bool clippedScaleShownRadiance = true;
-  // The first vertex of each object's terms also under kFirstVertexMaterials (clipped_light_scale.h),
-  // each object keeping the one its albedo is most uniform under; false: the fit's materials.
-  bool clippedScaleMaterialChoice = false;
+  // In that scale, the first vertex's specular lobe apart from its diffuse one, and each object's
+  // terms also under kFirstVertexMaterials (clipped_light_scale.h), each object keeping the one its
+  // albedo is most uniform under at the lights' shared scale; false: both lobes as one, the fit's
+  // materials.
+  bool clippedScaleMaterialChoice = true;
   // A light source's radiance is all emission (albedo 0, not fitted): from any view a Lambertian
   // emission and a diffuse reflection look the same, and windows and shades transmit their light.
   bool lightAlbedoZero = true;

@@ -46,6 +46,7 @@ void ObjectRoles::serialise(CheckpointIo& io, const std::filesystem::path& work)
   io.single("refit_emission", refitEmission);
   io.single("clipped_lights", clippedLights);
   io.single("clipped_scale_moving", clippedScaleMoving);
+  if (io.optional("clipped_scale_chose", true)) io.single("clipped_scale_chose", clippedScaleChose);  // older: none
   io.array("highlight", highlight);
   io.array("highlight_pairs", highlightPairs);
   io.array("highlight_contrast", highlightContrast);
@@ -61,8 +62,10 @@ void ObjectRoles::serialise(CheckpointIo& io, const std::filesystem::path& work)
       fail("{}: checkpoint's {} holds a value that is neither 0 nor 1", work.string(), name);
   };
   requireFlags("emitter", emitter), requireFlags("out_of_model", outOfModel), requireFlags("highlight", highlight);
-  if (!flag(refitEmission) || !flag(clippedLights) || !flag(clippedScaleMoving))
-    fail("{}: checkpoint's refit_emission, clipped_lights or clipped_scale_moving is neither 0 nor 1", work.string());
+  if (!flag(refitEmission) || !flag(clippedLights) || !flag(clippedScaleMoving) || !flag(clippedScaleChose))
+    fail("{}: checkpoint's refit_emission, clipped_lights, clipped_scale_moving or clipped_scale_chose is neither 0 "
+         "nor 1",
+         work.string());
   const auto bound = [](float v) { return v == -1.0f || (v >= 0.0f && v <= 1.0f); };
   for (size_t o = 0; o < roughnessAtLeast.size(); ++o)
     if (!bound(roughnessAtLeast[o]) || !bound(sharpBelow[o]) || (roughnessAtLeast[o] < 0 && sharpBelow[o] >= 0))
@@ -254,12 +257,15 @@ bool LightDecisions::scaleClippedLights(const TexelSpace& space, const std::stri
                                kFirstVertexMaterials[h - 1].specular);
     perObject += ";";
   }
-  spdlog::info("fit: after {}: each object's most uniform scale:{}", after, perObject);
+  spdlog::info("fit: after {}: each object's most uniform scale:{}{}", after, perObject,
+               scale.materialsDeferred ? " (under the fit's materials: the choice waits until that scale settles)" : "");
   Json entry = {{"after", after}, {"clipped_light_scale", scale.toJson(a_)}};
   r_.lightDecisions.push_back(std::move(entry));
-  r_.clippedScaleMoving = 0;
-  for (size_t k = 0; k < scale.lights.size() && scale.applied; ++k)
-    r_.clippedScaleMoving |= std::abs(std::log(scale.fit.scale[k])) > scale.fit.logError[k];
+  // The first scale under the chosen materials always has a successor: the albedo it started from
+  // had followed the scale under the fit's own (on the bracketed room it stopped there 6-7% short).
+  const bool firstChoice = !scale.firstVertexMaterial.empty() && !r_.clippedScaleChose;
+  r_.clippedScaleMoving = scale.applied && (scale.fit.movesLights() || firstChoice);
+  r_.clippedScaleChose |= !scale.firstVertexMaterial.empty();
   return scale.applied;
 }
 

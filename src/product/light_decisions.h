@@ -27,6 +27,7 @@ struct ObjectRoles {
   uint8_t refitEmission = 0;              // the re-decision changed the light sources: run emission_refit
   uint8_t clippedLights = 0;              // the first decision's lights include some seen only saturated
   uint8_t clippedScaleMoving = 0;         // their last scale moved them by more than its error
+  uint8_t clippedScaleChose = 0;          // a scale has chosen the first vertex's materials
   Json lightDecisions = Json::array();    // each decision's evidence (result/lights.json)
   std::vector<uint64_t> highlightPairs;   // texels compared with and without a light reflected
   std::vector<double> highlightContrast;  // their mean contrast

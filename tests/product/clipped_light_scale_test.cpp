@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -156,8 +157,30 @@ TEST(ClippedLightScale, EachObjectKeepsTheMaterialItsAlbedoIsMostUniformUnder) {
   std::vector<ScaleTexel> first = exact, second = wrong;
   for (size_t i = 0; i < first.size(); ++i)
     if (first[i].object >= 2) std::swap(first[i], second[i]);
-  EXPECT_EQ(chooseFirstVertexMaterials({first, second}, 4, 32), (std::vector<int>{0, 0, 1, 1}));
-  EXPECT_EQ(chooseFirstVertexMaterials({second, first}, 4, 32), (std::vector<int>{1, 1, 0, 0}));
+  EXPECT_EQ(chooseFirstVertexMaterials({first, second}, 4, 32, {1.4}), (std::vector<int>{0, 0, 1, 1}));
+  EXPECT_EQ(chooseFirstVertexMaterials({second, first}, 4, 32, {1.4}), (std::vector<int>{1, 1, 0, 0}));
   // Too few texels: the fit's own (0).
-  EXPECT_EQ(chooseFirstVertexMaterials({first, second}, 4, 1000), (std::vector<int>{0, 0, 0, 0}));
+  EXPECT_EQ(chooseFirstVertexMaterials({first, second}, 4, 1000, {1.4}), (std::vector<int>{0, 0, 0, 0}));
+}
+
+// A material is judged at the scale the objects share, not at the object's own: object 2's second
+// set of terms makes its albedo exactly uniform at scale 0.5 (as a glossy lobe can, explaining the
+// directly lit texels' excess as a highlight), while every object, object 2 included, is uniform
+// up to its noise at 1.4 under the first. Each at its own best scale, object 2 would take the second set.
+TEST(ClippedLightScale, AMaterialIsJudgedAtTheScaleTheObjectsShare) {
+  const std::vector<ScaleTexel> exact = texels({1.4}, 4, 200, 0.05, 21);
+  std::vector<ScaleTexel> second = exact;
+  for (ScaleTexel& t : second)
+    if (t.object == 2) {
+      const double m = t.shown / (0.3 * (0.5 * t.mean[0] + t.mean[1]));
+      t.mean[0] *= m, t.mean[1] *= m;
+    }
+  EXPECT_EQ(chooseFirstVertexMaterials({exact, second}, 4, 32, {1.4}), (std::vector<int>{0, 0, 0, 0}));
+  EXPECT_EQ(chooseFirstVertexMaterials({exact, second}, 4, 32, {0.5}), (std::vector<int>{0, 0, 1, 0}));
+  // The texels each object's choice holds: object 2's from the second set, the rest from the first.
+  std::vector<std::vector<double>> expected, got;
+  for (size_t i = 0; i < exact.size(); ++i) expected.push_back((exact[i].object == 2 ? second : exact)[i].mean);
+  for (const ScaleTexel& t : chosenTexels({exact, second}, {0, 0, 1, 0})) got.push_back(t.mean);
+  std::sort(expected.begin(), expected.end()), std::sort(got.begin(), got.end());
+  EXPECT_EQ(got, expected);
 }

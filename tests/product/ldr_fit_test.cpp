@@ -72,15 +72,22 @@ TEST(LdrFit, SaturatedLightsAreBoundsNotValues) {
 // light the surfaces pass on is taken at what the frames show of them: traced at the fit's albedo,
 // which sits at 1 on the surfaces the too-dark panels light most, it falls short, and so does the
 // scale (clipped_scale_shown_radiance: false).
+// The scale is taken under the fit's own materials (clipped_scale_material_choice: false): on
+// these 64x48 frames of one exposure the choice among four materials leaves the panels further
+// off (0.288 against 0.243) while on the same room in 24 frames of 256x192, bracketed or not, it brings them
+// nearer (docs/notes/2026-11-28-clipped-materials-judged-together.md); ClippedLightScale's tests
+// hold the choice to its known answers.
 TEST(LdrFit, LightsSeenOnlySaturatedTakeTheScaleTheAlbedoAgreesOn) {
   const fs::path dir = preparedCapture("ldr_fit_clip_scale", room256("ldr=8"), 256);
-  FitConfig off = smallConfig(FrameGainMode::None);
+  FitConfig base = smallConfig(FrameGainMode::None);
+  base.clippedScaleMaterialChoice = false;
+  FitConfig off = base;
   off.clippedLightScale = false;
   const TruthComparison kept = fitAndScore(dir / "work", dir / "capture", off);
-  FitConfig traced = smallConfig(FrameGainMode::None);
+  FitConfig traced = base;
   traced.clippedScaleShownRadiance = false;
   const TruthComparison tracedRest = fitAndScore(dir / "work", dir / "capture", traced);
-  const TruthComparison scaled = fitAndScore(dir / "work", dir / "capture", smallConfig(FrameGainMode::None));
+  const TruthComparison scaled = fitAndScore(dir / "work", dir / "capture", base);
   const Json decisions = readJson(dir / "work" / "result" / "lights.json")["decisions"];
   const auto scale =
       std::find_if(decisions.begin(), decisions.end(), [](const Json& d) { return d.contains("clipped_light_scale"); });
@@ -88,7 +95,7 @@ TEST(LdrFit, LightsSeenOnlySaturatedTakeTheScaleTheAlbedoAgreesOn) {
   EXPECT_TRUE((*scale)["clipped_light_scale"]["applied"].get<bool>()) << scale->dump();
   EXPECT_EQ((*scale)["clipped_light_scale"]["lights"].size(), 2u);
   EXPECT_EQ(scaled.emittersCorrect, scaled.emittersTrue);
-  // Measured: emission error 0.243 and albedo MAE 0.174 (traced: 0.281 and 0.198; kept: 0.767 and
+  // Measured: emission error 0.243 and albedo MAE 0.172 (traced: 0.281 and 0.196; kept: 0.767 and
   // 0.352; the clean capture's fit: 0.047); the scale converges short of the truth on these 64x48
   // frames.
   EXPECT_LT(scaled.emissionRelError, 0.27);

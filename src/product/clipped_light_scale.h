@@ -93,7 +93,8 @@ struct ClippedLightSettings {
   bool shownRadiance = true;
   // The first vertex's specular lobe apart from its diffuse one (ScaleTexel::specular), and each
   // object's first vertex also under kFirstVertexMaterials, keeping the material its albedo is
-  // most uniform under (chooseFirstVertexMaterials); false: both lobes as one, the fit's materials.
+  // most uniform under at the lights' shared scale (chooseFirstVertexMaterials), once the scale
+  // under the fit's own has settled; false: both lobes as one, the fit's materials.
   bool materialChoice = true;
 };
 

@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include <Eigen/Dense>
 
@@ -24,10 +25,12 @@ namespace {
 
 constexpr double kRange = 16;       // the common scale is searched in [1/16, 16]
 constexpr int kGridSteps = 160;     // log-spaced: 3.5% apart
-constexpr double kApartRange = 4;   // each light's own within [1/4, 4] of the common scale
-constexpr int kApartSteps = 80;     // 3.5% apart
+constexpr double kApartRange = 8;   // each group's own within [1/8, 8] of the common scale
+constexpr int kApartSteps = 120;    // 3.5% apart
+constexpr double kApartSigmas = 3;  // two groups stay apart when their log ratio exceeds this many of its errors
 constexpr int kMaxLightsApart = 8;  // beyond, one scale for all
 constexpr int kSweeps = 6;          // of the coordinate descent
+constexpr int kNewtonSteps = 20;    // at most, after it
 constexpr size_t kMinTexels = 32;   // an object's texels for it to count
 constexpr int kChoiceRounds = 3;    // of choosing the first vertex's materials and fitting the scale again
 
@@ -125,53 +128,136 @@ std::vector<std::vector<double>> commonTerms(const Objects& objects, size_t K) {
   return terms;
 }
 
-// Each light's own scale by coordinate descent from `start` over the objects not left out
-// (`leftOut` < 0: none); NaN entries where a light's minimum lies on the edge of its search.
-std::vector<double> scalesApart(const Objects& objects, std::vector<double> s, double common, int leftOut) {
-  for (int sweep = 0; sweep < kSweeps; ++sweep)
-    for (size_t c = 0; c < s.size(); ++c) {
-      std::vector<double> J(kApartSteps + 1, 0.0);
-      tbb::parallel_for(0, kApartSteps + 1, [&](int i) {
-        std::vector<double> trial = s;
-        trial[c] = common * std::exp(gridLog(i, kApartSteps, kApartRange));
-        for (size_t o = 0; o < objects.size(); ++o)
-          if (static_cast<int>(o) != leftOut) J[i] += objectTerm(objects[o], trial);
-      });
-      const double u = argminLog(J, kApartRange);
-      if (std::isnan(u)) return std::vector<double>(s.size(), std::numeric_limits<double>::quiet_NaN());
-      s[c] = common * std::exp(u);
-    }
+// Per light: the group whose scale it takes.
+using Grouping = std::vector<int>;
+int groupCount(const Grouping& groupOf) { return *std::max_element(groupOf.begin(), groupOf.end()) + 1; }
+std::vector<double> perLight(const std::vector<double>& groupScale, const Grouping& groupOf) {
+  std::vector<double> s(groupOf.size());
+  for (size_t c = 0; c < groupOf.size(); ++c) s[c] = groupScale[groupOf[c]];
   return s;
 }
 
-// Standard errors of log s from the curvature of the pooled negative log-likelihood at s (central
-// differences in log s): the diagonal of the inverse Hessian, infinite where it is singular.
-std::vector<double> likelihoodErrors(const Objects& objects, const std::vector<double>& s) {
+// The pooled negative log-likelihood at group scales s, over the objects not left out (`leftOut`
+// < 0: none).
+double pooledTerm(const Objects& objects, const Grouping& groupOf, const std::vector<double>& s, int leftOut) {
+  const std::vector<double> at = perLight(s, groupOf);
+  double sum = 0;
+  for (size_t o = 0; o < objects.size(); ++o)
+    if (static_cast<int>(o) != leftOut) sum += objectTerm(objects[o], at);
+  return sum;
+}
+
+// Its gradient and Hessian in the log scales at s, by central differences.
+struct Curvature {
+  Eigen::VectorXd gradient;
+  Eigen::MatrixXd hessian;
+};
+Curvature curvature(const Objects& objects, const Grouping& groupOf, const std::vector<double>& s, int leftOut) {
   constexpr double h = 0.002;
-  const size_t K = s.size();
-  auto total = [&](const std::vector<double>& logStep) {
-    std::vector<double> at(K);
-    for (size_t c = 0; c < K; ++c) at[c] = s[c] * (1 + logStep[c]);
-    double sum = 0;
-    for (const auto& o : objects) sum += objectTerm(o, at);
-    return sum;
+  const size_t G = s.size();
+  auto at = [&](size_t c, double hc, size_t d, double hd) {
+    std::vector<double> step = s;
+    step[c] *= std::exp(hc), step[d] *= std::exp(hd);
+    return pooledTerm(objects, groupOf, step, leftOut);
   };
-  Eigen::MatrixXd H(K, K);
-  for (size_t c = 0; c < K; ++c)
-    for (size_t d = c; d < K; ++d) {
-      auto f = [&](double hc, double hd) {
-        std::vector<double> step(K, 0.0);
-        step[c] += hc, step[d] += hd;
-        return total(step);
-      };
-      H(c, d) = H(d, c) = (f(h, h) - f(h, -h) - f(-h, h) + f(-h, -h)) / (4 * h * h);
+  Curvature out{Eigen::VectorXd(G), Eigen::MatrixXd(G, G)};
+  for (size_t c = 0; c < G; ++c) {
+    out.gradient(c) = (at(c, h, c, 0) - at(c, -h, c, 0)) / (2 * h);
+    for (size_t d = c; d < G; ++d)
+      out.hessian(c, d) = out.hessian(d, c) =
+          (at(c, h, d, h) - at(c, h, d, -h) - at(c, -h, d, h) + at(c, -h, d, -h)) / (4 * h * h);
+  }
+  return out;
+}
+
+// Each group's own scale from `s`: coordinate descent on a log grid within [1/8, 8] of `common`
+// (a group's step may stop at the grid's edge on the way, while the others are still far off),
+// then Newton steps in the log scales, which coordinate descent takes many sweeps to match where
+// two groups' light falls in similar proportions. NaN entries where a group ends on the grid's
+// edge or the Newton steps leave it.
+std::vector<double> scalesApart(const Objects& objects, const Grouping& groupOf, std::vector<double> s, double common,
+                                int leftOut) {
+  std::vector<uint8_t> onEdge(s.size(), 0);
+  for (int sweep = 0; sweep < kSweeps; ++sweep)
+    for (size_t g = 0; g < s.size(); ++g) {
+      std::vector<double> J(kApartSteps + 1, 0.0);
+      tbb::parallel_for(0, kApartSteps + 1, [&](int i) {
+        std::vector<double> trial = s;
+        trial[g] = common * std::exp(gridLog(i, kApartSteps, kApartRange));
+        J[i] = pooledTerm(objects, groupOf, trial, leftOut);
+      });
+      const double u = argminLog(J, kApartRange);
+      onEdge[g] = std::isnan(u);
+      const int lowest = static_cast<int>(std::min_element(J.begin(), J.end()) - J.begin());
+      s[g] = common * std::exp(onEdge[g] ? gridLog(lowest, kApartSteps, kApartRange) : u);
     }
-  std::vector<double> errors(K, INFINITY);
+  const auto nan = std::vector<double>(s.size(), std::numeric_limits<double>::quiet_NaN());
+  if (std::any_of(onEdge.begin(), onEdge.end(), [](uint8_t e) { return e; })) return nan;
+  for (int step = 0; step < kNewtonSteps; ++step) {
+    const Curvature c = curvature(objects, groupOf, s, leftOut);
+    const Eigen::LLT<Eigen::MatrixXd> llt(c.hessian);
+    if (llt.info() != Eigen::Success) break;  // not convex here: the grid's answer stands
+    const Eigen::VectorXd delta = -llt.solve(c.gradient);
+    const double before = pooledTerm(objects, groupOf, s, leftOut);
+    std::vector<double> next = s;
+    for (double t = 1; t > 1.0 / 64; t /= 2) {
+      for (size_t g = 0; g < s.size(); ++g) next[g] = s[g] * std::exp(t * delta(g));
+      if (pooledTerm(objects, groupOf, next, leftOut) < before) break;
+      next = s;
+    }
+    if (next == s) break;
+    s = next;
+    if (delta.lpNorm<Eigen::Infinity>() < 1e-5) break;
+  }
+  for (double x : s)
+    if (!(std::abs(std::log(x / common)) < std::log(kApartRange))) return nan;
+  return s;
+}
+
+// The groups' own scales, each group's log error and the error of each pair's log ratio: the larger
+// of the jackknife over objects (which sees objects that disagree) and the curvature (which alone
+// sees a direction along which no object's albedo changes: two lights whose light falls
+// everywhere in the same proportion move no left-out solution).
+struct GroupScales {
+  std::vector<double> scale, logError;
+  Eigen::MatrixXd ratioError;  // (g, h): of log(scale_g / scale_h)
+  // Of the log scales: the jackknife's covariance plus the curvature's (where it is regular).
+  Eigen::MatrixXd covariance;
+};
+std::optional<GroupScales> fitGroups(const Objects& objects, const Grouping& groupOf, double common) {
+  const int G = groupCount(groupOf);
+  GroupScales out;
+  out.scale = scalesApart(objects, groupOf, std::vector<double>(G, common), common, -1);
+  if (std::any_of(out.scale.begin(), out.scale.end(), [](double x) { return std::isnan(x); })) return std::nullopt;
+  std::vector<std::vector<double>> logLeftOut(G);
+  for (size_t o = 0; o < objects.size(); ++o) {
+    const std::vector<double> s = scalesApart(objects, groupOf, out.scale, common, static_cast<int>(o));
+    for (int g = 0; g < G; ++g) logLeftOut[g].push_back(std::log(s[g]));
+  }
+  // The covariance from the curvature: the inverse Hessian, where it is regular.
+  const Eigen::MatrixXd H = curvature(objects, groupOf, out.scale, -1).hessian;
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(H);
-  if (eigen.info() != Eigen::Success || !(eigen.eigenvalues().minCoeff() > 0)) return errors;
-  const Eigen::MatrixXd covariance = H.inverse();
-  for (size_t c = 0; c < K; ++c) errors[c] = std::sqrt(std::max(0.0, covariance(c, c)));
-  return errors;
+  std::optional<Eigen::MatrixXd> C;
+  if (eigen.info() == Eigen::Success && eigen.eigenvalues().minCoeff() > 0) C = H.inverse();
+  out.logError.resize(G);
+  out.ratioError.setZero(G, G);
+  const double n = static_cast<double>(objects.size());
+  Eigen::MatrixXd leftOut(objects.size(), G);
+  for (int g = 0; g < G; ++g)
+    for (size_t o = 0; o < objects.size(); ++o) leftOut(o, g) = logLeftOut[g][o];
+  const Eigen::MatrixXd centred = leftOut.rowwise() - leftOut.colwise().mean();
+  out.covariance = (n - 1) / n * centred.transpose() * centred;
+  if (C) out.covariance += *C;
+  for (int g = 0; g < G; ++g) {
+    out.logError[g] = std::max(jackknifeError(logLeftOut[g]), C ? std::sqrt(std::max(0.0, (*C)(g, g))) : INFINITY);
+    for (int h = 0; h < g; ++h) {
+      std::vector<double> difference(objects.size());
+      for (size_t o = 0; o < objects.size(); ++o) difference[o] = logLeftOut[g][o] - logLeftOut[h][o];
+      const double curvature = C ? std::sqrt(std::max(0.0, (*C)(g, g) + (*C)(h, h) - 2 * (*C)(g, h))) : INFINITY;
+      out.ratioError(g, h) = out.ratioError(h, g) = std::max(jackknifeError(difference), curvature);
+    }
+  }
+  return out;
 }
 
 // A texel the fit can use: something shown, something received, no negative term.
@@ -197,13 +283,18 @@ Objects usableByObject(const std::vector<ScaleTexel>& texels, int objectCount, s
 
 }  // namespace
 
+bool ScaleFit::known(double maxLogError) const {
+  return std::any_of(logError.begin(), logError.end(), [&](double e) { return e <= maxLogError; });
+}
+
 bool ScaleFit::movesLights() const {
   for (size_t k = 0; k < scale.size(); ++k)
     if (std::abs(std::log(scale[k])) > logError[k]) return true;
   return false;
 }
 
-ScaleFit fitClippedScales(const std::vector<ScaleTexel>& texels, size_t minTexels, double maxLogError) {
+ScaleFit fitClippedScales(const std::vector<ScaleTexel>& texels, size_t minTexels, double maxLogError,
+                          const std::vector<int>& groups) {
   const size_t K = texels.empty() ? 0 : texels.front().mean.size() - 1;
   int objectCount = 0;
   for (const ScaleTexel& t : texels) objectCount = std::max(objectCount, t.object + 1);
@@ -238,24 +329,44 @@ ScaleFit fitClippedScales(const std::vector<ScaleTexel>& texels, size_t minTexel
     leftOut.push_back(argminLog(Jo, kRange));
   }
   fit.logError.assign(K, jackknifeError(leftOut));
-  if (K < 2 || K > static_cast<size_t>(kMaxLightsApart) || !(fit.logError[0] <= maxLogError)) return fit;
+  if (K < 2 || K > static_cast<size_t>(kMaxLightsApart)) return fit;
 
-  // Each light its own, kept when every one is resolved.
-  const std::vector<double> apart = scalesApart(objects, fit.scale, common, -1);
-  if (std::any_of(apart.begin(), apart.end(), [](double x) { return std::isnan(x); })) return fit;
-  std::vector<std::vector<double>> logLeftOut(K);
-  for (size_t out = 0; out < objects.size(); ++out) {
-    const std::vector<double> s = scalesApart(objects, apart, common, static_cast<int>(out));
-    for (size_t c = 0; c < K; ++c) logLeftOut[c].push_back(std::log(s[c]));
+  // Each light its own scale where each is known to maxLogError, or else where the surfaces tell
+  // it apart from the others': starting from every light in a group of its own, two groups are
+  // merged while some pair's ratio is within kApartSigmas of its error, down to one group for
+  // all. (A pendant lamp seven times brighter than the windows beside it is told apart at 7
+  // errors, two windows alike in a wall are not.)
+  Grouping groupOf = groups;
+  if (groupOf.empty()) {
+    groupOf.resize(K);
+    for (size_t c = 0; c < K; ++c) groupOf[c] = static_cast<int>(c);
   }
-  // The jackknife sees objects that disagree; a direction along which no object's albedo changes
-  // (two lights whose light falls everywhere in the same proportion) moves no left-out solution
-  // and shows only in the curvature: each light's error is the larger of the two.
-  const std::vector<double> curvatureErrors = likelihoodErrors(objects, apart);
-  std::vector<double> errors(K);
-  for (size_t c = 0; c < K; ++c) errors[c] = std::max(jackknifeError(logLeftOut[c]), curvatureErrors[c]);
-  if (std::all_of(errors.begin(), errors.end(), [&](double e) { return e <= maxLogError; })) {
-    fit.scale = apart, fit.logError = errors, fit.common = false;
+  CHECK_EQ(groupOf.size(), K);
+  while (groupCount(groupOf) > 1) {
+    const std::optional<GroupScales> apart = fitGroups(objects, groupOf, common);
+    if (!apart) break;
+    const int G = groupCount(groupOf);
+    // Of the pairs not told apart, the one the surfaces trade against each other most (the most
+    // negative correlation: more of one explains the same as more of the other). Not the one whose
+    // ratio is least known: with a pair no surface tells apart, each of the pair's ratios to any
+    // other light is as unknown as their own split.
+    int merge = -1, into = -1;
+    double mostTraded = INFINITY;
+    for (int g = 0; g < G; ++g)
+      for (int h = 0; h < g; ++h) {
+        const double z = std::abs(std::log(apart->scale[g] / apart->scale[h])) / apart->ratioError(g, h);
+        const double correlation =
+            apart->covariance(g, h) / std::sqrt(apart->covariance(g, g) * apart->covariance(h, h));
+        if (!(z >= kApartSigmas) && !(correlation >= mostTraded)) mostTraded = correlation, merge = g, into = h;
+      }
+    const bool eachKnown = G == static_cast<int>(K) && std::all_of(apart->logError.begin(), apart->logError.end(),
+                                                                   [&](double e) { return e <= maxLogError; });
+    if (merge < 0 || eachKnown || !groups.empty()) {  // told apart, each known, or the grouping was given
+      fit.scale = perLight(apart->scale, groupOf), fit.logError = perLight(apart->logError, groupOf);
+      fit.groupOf = groupOf, fit.common = false;
+      break;
+    }
+    for (int& g : groupOf) g = g == merge ? into : g > merge ? g - 1 : g;
   }
   return fit;
 }
@@ -293,6 +404,7 @@ Json ClippedLightScale::toJson(const Appearance& a) const {
                         {"name", a.names[lights[k]]},
                         {"scale", fit.scale[k]},
                         {"log_error", std::isfinite(fit.logError[k]) ? Json(fit.logError[k]) : Json(nullptr)},
+                        {"group", fit.common ? 0 : fit.groupOf[k]},
                         {"lower_bound", floors[k].lowerBound},
                         {"darkest_clip", floors[k].darkestClip},
                         {"darker_frame_ev", darkerFrameEv[k]}});
@@ -401,6 +513,22 @@ std::vector<Color> shownOverRendered(const Batch& batch, const std::vector<size_
     if (count[o] >= kMinRatioRays && (sent[o] > 0).all() && (seen[o] > 0).all())
       ratio[o] = (seen[o] / sent[o]).min(8.0).max(0.125).cast<float>();
   return ratio;
+}
+
+// "one scale for all", "each its own", or the groups by name ("one scale per group: window_a,
+// window_b; pendant_lamp").
+std::string groupingText(const ScaleFit& fit, const std::vector<int>& lights, const Appearance& a) {
+  if (fit.common) return "one scale for all";
+  const int G = groupCount(fit.groupOf);
+  if (G == static_cast<int>(lights.size())) return "each its own";
+  std::string text = "one scale per group:";
+  for (int g = 0; g < G; ++g) {
+    std::string members;
+    for (size_t c = 0; c < lights.size(); ++c)
+      if (fit.groupOf[c] == g) members += fmt::format("{}{}", members.empty() ? " " : ", ", a.names[lights[c]]);
+    text += (g ? ";" : "") + members;
+  }
+  return text;
 }
 
 // Fills out.darkerFrameEv from the lights' emission in `a` and says what it means (for `why`).
@@ -599,12 +727,15 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
 
   std::string names;
   for (int o : out.lights) names += fmt::format("{}{} ({})", names.empty() ? "" : ", ", o, a.names[o]);
-  const double worst = *std::max_element(out.fit.logError.begin(), out.fit.logError.end());
-  if (!(worst <= settings.maxLogError)) {
+  // Applied when some group's scale is known to maxLogError: the others' ratios to it are known to
+  // a third of themselves (a lamp 3x brighter than the windows beside it keeps that ratio even
+  // where its own scale is known only to 28%).
+  if (!out.fit.known(settings.maxLogError)) {
+    const double best = *std::min_element(out.fit.logError.begin(), out.fit.logError.end());
     out.why = fmt::format(
         "lights {} are seen only saturated and the surfaces they light do not tell their emission apart from the "
         "albedo (scale {:.3g}, log error {:.3g} over {} objects): both keep the scale init_white_point gave them{}",
-        names, out.fit.scale.front(), worst, out.fit.objects, adviseDarkerFrames(out, a));
+        names, out.fit.scale.front(), best, out.fit.objects, adviseDarkerFrames(out, a));
     return out;
   }
   // The colour as well when each channel's own fit is resolved (a warm light's pixels clip white,
@@ -612,10 +743,17 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
   // reaches them directly); else the luminance scale for all three.
   std::vector<Color> scale(K);
   for (size_t c = 0; c < K; ++c) scale[c] = Color::Constant(static_cast<float>(out.fit.scale[c]));
+  // Where the luminance put the lights in groups, each channel keeps them (alone, it would have to
+  // find them with a third of the signal); where it found one scale for all or each its own, a
+  // channel decides for itself (a warm and a cool panel differ more in colour than in brightness:
+  // held to each its own, the room's channels were not resolved, and its warm panel kept the
+  // emission stage's bluish colour).
+  const bool grouped = !out.fit.common && groupCount(out.fit.groupOf) < static_cast<int>(K);
   bool coloured = true;
   std::array<ScaleFit, 3> channel;
   for (int band = 0; band < 3; ++band) {
-    channel[band] = fitClippedScales(bands[band], kMinTexels, settings.maxLogError);
+    channel[band] =
+        fitClippedScales(bands[band], kMinTexels, settings.maxLogError, grouped ? out.fit.groupOf : std::vector<int>{});
     for (double e : channel[band].logError) coloured &= e <= settings.maxLogError;
   }
   out.coloured = coloured;
@@ -640,9 +778,8 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
   out.why = fmt::format(
       "lights {} are seen only saturated; the albedo is most uniform within each object at emission {} ({}, {}; "
       "{} objects, {} texels){}",
-      names, scales, out.fit.common ? "one scale for all" : "each its own",
-      coloured ? "colour from each channel" : "colour kept", out.fit.objects, out.fit.texels,
-      adviseDarkerFrames(out, a));
+      names, scales, groupingText(out.fit, out.lights, a), coloured ? "colour from each channel" : "colour kept",
+      out.fit.objects, out.fit.texels, adviseDarkerFrames(out, a));
   // Each reflector's albedo by its texels' mean ratio a(s) / a(1), per channel (the next stages
   // refit it).
   std::vector<Eigen::Array3d> logRatio(objectCount, Eigen::Array3d::Zero());

@@ -21,6 +21,7 @@
 // error is small, and never below what the clipped pixels bound the emission by.
 #pragma once
 #include <array>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -48,22 +49,29 @@ struct ScaleTexel {
 
 struct ScaleFit {
   std::vector<double> scale;     // per clipped light
-  std::vector<double> logError;  // per light: jackknife standard error of log(scale), over objects
-  bool common = true;            // one scale for all: their own were not resolved (or K = 1)
+  std::vector<double> logError;  // per light: standard error of log(scale) (its group's)
+  bool common = true;            // one scale for all: no two were told apart (or K = 1)
+  std::vector<int> groupOf;      // per light, the group whose scale it takes; empty when common
   int objects = 0;               // objects with enough texels
   size_t texels = 0;
   // Each object's own common scale (NaN where it lies on the grid's edge): where they agree.
   std::vector<std::pair<int, double>> perObject;
   // Some light's scale lies further from 1 than its error.
   bool movesLights() const;
+  // Some light's scale is known to `maxLogError`.
+  bool known(double maxLogError) const;
 };
 
 // The fit above. First one scale for all the lights, on a log grid over [1/16, 16] refined by a
-// parabola; then, with 2 to 8 lights, each light's own by coordinate descent around it, kept when
-// every light's error is at most `maxLogError`. Objects with fewer than `minTexels` texels are
-// left out. The errors are infinite with fewer than three objects, when a scale lands on the
-// grid's edge or when nothing depends on it.
-ScaleFit fitClippedScales(const std::vector<ScaleTexel>& texels, size_t minTexels, double maxLogError);
+// parabola; then, with 2 to 8 lights, the lights in groups, each group's scale by coordinate
+// descent and Newton steps around it: one group per light where every one's error is at most
+// `maxLogError`; else, from one group per light, a pair whose ratio is within 3 of its errors
+// merged (the pair whose log scales are most negatively correlated) until none is (`groups`
+// given: those groups, as the luminance fit found them for a channel's). Objects with fewer than
+// `minTexels` texels are left out. The errors are infinite with fewer than three objects, when a
+// scale lands on the grid's edge or when nothing depends on it.
+ScaleFit fitClippedScales(const std::vector<ScaleTexel>& texels, size_t minTexels, double maxLogError,
+                          const std::vector<int>& groups = {});
 
 // The first vertex's roughness and specular each object may take instead of the fit's while its
 // clipped lights are scaled: glossy to matte, as interiors have them.

@@ -76,6 +76,31 @@ TEST(ClippedLightScale, LightsNoSurfaceTellsApartShareOneScale) {
   EXPECT_EQ(fit.scale[0], fit.scale[1]);
 }
 
+// Two lights whose light falls everywhere in the same proportion (two windows in one wall), and a
+// third from the other end of the room, 3x brighter than its floor where they are 1.2x (a pendant
+// lamp): the two share one scale, the third keeps its own. With only "each its own or one for
+// all", the pair's unknown split would put all three under one scale.
+TEST(ClippedLightScale, LightsNoSurfaceTellsApartShareAGroupAndTheRestKeepTheirOwn) {
+  std::vector<ScaleTexel> three = texels({1.2, 3.0}, 8, 300, 0.02, 14);
+  for (ScaleTexel& t : three) {
+    t.mean = {2 * t.mean[0] / 3, t.mean[0] / 3, t.mean[1], t.mean[2]};
+    t.covariance.assign(16, 0.0);
+  }
+  const ScaleFit fit = fitClippedScales(three, 32, 0.1);
+  EXPECT_FALSE(fit.common);
+  ASSERT_EQ(fit.groupOf.size(), 3u);
+  EXPECT_EQ(fit.groupOf[0], fit.groupOf[1]);
+  EXPECT_NE(fit.groupOf[0], fit.groupOf[2]);
+  EXPECT_EQ(fit.scale[0], fit.scale[1]);
+  EXPECT_NEAR(fit.scale[0] / 1.2, 1.0, 0.04);
+  EXPECT_NEAR(fit.scale[2] / 3.0, 1.0, 0.04);
+  EXPECT_LT(fit.logError[2], 0.05);
+  // A channel's fit takes the grouping it is given.
+  const ScaleFit given = fitClippedScales(three, 32, 0.1, {0, 1, 1});
+  EXPECT_EQ(given.groupOf, (std::vector<int>{0, 1, 1}));
+  EXPECT_EQ(given.scale[1], given.scale[2]);
+}
+
 // The paths' noise in D and R, left in the spread, pulls the scale up: taken out, the scale is
 // that of exact paths.
 TEST(ClippedLightScale, PathNoiseDoesNotPullTheScale) {

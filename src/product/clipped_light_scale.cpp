@@ -229,33 +229,31 @@ std::optional<GroupScales> fitGroups(const Objects& objects, const Grouping& gro
   GroupScales out;
   out.scale = scalesApart(objects, groupOf, std::vector<double>(G, common), common, -1);
   if (std::any_of(out.scale.begin(), out.scale.end(), [](double x) { return std::isnan(x); })) return std::nullopt;
-  std::vector<std::vector<double>> logLeftOut(G);
+  Eigen::MatrixXd leftOut(objects.size(), G);  // the log scales with each object left out
   for (size_t o = 0; o < objects.size(); ++o) {
     const std::vector<double> s = scalesApart(objects, groupOf, out.scale, common, static_cast<int>(o));
-    for (int g = 0; g < G; ++g) logLeftOut[g].push_back(std::log(s[g]));
+    for (int g = 0; g < G; ++g) leftOut(o, g) = std::log(s[g]);
   }
   // The covariance from the curvature: the inverse Hessian, where it is regular.
   const Eigen::MatrixXd H = curvature(objects, groupOf, out.scale, -1).hessian;
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(H);
   std::optional<Eigen::MatrixXd> C;
   if (eigen.info() == Eigen::Success && eigen.eigenvalues().minCoeff() > 0) C = H.inverse();
+  // The jackknife's covariance over objects (NaN where a left-out fit found no answer).
+  const double n = static_cast<double>(objects.size());
+  const Eigen::MatrixXd centred = leftOut.rowwise() - leftOut.colwise().mean();
+  const Eigen::MatrixXd jackknife = (n - 1) / n * centred.transpose() * centred;
+  out.covariance = C ? Eigen::MatrixXd(jackknife + *C) : jackknife;
+  // A standard error from a variance, infinite where it is unknown.
+  auto error = [](double variance) { return std::isnan(variance) ? INFINITY : std::sqrt(std::max(0.0, variance)); };
+  auto ratioVariance = [](const Eigen::MatrixXd& V, int g, int h) { return V(g, g) + V(h, h) - 2 * V(g, h); };
   out.logError.resize(G);
   out.ratioError.setZero(G, G);
-  const double n = static_cast<double>(objects.size());
-  Eigen::MatrixXd leftOut(objects.size(), G);
-  for (int g = 0; g < G; ++g)
-    for (size_t o = 0; o < objects.size(); ++o) leftOut(o, g) = logLeftOut[g][o];
-  const Eigen::MatrixXd centred = leftOut.rowwise() - leftOut.colwise().mean();
-  out.covariance = (n - 1) / n * centred.transpose() * centred;
-  if (C) out.covariance += *C;
   for (int g = 0; g < G; ++g) {
-    out.logError[g] = std::max(jackknifeError(logLeftOut[g]), C ? std::sqrt(std::max(0.0, (*C)(g, g))) : INFINITY);
-    for (int h = 0; h < g; ++h) {
-      std::vector<double> difference(objects.size());
-      for (size_t o = 0; o < objects.size(); ++o) difference[o] = logLeftOut[g][o] - logLeftOut[h][o];
-      const double curvature = C ? std::sqrt(std::max(0.0, (*C)(g, g) + (*C)(h, h) - 2 * (*C)(g, h))) : INFINITY;
-      out.ratioError(g, h) = out.ratioError(h, g) = std::max(jackknifeError(difference), curvature);
-    }
+    out.logError[g] = std::max(error(jackknife(g, g)), C ? error((*C)(g, g)) : INFINITY);
+    for (int h = 0; h < g; ++h)
+      out.ratioError(g, h) = out.ratioError(h, g) =
+          std::max(error(ratioVariance(jackknife, g, h)), C ? error(ratioVariance(*C, g, h)) : INFINITY);
   }
   return out;
 }

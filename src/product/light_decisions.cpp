@@ -251,7 +251,8 @@ bool LightDecisions::scaleClippedLights(const TexelSpace& space, const std::stri
     spdlog::warn("fit: after {}: {}", after, scale.why);
   std::string perObject;
   for (const auto& [o, s] : scale.fit.perObject) {
-    perObject += fmt::format(" {} {:.3g}", a_.names[o], s);
+    // NaN: the object's own scale lies on the grid's edge (its texels do not tell it).
+    perObject += std::isfinite(s) ? fmt::format(" {} {:.3g}", a_.names[o], s) : fmt::format(" {} none", a_.names[o]);
     if (const int h = scale.firstVertexMaterial.empty() ? 0 : scale.firstVertexMaterial[o]; h > 0)
       perObject += fmt::format(" (as roughness {:.2g}, specular {:.2g})", kFirstVertexMaterials[h - 1].roughness,
                                kFirstVertexMaterials[h - 1].specular);

@@ -135,6 +135,26 @@ TEST(ClippedLightScale, NoContrastInTheDirectLightIsNoEvidence) {
   EXPECT_FALSE(std::isfinite(fitClippedScales(flat, 32, 0.1).logError[0]));
 }
 
+// The fit asks for another probe after a scale that moved some light by more than its error:
+// a scale of 1.6 known to 1% moves it; one of 1 (the albedo already agrees with the lights as
+// they are) does not, nor does any scale whose error is unknown.
+TEST(ClippedLightScale, OnlyAScaleBeyondItsErrorMovesTheLights) {
+  const ScaleFit moved = fitClippedScales(texels({1.6}, 6, 200, 0.01, 1), 32, 0.1);
+  EXPECT_TRUE(moved.movesLights());
+  EXPECT_TRUE(moved.known(0.1));
+  const ScaleFit settled = fitClippedScales(texels({1.0}, 6, 200, 0.01, 1), 32, 0.1);
+  EXPECT_GT(settled.logError[0], std::abs(std::log(settled.scale[0])));
+  EXPECT_FALSE(settled.movesLights());
+  EXPECT_TRUE(settled.known(0.1));
+  const ScaleFit unknown = fitClippedScales(texels({1.6}, 2, 200, 0.01, 4), 32, 0.1);
+  EXPECT_FALSE(unknown.movesLights());
+  EXPECT_FALSE(unknown.known(0.1));
+  // One light moved among several is enough; a second that stays does not cancel it.
+  const ScaleFit two = fitClippedScales(texels({1.0, 1.5}, 8, 300, 0.02, 7), 32, 0.1);
+  ASSERT_FALSE(two.common);
+  EXPECT_TRUE(two.movesLights());
+}
+
 TEST(ClippedLightScale, TooFewObjectsOrTexelsGiveNoError) {
   EXPECT_FALSE(std::isfinite(fitClippedScales(texels({1.5}, 2, 200, 0.01, 4), 32, 0.1).logError[0]));
   const ScaleFit few = fitClippedScales(texels({1.5}, 6, 20, 0.01, 5), 32, 0.1);

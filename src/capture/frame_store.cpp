@@ -7,12 +7,13 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstring>
-#include <fstream>
 
 #include "core/error.h"
 #include "capture/frame_image.h"
 #include "core/prefetch.h"
+#include "core/ranks.h"
 #include "io/atomic_file.h"
 #include "io/input_file.h"
 
@@ -59,57 +60,110 @@ Image boxDownscale(const Image& img, int k, float clipHigh) {
 }
 }  // namespace
 
+namespace {
+// Writes all of `bytes` at `offset` of the open file `fd`; fails naming `file` (a full disk).
+void writeAt(int fd, const void* bytes, size_t size, uint64_t offset, const std::string& file) {
+  const auto* p = static_cast<const uint8_t*>(bytes);
+  while (size > 0) {
+    const ssize_t n = ::pwrite(fd, p, size, static_cast<off_t>(offset));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) fail("{}: cannot write frame cache ({})", file, std::strerror(errno));
+    p += n, size -= static_cast<size_t>(n), offset += static_cast<uint64_t>(n);
+  }
+}
+
+// Decodes frame `frame` into the file at its entry's offset and fills the entry's statistics.
+void storeFrame(int fd, const std::string& file, const Frame& frame, int downscale, bool encodingClips,
+                DiskEntry& e) {
+  const FrameImage decoded = loadFrame(frame, encodingClips);
+  const Image& full = decoded.image;
+  e.stats.downscale = static_cast<uint32_t>(downscale);
+  e.stats.clipLow = decoded.clipLow;
+  e.stats.clipHigh = decoded.clipHigh;
+  e.stats.bits = static_cast<uint32_t>(decoded.read.bits);
+  size_t over = 0, under = 0;
+  for (size_t p = 0; p < full.rgb.size() / 3; ++p) {
+    const float* c = &full.rgb[3 * p];
+    if (c[0] < 0) continue;  // masked
+    over += std::max({c[0], c[1], c[2]}) >= decoded.clipHigh;
+    under += std::max({c[0], c[1], c[2]}) <= decoded.clipLow;
+  }
+  const double n = std::max<double>(1, full.rgb.size() / 3);
+  e.stats.overexposed = static_cast<float>(over / n);
+  e.stats.underexposed = static_cast<float>(under / n);
+  e.stats.masked = static_cast<float>(decoded.read.nonFinitePixels / n);
+  const Image stored = downscale > 1 ? boxDownscale(full, downscale, decoded.clipHigh) : Image();
+  const Image& px = downscale > 1 ? stored : full;
+  // loadFrame refuses an image whose size is not its camera's, so the place planned is its own.
+  CHECK(static_cast<uint32_t>(px.width) == e.stats.width && static_cast<uint32_t>(px.height) == e.stats.height);
+  std::vector<Imath::half> halfs(px.rgb.size());
+  for (size_t k = 0; k < px.rgb.size(); ++k) halfs[k] = Imath::half(std::min(px.rgb[k], 65504.0f));
+  writeAt(fd, halfs.data(), halfs.size() * sizeof(Imath::half), e.offset, file);
+}
+}  // namespace
+
 std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const std::vector<Frame>& frames,
                                         int downscale, bool encodingClips, const std::function<void()>& progress) {
   if (downscale < 1 || downscale > 64) fail("{}: downscale must be 1..64, not {}", path.string(), downscale);
+  Ranks& ranks = Ranks::world();
+  // Every frame's place in the file follows from its camera's size, so each rank writes the frames
+  // it decodes (frame i by rank i mod N) without waiting for the others'.
   std::vector<DiskEntry> entries(frames.size());
-  writeAtomically(path, [&](const std::filesystem::path& tmp) {
-    std::ofstream out(tmp, std::ios::binary);
-    Header h{};
-    std::memcpy(h.magic, kMagic, 8);
-    h.version = kVersion;
-    h.frames = static_cast<uint32_t>(frames.size());
-    out.write(reinterpret_cast<const char*>(&h), sizeof(h));
-    out.write(reinterpret_cast<const char*>(entries.data()),
-              static_cast<std::streamsize>(entries.size() * sizeof(DiskEntry)));
-    uint64_t offset = sizeof(Header) + entries.size() * sizeof(DiskEntry);
-    std::vector<Imath::half> halfs;
-    for (size_t i = 0; i < frames.size(); ++i) {
-      const FrameImage frame = loadFrame(frames[i], encodingClips);
-      const Image& full = frame.image;
-      DiskEntry& e = entries[i];
-      e.offset = offset;
-      e.stats.downscale = static_cast<uint32_t>(downscale);
-      e.stats.clipLow = frame.clipLow;
-      e.stats.clipHigh = frame.clipHigh;
-      e.stats.bits = static_cast<uint32_t>(frame.read.bits);
-      size_t over = 0, under = 0;
-      for (size_t p = 0; p < full.rgb.size() / 3; ++p) {
-        const float* c = &full.rgb[3 * p];
-        if (c[0] < 0) continue;  // masked
-        over += std::max({c[0], c[1], c[2]}) >= frame.clipHigh;
-        under += std::max({c[0], c[1], c[2]}) <= frame.clipLow;
+  uint64_t offset = sizeof(Header) + entries.size() * sizeof(DiskEntry);
+  for (size_t i = 0; i < frames.size(); ++i) {
+    DiskEntry& e = entries[i];
+    e.offset = offset;
+    e.stats.width = static_cast<uint32_t>(frames[i].camera.width / downscale);
+    e.stats.height = static_cast<uint32_t>(frames[i].camera.height / downscale);
+    offset += static_cast<uint64_t>(e.stats.width) * e.stats.height * 3 * sizeof(Imath::half);
+  }
+  const uint64_t fileBytes = offset;
+  // This rank's frames into `file` (sized already), then every rank's entries to every rank.
+  auto storeOwnFrames = [&](const std::string& file) {
+    const int fd = ::open(file.c_str(), O_WRONLY);
+    if (fd < 0) fail("{}: cannot open frame cache for writing ({})", file, std::strerror(errno));
+    try {
+      for (size_t i = 0; i < frames.size(); ++i) {
+        if (!ranks.ownsChunk(i)) continue;
+        storeFrame(fd, file, frames[i], downscale, encodingClips, entries[i]);
+        if (progress) progress();
       }
-      const double n = std::max<double>(1, full.rgb.size() / 3);
-      e.stats.overexposed = static_cast<float>(over / n);
-      e.stats.underexposed = static_cast<float>(under / n);
-      e.stats.masked = static_cast<float>(frame.read.nonFinitePixels / n);
-      const Image stored = downscale > 1 ? boxDownscale(full, downscale, frame.clipHigh) : Image();
-      const Image& px = downscale > 1 ? stored : full;
-      e.stats.width = static_cast<uint32_t>(px.width);
-      e.stats.height = static_cast<uint32_t>(px.height);
-      halfs.resize(px.rgb.size());
-      for (size_t k = 0; k < px.rgb.size(); ++k) halfs[k] = Imath::half(std::min(px.rgb[k], 65504.0f));
-      out.write(reinterpret_cast<const char*>(halfs.data()),
-                static_cast<std::streamsize>(halfs.size() * sizeof(Imath::half)));
-      offset += halfs.size() * sizeof(Imath::half);
-      if (progress) progress();
+    } catch (...) {
+      ::close(fd);
+      throw;
     }
-    out.seekp(sizeof(Header));
-    out.write(reinterpret_cast<const char*>(entries.data()),
-              static_cast<std::streamsize>(entries.size() * sizeof(DiskEntry)));
-    if (!out) fail("{}: cannot write frame cache", path.string());
-  });
+    if (::close(fd) != 0) fail("{}: cannot write frame cache ({})", file, std::strerror(errno));
+    ranks.shareChunks(entries, 1);
+  };
+  if (ranks.root()) {
+    writeAtomically(path, [&](const std::filesystem::path& tmp) {
+      const std::string file = tmp.string();
+      const int fd = ::open(file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      if (fd < 0) fail("{}: cannot create frame cache ({})", file, std::strerror(errno));
+      const bool sized = ::ftruncate(fd, static_cast<off_t>(fileBytes)) == 0;
+      ::close(fd);
+      if (!sized) fail("{}: cannot make room for the frame cache ({})", file, std::strerror(errno));
+      ranks.rootString(file);  // the other ranks write their frames into the same temporary
+      storeOwnFrames(file);
+      Header h{};
+      std::memcpy(h.magic, kMagic, 8);
+      h.version = kVersion;
+      h.frames = static_cast<uint32_t>(frames.size());
+      const int index = ::open(file.c_str(), O_WRONLY);
+      if (index < 0) fail("{}: cannot open frame cache for writing ({})", file, std::strerror(errno));
+      try {
+        writeAt(index, &h, sizeof h, 0, file);
+        writeAt(index, entries.data(), entries.size() * sizeof(DiskEntry), sizeof h, file);
+      } catch (...) {
+        ::close(index);
+        throw;
+      }
+      if (::close(index) != 0) fail("{}: cannot write frame cache ({})", file, std::strerror(errno));
+    });
+  } else {
+    storeOwnFrames(ranks.rootString(""));
+  }
+  ranks.allTrue(true);  // every rank goes on once the root has put the file in place
   std::vector<FrameStats> stats;
   for (const DiskEntry& e : entries) stats.push_back(e.stats);
   return stats;

@@ -30,7 +30,10 @@ struct FrameStats {
 // masked), optionally box-filtered by an integer `downscale` (a block with a masked pixel is
 // masked, and so is one whose mean is a mix of saturated and exact values: it bounds nothing).
 // Exposure statistics are taken at full resolution. `encodingClips`: as loadFrame's. `progress` is
-// called once per frame. Atomic: the file appears complete or not at all.
+// called once per frame this process decodes. Atomic: the file appears complete or not at all.
+// Over MPI ranks (core/ranks.h), a collective: frame i is decoded by rank i mod N and written into
+// the root's temporary (the work folder is on a filesystem every rank shares), and every rank
+// returns every frame's statistics.
 std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const std::vector<Frame>& frames,
                                         int downscale = 1, bool encodingClips = true,
                                         const std::function<void()>& progress = {});

@@ -146,6 +146,9 @@ void registerPrepare(CLI::App& app, CommandTable& table) {
       o->init = InitStatistic::Mean;
     else
       fail("--init must be median or mean, not '{}'", *init);
+    if (Ranks::world().distributed())
+      spdlog::info("prepare: {} MPI ranks, {} thread(s) each; the frames and the init are split, rank 0 writes the "
+                   "files", Ranks::world().size(), threadCount());
     const PrepareSummary s = prepareCapture(*capture, *work, *o);
     spdlog::info("prepared {}: {} triangles, {}/{} frames kept, {:.2f}% of texels never observed, {:.1f}s", *work,
                  s.triangles, s.keptFrames, s.frames, 100 * s.fractionUnobserved, s.seconds);

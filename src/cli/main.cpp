@@ -22,16 +22,16 @@ namespace {
 // A failed CHECK aborts (core/check.h); command-line parse errors keep CLI11's codes.
 constexpr int kInputError = 1, kInternalError = 70;
 
-// Only the fit splits its work between MPI ranks; any other command run as several would repeat
-// the same work and write the same files from every rank.
+// Only the fit and prepare split their work between MPI ranks; any other command run as several
+// would repeat the same work and write the same files from every rank.
 void checkRanksFor(const std::string& command) {
   const int launched = relume::MpiSession::launchedRanks();
   if (launched > 1 && !relume::MpiSession::available())
     relume::fail("relume was built without MPI: run it as one process, or rebuild with Open MPI installed "
-                 "(libopenmpi-dev) to run `mpirun -np {} relume fit`", launched);
-  if (relume::Ranks::world().distributed() && command != "fit")
-    relume::fail("`relume {}` runs as one process; only `relume fit` splits its work between MPI ranks (this job "
-                 "has {})", command, relume::Ranks::world().size());
+                 "(libopenmpi-dev) to run `mpirun -np {} relume {}`", launched, command == "prepare" ? "prepare" : "fit");
+  if (relume::Ranks::world().distributed() && command != "fit" && command != "prepare")
+    relume::fail("`relume {}` runs as one process; only `relume fit` and `relume prepare` split their work between "
+                 "MPI ranks (this job has {})", command, relume::Ranks::world().size());
 }
 }  // namespace
 

@@ -133,4 +133,25 @@ void Ranks::abort(int code) { std::exit(code); }
 
 #endif
 
+std::string Ranks::rootString(const std::string& value) {
+  if (!distributed()) return value;
+  const std::vector<uint8_t> mine = root() ? std::vector<uint8_t>(value.begin(), value.end()) : std::vector<uint8_t>();
+  const std::vector<uint8_t> rootBytes = allGather(mine)[0];
+  return std::string(rootBytes.begin(), rootBytes.end());
+}
+
+uint64_t Ranks::sum(uint64_t value) {
+  if (!distributed()) return value;
+  std::vector<uint8_t> mine(sizeof value);
+  std::memcpy(mine.data(), &value, sizeof value);
+  uint64_t total = 0;
+  for (const std::vector<uint8_t>& other : allGather(mine)) {
+    CHECK(other.size() == sizeof value);
+    uint64_t v = 0;
+    std::memcpy(&v, other.data(), sizeof v);
+    total += v;
+  }
+  return total;
+}
+
 }  // namespace relume

@@ -39,6 +39,10 @@ class Ranks {
   bool agree(uint64_t value);
   // True when `value` is true on every rank.
   bool allTrue(bool value);
+  // The root's bytes on every rank (a name only the root chooses, a record only it computed).
+  std::string rootString(const std::string& value);
+  // The sum of every rank's `value` (counts of what each rank did).
+  uint64_t sum(uint64_t value);
   // Ends every rank of the job with this exit code (an error on one rank would otherwise leave the
   // others waiting in their next exchange).
   [[noreturn]] void abort(int code);

@@ -13,6 +13,7 @@
 #include "capture/objects.h"
 #include "capture/photometric_consistency.h"
 #include "core/error.h"
+#include "core/ranks.h"
 #include "core/rng.h"
 #include "core/system.h"
 #include "io/atomic_file.h"
@@ -274,7 +275,8 @@ Json visibilityPhase(const Scene& scene, const TexelMap& initMap, const Capture&
 
 // Every observation of every init-resolution texel by the kept frames, visited frame by frame:
 // the first pass traces each (texel, frame) pair for occlusion and remembers the unoccluded ones
-// in one bit each, so later passes re-project without tracing again.
+// in one bit each, so later passes re-project without tracing again. Over MPI ranks each rank
+// visits the texel rows it owns (row y by rank y mod N), in every pass.
 class TexelObservations {
  public:
   TexelObservations(const Scene& scene, const TexelMap& initMap, const Capture& cap, const std::vector<size_t>& kept,
@@ -329,7 +331,8 @@ class TexelObservations {
         const auto [tile, slot] = begin[static_cast<std::ptrdiff_t>(i)];
         std::vector<uint64_t>& bits = seenBits_[tile];
         const int tx = static_cast<int>(tile) % tilesPerSide, ty = static_cast<int>(tile) / tilesPerSide;
-        for (int y = ty * tileTexels_; y < (ty + 1) * tileTexels_; ++y)
+        for (int y = ty * tileTexels_; y < (ty + 1) * tileTexels_; ++y) {
+          if (!ranks_.ownsChunk(static_cast<size_t>(y))) continue;
           for (int x = tx * tileTexels_; x < (tx + 1) * tileTexels_; ++x) {
             const size_t texel = static_cast<size_t>(y) * initRes + x;
             if (!map_.valid(texel)) continue;
@@ -348,6 +351,7 @@ class TexelObservations {
             if (!traced) bits[bit / 64] |= uint64_t{1} << (bit % 64);
             add(texel, static_cast<uint32_t>(k), *c);
           }
+        }
       });
       progress.advance();
     }
@@ -374,7 +378,44 @@ class TexelObservations {
   std::vector<Vec3> texelPoint_, texelNormal_;
   std::atomic<size_t> fellBack_{0};
   int passes_ = 0;
+  const Ranks& ranks_ = Ranks::world();
 };
+
+// Over MPI ranks: every sampled texel's observations, gathered by the rank owning its row
+// (TexelObservations), on every rank, in the order one process holds them.
+void shareSample(std::vector<std::vector<GainObservation>>& sampled, size_t stride, int resolution) {
+  Ranks& ranks = Ranks::world();
+  if (!ranks.distributed()) return;
+  const auto owner = [&](size_t i) {
+    return static_cast<int>((i * stride / static_cast<size_t>(resolution)) % static_cast<size_t>(ranks.size()));
+  };
+  std::vector<uint8_t> mine;
+  const auto put = [&](const void* p, size_t n) {
+    mine.insert(mine.end(), static_cast<const uint8_t*>(p), static_cast<const uint8_t*>(p) + n);
+  };
+  for (size_t i = 0; i < sampled.size(); ++i) {
+    if (owner(i) != ranks.rank()) continue;
+    const uint64_t n = sampled[i].size();
+    put(&n, sizeof n);
+    put(sampled[i].data(), n * sizeof(GainObservation));
+  }
+  const std::vector<std::vector<uint8_t>> all = ranks.allGather(mine);
+  std::vector<size_t> at(all.size(), 0);
+  for (size_t i = 0; i < sampled.size(); ++i) {
+    const int r = owner(i);
+    if (r == ranks.rank()) continue;
+    const std::vector<uint8_t>& bytes = all[static_cast<size_t>(r)];
+    uint64_t n = 0;
+    CHECK(at[r] + sizeof n <= bytes.size());
+    std::memcpy(&n, bytes.data() + at[r], sizeof n);
+    at[r] += sizeof n;
+    CHECK(at[r] + n * sizeof(GainObservation) <= bytes.size());
+    sampled[i].resize(n);
+    std::memcpy(static_cast<void*>(sampled[i].data()), bytes.data() + at[r], n * sizeof(GainObservation));
+    at[r] += n * sizeof(GainObservation);
+  }
+  for (size_t r = 0; r < all.size(); ++r) CHECK(static_cast<int>(r) == ranks.rank() || at[r] == all[r].size());
+}
 
 // Frame gains from the frames' agreement on a regular sample of texels (photometric_consistency.h),
 // written to frame_gains.json: what the fit starts its frame gains from, and a check of recorded
@@ -393,9 +434,10 @@ ConsistencyGains consistencyGains(TexelObservations& observations, const TexelMa
     if (t % stride == 0 && (c > s.clipLow).all() && (c < s.clipHigh).all() && (c > 0.0f).all())
       sampled[t / stride].push_back({f, c});
   });
+  shareSample(sampled, stride, initMap.resolution());
   const std::vector<uint32_t> keptFrames(kept.begin(), kept.end());
   const ConsistencyGains g = solveConsistencyGains(sampled, store.frameCount(), keptFrames);
-  writeConsistencyGains(work / "frame_gains.json", g, keptFrames);
+  if (Ranks::world().root()) writeConsistencyGains(work / "frame_gains.json", g, keptFrames);
   return g;
 }
 
@@ -422,17 +464,23 @@ Json agreementPass(TexelObservations& observations, const FrameStore& store, con
     const float d = observationDeviation(radiance(f, c), median);
     deviation[t] += d, disagree[t] += d > threshold, ++unclipped[t];
   });
+  Ranks& ranks = Ranks::world();
+  const size_t width = static_cast<size_t>(init.width);
   Image out(init.width, init.height);
+  for (size_t t = 0; t < texels; ++t) {
+    if (!coverage[t] || !ranks.ownsChunk(t / width)) continue;  // another rank's row
+    const float spread = unclipped[t] ? deviation[t] / unclipped[t] : 0.0f;
+    const float share = unclipped[t] ? static_cast<float>(disagree[t]) / unclipped[t] : 0.0f;
+    out.set(static_cast<int>(t % width), static_cast<int>(t / width),
+            Color(spread, share, static_cast<float>(clipped[t]) / (clipped[t] + unclipped[t])));
+  }
+  ranks.shareChunks(out.rgb, 3 * width);
   std::vector<float> spreads, shares;
   for (size_t t = 0; t < texels; ++t) {
     if (!coverage[t]) continue;
-    const float spread = unclipped[t] ? deviation[t] / unclipped[t] : 0.0f;
-    const float share = unclipped[t] ? static_cast<float>(disagree[t]) / unclipped[t] : 0.0f;
-    out.set(static_cast<int>(t % init.width), static_cast<int>(t / init.width),
-            Color(spread, share, static_cast<float>(clipped[t]) / (clipped[t] + unclipped[t])));
-    spreads.push_back(spread), shares.push_back(share);
+    spreads.push_back(out.rgb[3 * t]), shares.push_back(out.rgb[3 * t + 1]);
   }
-  writeExr(file, out);
+  if (ranks.root()) writeExr(file, out);
   return {{"agreement_ratio", kAgreementRatio},
           {"median_log_spread", medianOf(spreads)},
           {"median_share_disagreeing", medianOf(shares)}};
@@ -497,23 +545,28 @@ Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, 
           rows);
       statistic = [&](size_t t) { return Color((sum[t - first] / coverage[t]).cast<float>()); };
     }
-    for (size_t t = first; t < first + count; ++t) {
-      if (!initMap.valid(t)) continue;
-      ++valid;
-      cov.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes),
-              Color::Constant(static_cast<float>(coverage[t])));
-      if (coverage[t] == 0) {
-        ++unobserved;
-        continue;
-      }
-      const Color v = statistic(t);
-      albedo.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes), v);
-      const Eigen::Array3d vd = v.cast<double>();
-      objectMean[mesh.faceObject[initMap.triangle(t)]] += Eigen::Array4d(vd[0], vd[1], vd[2], 1.0);
-    }
+    for (size_t t = first; t < first + count; ++t)
+      if (initMap.valid(t) && coverage[t] > 0)
+        albedo.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes), statistic(t));
   }
   sketch.reset();
   std::vector<Eigen::Array3d>().swap(sum);
+  // Every rank's rows (TexelObservations splits them) on every rank.
+  Ranks& ranks = Ranks::world();
+  ranks.shareChunks(albedo.rgb, 3 * static_cast<size_t>(initRes));
+  ranks.shareChunks(coverage, static_cast<size_t>(initRes));
+  for (size_t t = 0; t < texels; ++t) {
+    if (!initMap.valid(t)) continue;
+    ++valid;
+    cov.set(static_cast<int>(t % initRes), static_cast<int>(t / initRes),
+            Color::Constant(static_cast<float>(coverage[t])));
+    if (coverage[t] == 0) {
+      ++unobserved;
+      continue;
+    }
+    const Eigen::Array3d vd = albedo.at(static_cast<int>(t % initRes), static_cast<int>(t / initRes)).cast<double>();
+    objectMean[mesh.faceObject[initMap.triangle(t)]] += Eigen::Array4d(vd[0], vd[1], vd[2], 1.0);
+  }
   // Texels no frame saw start from their object's average (or mid-grey).
   for (size_t t = 0; t < texels; ++t) {
     if (!initMap.valid(t) || coverage[t] > 0) continue;
@@ -522,10 +575,12 @@ Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, 
                m[3] > 0 ? Color((m.head<3>() / m[3]).cast<float>()) : Color::Constant(0.5f));
   }
   const Json agreementSummary = agreementPass(observations, store, albedo, coverage, radiance, work / "agreement.exr");
-  writeExr(work / "albedo_init.exr", albedo);
-  writePng(work / "albedo_init.png", albedo);  // preview
-  writeExr(work / "coverage.exr", cov);
-  writePng(work / "coverage.png", falseColour(coverage, initRes));
+  if (ranks.root()) {
+    writeExr(work / "albedo_init.exr", albedo);
+    writePng(work / "albedo_init.png", albedo);  // preview
+    writeExr(work / "coverage.exr", cov);
+    writePng(work / "coverage.png", falseColour(coverage, initRes));
+  }
   const double fraction = valid ? double(unobserved) / valid : 0.0;
   spdlog::info("init: {} valid texels at {}^2, {:.2f}% never observed", valid, initRes, 100 * fraction);
   return Json{{"resolution", initRes},
@@ -535,7 +590,7 @@ Json initPhase(const Scene& scene, const TexelMap& initMap, const Capture& cap, 
               {"fraction_unobserved", fraction},
               {"texels_geometric_normal", observations.texelsWithGeometricNormal()},
               {"agreement", agreementSummary},
-              {"skipped_rays", scene.skippedRays() - skippedBefore}};
+              {"skipped_rays", ranks.sum(scene.skippedRays() - skippedBefore)}};
 }
 
 // The init phase's plan (product/prepare_memory.h) from what the process holds now, with the
@@ -594,13 +649,21 @@ fs::path capturePreparedIn(const fs::path& work) {
 
 PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, const PrepareOptions& o) {
   Timer total;
+  // Over MPI ranks the root decides which phases run and writes every file; the frames and the
+  // init phases are split between the ranks, the others run on the root (docs/design/distributed.md).
+  Ranks& ranks = Ranks::world();
+  const auto rootJson = [&](const Json& j) { return ranks.distributed() ? Json::parse(ranks.rootString(j.dump())) : j; };
   requireDirectory(capture, "a capture folder");
-  createDirectories(work);
-  if (const size_t stale = removeStaleTemporaries(work))
-    spdlog::info("prepare: removed {} temporaries of killed runs", stale);
+  if (ranks.root()) {
+    createDirectories(work);
+    if (const size_t stale = removeStaleTemporaries(work))
+      spdlog::info("prepare: removed {} temporaries of killed runs", stale);
+  }
   const fs::path meshPath = findCaptureMesh(capture);
   Capture cap = readCapture(capture);
-  Json report = previousReport(work / "prepare.json", o.force);
+  Json report = ranks.root() ? previousReport(work / "prepare.json", o.force) : Json::object();
+  const Json rootReport = rootJson(report);
+  if (!ranks.root()) report = rootReport;
   report.erase("response");
   if (!o.response.empty()) report["response"] = {{"spec", o.response}, {"dir", fs::current_path().string()}};
   applyPreparedResponse(report, cap.frames);
@@ -622,22 +685,29 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   }
 
   // A phase is current when its fingerprint (inputs + options + the previous phase) is unchanged.
+  // A phase `split` between the ranks runs on every rank (a collective), any other on the root.
+  enum class Runs { OnRoot, Split };
   auto runPhase = [&](const char* name, const std::string& fingerprint, const std::vector<fs::path>& outputs,
-                      const std::function<Json()>& body) {
+                      Runs runs, const std::function<Json()>& body) {
     bool current = !o.force && phases.contains(name) && phases[name].value("fingerprint", "") == fingerprint;
     for (const fs::path& out : outputs) current = current && pathExists(out);
-    if (current) {
+    if (ranks.rootValue(current ? 1 : 0) != 0) {
       spdlog::info("prepare: {} is up to date", name);
       return;
     }
     Timer t;
-    Json result = body();
+    Json result = runs == Runs::Split || ranks.root() ? body() : Json::object();
     result["fingerprint"] = fingerprint;
     result["seconds"] = t.seconds();
     result["peak_rss_mib_so_far"] = peakRssMiB();  // the run's peak at the phase's end: which phase raised it
-    phases[name] = result;
-    report["phases"] = phases;
-    writeJson(work / "prepare.json", report);  // after each phase: an interrupted run keeps its progress
+    // The root's record, sent once its files are in place: the other ranks read them next.
+    if (ranks.root()) {
+      phases[name] = result;
+      report["phases"] = phases;
+      writeJson(work / "prepare.json", report);  // after each phase: an interrupted run keeps its progress
+    }
+    const Json rootRecord = rootJson(phases[name]);
+    if (!ranks.root()) phases[name] = rootRecord, report["phases"] = phases;
     spdlog::info("prepare: {} done in {:.1f}s (peak RSS so far {:.0f} MiB)", name, t.seconds(), peakRssMiB());
   };
 
@@ -651,7 +721,8 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   const std::string framesPrint =
       fingerprintOf(imagePaths, fmt::format("frames3 {} {} {} {} {} {} {}", o.maxOverexposed, o.maxUnderexposed,
                                             o.maxSpeed, o.maxAngularSpeed, o.downscale, o.encodingClips, responses));
-  runPhase("frames", framesPrint, {work / "frames.bin"}, [&] { return framesPhase(cap, duplicates, work, o); });
+  runPhase("frames", framesPrint, {work / "frames.bin"}, Runs::Split,
+           [&] { return framesPhase(cap, duplicates, work, o); });
   const std::vector<size_t> kept = jsonIntegers<size_t>(phases["frames"]["kept"], 0, cap.frames.size() - 1,
                                                         (work / "prepare.json").string(), "kept");
   if (kept.empty()) fail("prepare: every frame was dropped (see {})", (work / "prepare.json").string());
@@ -669,13 +740,15 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
                                 so.edgeContrast, so.regionContrast, so.significance, so.clipSplit, so.minAreaFraction,
                                 so.keepBrighter, o.faceAppearance.maxFrames, o.faceAppearance.radianceFloor,
                                 o.faceAppearance.minLogSpread, o.faceAppearance.planeTolerance));
-    runPhase("segmentation", segmentationPrint, {work / "segments.bin", work / "objects.json"},
+    runPhase("segmentation", segmentationPrint, {work / "segments.bin", work / "objects.json"}, Runs::OnRoot,
              [&] { return segmentationPhase(meshPath, cap, kept, work, o); });
   } else if (phases.contains("segmentation")) {
     phases.erase("segmentation");
     report["phases"] = phases;
-    removeFile(work / "segments.bin");
-    removeFile(work / "objects.json");
+    if (ranks.root()) {
+      removeFile(work / "segments.bin");
+      removeFile(work / "objects.json");
+    }
   }
 
   // Atlas.
@@ -685,7 +758,7 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
                                             o.atlas.coneDegrees, o.atlas.planarDegrees, segmentationPrint));
   const std::optional<fs::path> segments =
       computeObjects ? std::optional<fs::path>(work / "segments.bin") : std::nullopt;
-  runPhase("atlas", atlasPrint, {work / "atlas_mesh.ply"},
+  runPhase("atlas", atlasPrint, {work / "atlas_mesh.ply"}, Runs::OnRoot,
            [&] { return atlasPhase(capture, meshPath, work, o, segments); });
   const TriangleMesh mesh = loadMesh(work / "atlas_mesh.ply");
   const Scene scene(mesh);
@@ -694,7 +767,7 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   const TexelMap initMap(mesh, initRes);
   const std::string visPrint = fingerprintOf(
       {}, fmt::format("vis {} {} {} {} {}", atlasPrint, framesPrint, initRes, o.tileTexels, o.samplesPerTile));
-  runPhase("visibility", visPrint, {work / "visibility.bin"},
+  runPhase("visibility", visPrint, {work / "visibility.bin"}, Runs::OnRoot,
            [&] { return visibilityPhase(scene, initMap, cap, kept, work, o); });
 
   // Initial albedo (streaming median of observed radiance) and coverage, planned to the budget
@@ -707,8 +780,12 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   runPhase("init", initPrint,
            {work / "albedo_init.exr", work / "coverage.exr", work / "coverage.png", work / "frame_gains.json",
             work / "agreement.exr"},
-           [&] {
-             const InitPhasePlan plan = planInit(initMap, cap, kept, work, o);
+           Runs::Split, [&] {
+             InitPhasePlan plan = planInit(initMap, cap, kept, work, o);
+             // The root's plan: the ranks' resident sets differ, and the gain sample's stride is a result.
+             plan.rowsPerBand = static_cast<int>(ranks.rootValue(plan.rowsPerBand));
+             plan.bands = static_cast<int>(ranks.rootValue(plan.bands));
+             plan.gainStride = static_cast<size_t>(ranks.rootValue(static_cast<double>(plan.gainStride)));
              Json result = initPhase(scene, initMap, cap, kept, plan, work, o);
              if (o.memoryBudgetBytes > 0) result["memory_budget"] = plan.toJson();
              return result;
@@ -725,7 +802,7 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
   report["texel_map_bytes_per_texel"] = sizeof(uint32_t);
   // Timings describe the last run that did something: an up-to-date folder (even a read-only one)
   // is left untouched.
-  if (report != reportBefore) {
+  if (report != reportBefore && ranks.root()) {
     report["peak_rss_mib"] = peakRssMiB();
     report["seconds_total_last_run"] = s.seconds;
     writeJson(work / "prepare.json", report);

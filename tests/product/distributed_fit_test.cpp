@@ -110,11 +110,13 @@ TEST_F(DistributedFit, TwoRanksEndAsOneProcessAndACheckpointResumesAtAnotherRank
   EXPECT_FALSE(fs::exists(mixed / "checkpoint.bin"));
 
   // Any other command would do its work twice: refused, before it writes anything.
-  run = runRelumeRanks(2, "--log warn prepare '" + (dir_ / "capture").string() + "' --out '" +
-                              (dir_ / "prepared_twice").string() + "'");
+  run = runRelumeRanks(2, "--log warn synth --scene room --frames 2 --out '" + (dir_ / "synthesised_twice").string() +
+                              "'");
   EXPECT_NE(run.exitCode, 0);
-  EXPECT_NE(run.output.find("only `relume fit` splits its work between MPI ranks"), std::string::npos) << run.output;
-  EXPECT_FALSE(fs::exists(dir_ / "prepared_twice"));
+  EXPECT_NE(run.output.find("only `relume fit` and `relume prepare` split their work between MPI ranks"),
+            std::string::npos)
+      << run.output;
+  EXPECT_FALSE(fs::exists(dir_ / "synthesised_twice"));
 }
 
 // Three ranks, a batch of several sub-batches (so chunks are numbered from a sub-batch's first

@@ -1,10 +1,13 @@
 #include "capture/photometric_consistency.h"
 
 #include <Eigen/Dense>
+#include <array>
 #include <cmath>
+#include <cstring>
 
 #include "core/check.h"
 #include "core/error.h"
+#include "core/ranks.h"
 #include "io/json.h"
 
 namespace relume {
@@ -30,7 +33,12 @@ ConsistencyGains solveConsistencyGains(const std::vector<std::vector<GainObserva
     if (obs.size() >= 2)
       for (const GainObservation& o : obs) ++out.texels[o.frame];
   if (n < 2) return out;
+  // The channels are independent: over MPI ranks channel c is solved by rank c mod N (core/ranks.h)
+  // and the log gains are exchanged. One at a time within a process: each holds two n x n matrices.
+  Ranks& ranks = Ranks::world();
+  std::array<std::vector<double>, 3> logGain;
   for (int c = 0; c < 3; ++c) {
+    if (!ranks.ownsChunk(static_cast<size_t>(c))) continue;
     Eigen::VectorXd a = Eigen::VectorXd::Zero(n);  // log gains
     std::vector<std::vector<double>> weight(observations.size());
     for (size_t x = 0; x < observations.size(); ++x) weight[x].assign(observations[x].size(), 1.0);
@@ -77,9 +85,31 @@ ConsistencyGains solveConsistencyGains(const std::vector<std::vector<GainObserva
       }
       rms = weights > 0 ? std::sqrt(squares / weights) : 0.0;
     }
-    for (int k = 0; k < n; ++k) out.gain[kept[k]][c] = static_cast<float>(std::exp(a[k]));
+    logGain[c].assign(a.data(), a.data() + n);
     out.residualRms[c] = rms;
   }
+  if (ranks.distributed()) {
+    std::vector<uint8_t> mine;  // per channel solved here: its residual, then its n log gains
+    for (int c = 0; c < 3; ++c) {
+      if (!ranks.ownsChunk(static_cast<size_t>(c))) continue;
+      const auto* rms = reinterpret_cast<const uint8_t*>(&out.residualRms[c]);
+      const auto* gains = reinterpret_cast<const uint8_t*>(logGain[c].data());
+      mine.insert(mine.end(), rms, rms + sizeof(double));
+      mine.insert(mine.end(), gains, gains + n * sizeof(double));
+    }
+    const std::vector<std::vector<uint8_t>> all = ranks.allGather(mine);
+    std::vector<size_t> at(all.size(), 0);
+    for (int c = 0; c < 3; ++c) {
+      const size_t r = static_cast<size_t>(c) % all.size();
+      CHECK(at[r] + (n + 1) * sizeof(double) <= all[r].size());
+      std::memcpy(&out.residualRms[c], all[r].data() + at[r], sizeof(double));
+      logGain[c].resize(n);
+      std::memcpy(logGain[c].data(), all[r].data() + at[r] + sizeof(double), n * sizeof(double));
+      at[r] += (n + 1) * sizeof(double);
+    }
+  }
+  for (int c = 0; c < 3; ++c)
+    for (int k = 0; k < n; ++k) out.gain[kept[k]][c] = static_cast<float>(std::exp(logGain[c][k]));
   return out;
 }
 

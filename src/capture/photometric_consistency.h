@@ -27,6 +27,7 @@ struct ConsistencyGains {
 
 // `observations[x]`: texel x's observations (texels with fewer than 2 are skipped). Frames outside
 // `kept` must not appear.
+// Over MPI ranks a collective: every rank passes the same observations and gets the same gains.
 ConsistencyGains solveConsistencyGains(const std::vector<std::vector<GainObservation>>& observations, size_t frameCount,
                                        std::span<const uint32_t> kept);
 

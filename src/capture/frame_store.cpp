@@ -61,13 +61,14 @@ Image boxDownscale(const Image& img, int k, float clipHigh) {
 }  // namespace
 
 namespace {
-// Writes all of `bytes` at `offset` of the open file `fd`; fails naming `file` (a full disk).
+// Writes all of `bytes` at `offset` of the open file `fd`; fails naming `file`, the cache being
+// written (a full disk).
 void writeAt(int fd, const void* bytes, size_t size, uint64_t offset, const std::string& file) {
   const auto* p = static_cast<const uint8_t*>(bytes);
   while (size > 0) {
     const ssize_t n = ::pwrite(fd, p, size, static_cast<off_t>(offset));
     if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) fail("{}: cannot write frame cache ({})", file, std::strerror(errno));
+    if (n <= 0) fail("{}: cannot write frame cache ({})", file, n < 0 ? std::strerror(errno) : "no space written");
     p += n, size -= static_cast<size_t>(n), offset += static_cast<uint64_t>(n);
   }
 }
@@ -118,9 +119,12 @@ std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const
     offset += static_cast<uint64_t>(e.stats.width) * e.stats.height * 3 * sizeof(Imath::half);
   }
   const uint64_t fileBytes = offset;
-  // This rank's frames into `file` (sized already), then every rank's entries to every rank.
-  auto storeOwnFrames = [&](const std::string& file) {
-    const int fd = ::open(file.c_str(), O_WRONLY);
+  // Errors name the cache, not its temporary.
+  const std::string file = path.string();
+  // This rank's frames into the temporary `tmp` (sized already), then every rank's entries to every
+  // rank.
+  auto storeOwnFrames = [&](const std::string& tmp) {
+    const int fd = ::open(tmp.c_str(), O_WRONLY);
     if (fd < 0) fail("{}: cannot open frame cache for writing ({})", file, std::strerror(errno));
     try {
       for (size_t i = 0; i < frames.size(); ++i) {
@@ -136,20 +140,22 @@ std::vector<FrameStats> writeFrameStore(const std::filesystem::path& path, const
     ranks.shareChunks(entries, 1);
   };
   if (ranks.root()) {
-    writeAtomically(path, [&](const std::filesystem::path& tmp) {
-      const std::string file = tmp.string();
-      const int fd = ::open(file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    writeAtomically(path, [&](const std::filesystem::path& tmpPath) {
+      // Absolute: the ranks may run in other working directories.
+      const std::string tmp = std::filesystem::absolute(tmpPath).string();
+      const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0666);  // less the umask, as ofstream
       if (fd < 0) fail("{}: cannot create frame cache ({})", file, std::strerror(errno));
       const bool sized = ::ftruncate(fd, static_cast<off_t>(fileBytes)) == 0;
-      ::close(fd);
-      if (!sized) fail("{}: cannot make room for the frame cache ({})", file, std::strerror(errno));
-      ranks.rootString(file);  // the other ranks write their frames into the same temporary
-      storeOwnFrames(file);
+      const int sizeError = errno;
+      if (::close(fd) != 0 || !sized)
+        fail("{}: cannot make room for the frame cache ({})", file, std::strerror(sized ? errno : sizeError));
+      ranks.rootString(tmp);  // the other ranks write their frames into the same temporary
+      storeOwnFrames(tmp);
       Header h{};
       std::memcpy(h.magic, kMagic, 8);
       h.version = kVersion;
       h.frames = static_cast<uint32_t>(frames.size());
-      const int index = ::open(file.c_str(), O_WRONLY);
+      const int index = ::open(tmp.c_str(), O_WRONLY);
       if (index < 0) fail("{}: cannot open frame cache for writing ({})", file, std::strerror(errno));
       try {
         writeAt(index, &h, sizeof h, 0, file);

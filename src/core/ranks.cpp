@@ -77,20 +77,29 @@ std::vector<std::vector<uint8_t>> Ranks::allGather(const std::vector<uint8_t>& m
   const uint64_t own = mine.size();
   checkMpi(MPI_Allgather(&own, 1, MPI_UINT64_T, sizes.data(), 1, MPI_UINT64_T, MPI_COMM_WORLD), "MPI_Allgather");
   waitSeconds_ += timer.seconds();
-  std::vector<int> counts(sizes.size()), offsets(sizes.size());
-  uint64_t total = 0;
-  for (size_t r = 0; r < sizes.size(); ++r) {
-    CHECK(total + sizes[r] <= static_cast<uint64_t>(INT_MAX));  // one exchange is a batch's, megabytes
-    counts[r] = static_cast<int>(sizes[r]), offsets[r] = static_cast<int>(total);
-    total += sizes[r];
-  }
-  std::vector<uint8_t> joined(total);
-  checkMpi(MPI_Allgatherv(mine.data(), counts[static_cast<size_t>(rank_)], MPI_BYTE, joined.data(), counts.data(),
-                          offsets.data(), MPI_BYTE, MPI_COMM_WORLD),
-           "MPI_Allgatherv");
+  // MPI's counts are ints: an exchange of more than 2 GiB in all goes in rounds, each rank sending
+  // at most its share of INT_MAX bytes per round (a batch's megabytes take one round).
+  const uint64_t piece = static_cast<uint64_t>(INT_MAX) / sizes.size();
+  const uint64_t largest = *std::max_element(sizes.begin(), sizes.end());
   std::vector<std::vector<uint8_t>> all(sizes.size());
-  for (size_t r = 0; r < sizes.size(); ++r)
-    all[r].assign(joined.begin() + offsets[r], joined.begin() + offsets[r] + counts[r]);
+  for (size_t r = 0; r < sizes.size(); ++r) all[r].reserve(sizes[r]);
+  std::vector<int> counts(sizes.size()), offsets(sizes.size());
+  std::vector<uint8_t> joined;
+  for (uint64_t from = 0; from < largest; from += piece) {
+    uint64_t total = 0;
+    for (size_t r = 0; r < sizes.size(); ++r) {
+      counts[r] = static_cast<int>(sizes[r] > from ? std::min(piece, sizes[r] - from) : 0);
+      offsets[r] = static_cast<int>(total);
+      total += static_cast<uint64_t>(counts[r]);
+    }
+    joined.resize(total);
+    const int sent = counts[static_cast<size_t>(rank_)];
+    checkMpi(MPI_Allgatherv(sent > 0 ? mine.data() + from : mine.data(), sent, MPI_BYTE, joined.data(), counts.data(),
+                            offsets.data(), MPI_BYTE, MPI_COMM_WORLD),
+             "MPI_Allgatherv");
+    for (size_t r = 0; r < sizes.size(); ++r)
+      all[r].insert(all[r].end(), joined.begin() + offsets[r], joined.begin() + offsets[r] + counts[r]);
+  }
   exchangeSeconds_ += timer.seconds();
   return all;
 }

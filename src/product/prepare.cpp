@@ -211,7 +211,10 @@ std::string dropReason(const Capture& cap, size_t i, const FrameStats& stats, co
 // counted once.
 Json framesPhase(const Capture& cap, const std::vector<DuplicateFrame>& duplicates, const fs::path& work,
                  const PrepareOptions& o) {
-  Progress progress("frame cache", cap.frames.size());
+  // Over MPI ranks, this rank's frames (frame i is rank i mod N's).
+  const Ranks& ranks = Ranks::world();
+  const size_t n = static_cast<size_t>(ranks.size()), rank = static_cast<size_t>(ranks.rank());
+  Progress progress("frame cache", (cap.frames.size() + n - 1 - rank) / n);
   const std::vector<FrameStats> stats =
       writeFrameStore(work / "frames.bin", cap.frames, o.downscale, o.encodingClips, [&] { progress.advance(); });
   Json kept = Json::array(), dropped = Json::array();
@@ -781,8 +784,8 @@ PrepareSummary prepareCapture(const fs::path& capture, const fs::path& work, con
            {work / "albedo_init.exr", work / "coverage.exr", work / "coverage.png", work / "frame_gains.json",
             work / "agreement.exr"},
            Runs::Split, [&] {
-             InitPhasePlan plan = planInit(initMap, cap, kept, work, o);
              // The root's plan: the ranks' resident sets differ, and the gain sample's stride is a result.
+             InitPhasePlan plan = ranks.root() ? planInit(initMap, cap, kept, work, o) : InitPhasePlan{};
              plan.rowsPerBand = static_cast<int>(ranks.rootValue(plan.rowsPerBand));
              plan.bands = static_cast<int>(ranks.rootValue(plan.bands));
              plan.gainStride = static_cast<size_t>(ranks.rootValue(static_cast<double>(plan.gainStride)));

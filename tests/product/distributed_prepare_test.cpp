@@ -50,7 +50,7 @@ class DistributedPrepare : public ::testing::Test {
     so.out = dir_ / "capture";
     writeSynthCapture(so);
   }
-  // 480^2 in 32-texel tiles: 15 tile rows, which no rank count above 1 here divides.
+  // 480^2 in 32-texel tiles: 3 ranks split each tile's 32 texel rows unevenly (11, 11, 10).
   std::string prepare(const std::string& out, const std::string& log = "warn") const {
     return "--log " + log + " prepare '" + (dir_ / "capture").string() + "' --out '" + (dir_ / out).string() +
            "' --res 480 --gutter-res 480 --tile 32";

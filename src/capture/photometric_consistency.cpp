@@ -100,7 +100,7 @@ ConsistencyGains solveConsistencyGains(const std::vector<std::vector<GainObserva
     const std::vector<std::vector<uint8_t>> all = ranks.allGather(mine);
     std::vector<size_t> at(all.size(), 0);
     for (int c = 0; c < 3; ++c) {
-      const size_t r = static_cast<size_t>(c) % all.size();
+      const size_t r = static_cast<size_t>(ranks.ownerOf(static_cast<size_t>(c)));
       CHECK(at[r] + (n + 1) * sizeof(double) <= all[r].size());
       std::memcpy(&out.residualRms[c], all[r].data() + at[r], sizeof(double));
       logGain[c].resize(n);

@@ -28,7 +28,8 @@ class Ranks {
   bool distributed() const { return size_ > 1; }
   int ranksOnThisHost() const { return local_; }
   // Which rank traces the `chunk`-th chunk of a pass (chunks numbered from the pass's first ray).
-  bool ownsChunk(size_t chunk) const { return static_cast<int>(chunk % static_cast<size_t>(size_)) == rank_; }
+  int ownerOf(size_t chunk) const { return static_cast<int>(chunk % static_cast<size_t>(size_)); }
+  bool ownsChunk(size_t chunk) const { return ownerOf(chunk) == rank_; }
 
   // Every rank's bytes, in rank order (this rank's own included). Collective: every rank calls it
   // at the same point of the program.

@@ -211,10 +211,9 @@ std::string dropReason(const Capture& cap, size_t i, const FrameStats& stats, co
 // counted once.
 Json framesPhase(const Capture& cap, const std::vector<DuplicateFrame>& duplicates, const fs::path& work,
                  const PrepareOptions& o) {
-  // Over MPI ranks, this rank's frames (frame i is rank i mod N's).
-  const Ranks& ranks = Ranks::world();
-  const size_t n = static_cast<size_t>(ranks.size()), rank = static_cast<size_t>(ranks.rank());
-  Progress progress("frame cache", (cap.frames.size() + n - 1 - rank) / n);
+  size_t ownFrames = 0;  // over MPI ranks, the frames this rank decodes (writeFrameStore)
+  for (size_t i = 0; i < cap.frames.size(); ++i) ownFrames += Ranks::world().ownsChunk(i);
+  Progress progress("frame cache", ownFrames);
   const std::vector<FrameStats> stats =
       writeFrameStore(work / "frames.bin", cap.frames, o.downscale, o.encodingClips, [&] { progress.advance(); });
   Json kept = Json::array(), dropped = Json::array();
@@ -389,9 +388,7 @@ class TexelObservations {
 void shareSample(std::vector<std::vector<GainObservation>>& sampled, size_t stride, int resolution) {
   Ranks& ranks = Ranks::world();
   if (!ranks.distributed()) return;
-  const auto owner = [&](size_t i) {
-    return static_cast<int>((i * stride / static_cast<size_t>(resolution)) % static_cast<size_t>(ranks.size()));
-  };
+  const auto owner = [&](size_t i) { return ranks.ownerOf(i * stride / static_cast<size_t>(resolution)); };
   std::vector<uint8_t> mine;
   const auto put = [&](const void* p, size_t n) {
     mine.insert(mine.end(), static_cast<const uint8_t*>(p), static_cast<const uint8_t*>(p) + n);

@@ -411,7 +411,8 @@ void shareSample(std::vector<std::vector<GainObservation>>& sampled, size_t stri
     at[r] += sizeof n;
     CHECK(at[r] + n * sizeof(GainObservation) <= bytes.size());
     sampled[i].resize(n);
-    std::memcpy(static_cast<void*>(sampled[i].data()), bytes.data() + at[r], n * sizeof(GainObservation));
+    if (n > 0)  // an empty vector's data() may be null, which memcpy must not get
+      std::memcpy(static_cast<void*>(sampled[i].data()), bytes.data() + at[r], n * sizeof(GainObservation));
     at[r] += n * sizeof(GainObservation);
   }
   for (size_t r = 0; r < all.size(); ++r) CHECK(static_cast<int>(r) == ranks.rank() || at[r] == all[r].size());

@@ -263,14 +263,21 @@ void registerFit(CLI::App& app, CommandTable& table) {
   c->add_option("--memory-budget", *memory,
                 "stay within this memory (2G, 1.5G, 800M): the finest albedo resolution whose predicted peak fits, or "
                 "a refusal up front (sets memory_budget_mib)");
+  auto untilConverged = std::make_shared<bool>(false);
+  c->add_flag("--until-converged", *untilConverged,
+              "end each albedo stage once its albedo has stopped moving by more than its noise, up to albedo_passes "
+              "(sets stop_on_convergence)");
   auto noReport = std::make_shared<bool>(false);
   c->add_flag("--no-report", *noReport, "skip WORK/report/ (`relume report WORK` writes it later)");
   table[c] = [=] {
     const FitConfig base = FitConfig::forQuality(parseEnum<FitQuality>(*quality, "--quality"));
     FitConfig cfg = config->empty() ? base : FitConfig::load(*config, base);
-    spdlog::info("fit: quality {}: emission {}, albedo stages at most {}, materials {}, emission textures {} iterations",
-                 *quality, cfg.emissionIterations, cfg.maxStageIterations, cfg.materialIterations,
-                 cfg.emissionTextureIterations);
+    if (*untilConverged) cfg.stopOnConvergence = true;
+    spdlog::info("fit: quality {}: emission {}, albedo stages {}, materials {}, emission textures {} iterations",
+                 *quality, cfg.emissionIterations,
+                 cfg.stopOnConvergence ? fmt::format("until converged (at most {} passes)", cfg.albedoPasses)
+                                       : fmt::format("at most {}", cfg.maxStageIterations),
+                 cfg.materialIterations, cfg.emissionTextureIterations);
     if (*maxRes > 0) cfg.maxResolution = *maxRes;
     if (!budget->empty()) {
       const std::optional<double> seconds = parseDuration(*budget);

@@ -14,6 +14,7 @@
 #include "io/atomic_file.h"
 #include "io/file_system.h"
 #include "io/image.h"
+#include "optim/albedo_convergence.h"
 #include "optim/checkpoint.h"
 #include "optim/texel_smoothing.h"
 #include "optim/upsample.h"
@@ -83,6 +84,12 @@ class Fit {
   void runStage(size_t stageIndex, int firstIteration, const TexelSpace& space);
   void iterate(size_t stageIndex, int firstIteration, const TexelSpace& space);
   void planBudget(size_t stageIndex, int done);
+  int convergenceCheckEvery(const TexelSpace& space) const {
+    return std::max(1, static_cast<int>(std::ceil(c_.convergenceCheckPasses * static_cast<double>(space.sampleable.size()) /
+                                                  std::max(1, c_.batchTexels))));
+  }
+  void startConvergence(size_t stageIndex, const TexelSpace& space);
+  void checkConvergence(size_t stageIndex, int done, const TexelSpace& space, Progress& progress);
   void finishStage(const Stage& st, size_t stageIndex, const TexelSpace& space);
   void refinePoses(const std::string& after);
 
@@ -105,15 +112,19 @@ class Fit {
   }
   // With time_budget: the budget, the stage lengths it chose, its last plan and the time taken.
   Json budgetSummary() const;
+  // With stop_on_convergence: the threshold, and each albedo stage's length, where it converged
+  // (0: it ran all its passes) and the most it could have run.
+  Json convergenceSummary() const;
   void appendMetrics(const Json& j) const;
   void serialiseState(CheckpointIo& io);
+  void serialiseConvergence(CheckpointIo& io);
   void writeCheckpoint(size_t stage, int iteration, const TexelSpace& space);
   fs::path writeResult(const TexelSpace& space) const {
     Json frames = gains_.toJson(w_.frames);
     if (poses_.refined()) frames["poses"] = poses_.toJson(w_.frames);
     return writeFitResult(w_, appearance_, space, roles_, c_, frames,
                           {globalIteration_, lastLoss_, stats_, peakMemory_, budgetSummary(),
-                           memoryPlan_ ? memoryPlan_->toJson() : Json()},
+                           memoryPlan_ ? memoryPlan_->toJson() : Json(), convergenceSummary()},
                           settled_);
   }
 
@@ -142,6 +153,9 @@ class Fit {
   SamplerStats stats_;
   SettledAlbedo settled_;               // the settled albedo's standard errors and unbounded values
   std::optional<LightSampler> lights_;  // by the current emission; each iteration's shares the last's tables
+  // With stop_on_convergence: how far the albedo of the stage that runs (convergenceStage_) moved.
+  std::optional<AlbedoConvergence> convergence_;
+  int convergenceStage_ = -1;
   size_t lightSamplerBytesPeak_ = 0;    // the most lights_->bytes() has been
   float radianceScale_ = 1e-6f;
   int finalRes_ = 0;
@@ -419,6 +433,7 @@ void Fit::iterate(size_t stageIndex, int firstIteration, const TexelSpace& space
   const std::vector<uint8_t> albedoHeld = decisions_.albedoHeld();
   const GradientMasks masks{space, w_.mesh, albedoHeld, roles_.highlight, roles_.emitter};
   std::vector<Color> estimates;  // each ray's, for gain_refine
+  if (st.endsOnConvergence) startConvergence(stageIndex, space);
   Json stageMemory;              // the stage's largest memoryBreakdown
   if (budget_) {
     const double now = agreedFitSeconds();
@@ -485,6 +500,8 @@ void Fit::iterate(size_t stageIndex, int firstIteration, const TexelSpace& space
       if (peakMemory_.empty() || memory["total"] > peakMemory_["total"]) peakMemory_ = memory;
       if (stageMemory.empty() || memory["total"] > stageMemory["total"]) stageMemory = memory;
     }
+    if (st.endsOnConvergence && !st.convergedAt && (it + 1) % convergenceCheckEvery(space) == 0)
+      checkConvergence(stageIndex, it + 1, space, progress);
     bool go = true;
     if (hooks_.afterIteration) {
       Timer th;
@@ -575,6 +592,92 @@ void Fit::planBudget(size_t stageIndex, int done) {
   if (hooks_.writeFiles) appendMetrics({{"budget", lastPlan_}});
 }
 
+// The albedo entries whose movement a stage ending on convergence follows: pairs of texels two
+// apart in a row of the atlas, both fitted (on the frames, not held by a light) and of one object,
+// up to 2^16 pairs evenly spread over them, each channel a pair. A resumed fit finds the same and
+// keeps the interrupted run's last check (serialiseConvergence).
+void Fit::startConvergence(size_t stageIndex, const TexelSpace& space) {
+  const bool resumed = convergence_ && convergenceStage_ == static_cast<int>(stageIndex);
+  const std::vector<uint8_t> held = decisions_.albedoHeld();
+  auto fitted = [&](size_t t) {
+    return space.updatable[t] && space.map.covered(t) && !held[space.objectOf(t, w_.mesh)];
+  };
+  std::vector<uint32_t> first;  // of each pair
+  const size_t width = static_cast<size_t>(space.resolution);
+  for (size_t t = 0; t < space.map.texelCount(); ++t)
+    if (t % width + 2 < width && fitted(t) && fitted(t + 2) &&
+        space.objectOf(t, w_.mesh) == space.objectOf(t + 2, w_.mesh))
+      first.push_back(static_cast<uint32_t>(t));
+  constexpr size_t kFollowedPairs = 1 << 16;
+  const size_t stride = std::max<size_t>(1, first.size() / kFollowedPairs);
+  std::vector<std::pair<uint32_t, uint32_t>> pairs;
+  for (size_t k = 0; k < first.size(); k += stride)
+    for (uint32_t channel = 0; channel < 3; ++channel)
+      pairs.emplace_back(3 * first[k] + channel, 3 * (first[k] + 2) + channel);
+  AlbedoConvergence fresh(std::move(pairs));
+  if (resumed && !convergence_->lastValues().empty()) {
+    if (convergence_->lastValues().size() != 2 * fresh.size())
+      fail("{}: the convergence check followed {} albedo entries, this stage has {}",
+           (w_.dir / "checkpoint.bin").string(), convergence_->lastValues().size(), 2 * fresh.size());
+    fresh.lastValues() = std::move(convergence_->lastValues());
+  }
+  convergence_.emplace(std::move(fresh));
+  convergenceStage_ = static_cast<int>(stageIndex);
+}
+
+// Whether stage `stageIndex`'s albedo has stopped moving by more than its noise after `done`
+// iterations, and that noise is at most convergence_standard_error; if so it ends: now when it settles nothing, else after as many again (its settling
+// half: the learning rates' decay and the averages need it). A settling stage is checked only in
+// its first half.
+void Fit::checkConvergence(size_t stageIndex, int done, const TexelSpace& space, Progress& progress) {
+  Stage& st = stages_[stageIndex];
+  CHECK(convergence_ && convergenceStage_ == static_cast<int>(stageIndex));
+  if (optimiser_.albedoNewton().size() == 0) return;  // no albedo step yet
+  const bool settles = st.settles.bits != 0;
+  if (settles && done > st.iterations / 2) return;  // settling already
+  const ParamGroup albedo = paramGroups(appearance_).front();
+  const AlbedoMovement m = convergence_->check(optimiser_.albedoNewton(), albedo.hi - albedo.lo);
+  const double passes =
+      done * static_cast<double>(std::max(1, c_.batchTexels)) / std::max<size_t>(1, space.sampleable.size());
+  const bool converged =
+      m.pairs > 0 && m.ratio <= c_.convergenceRatio && m.standardError <= c_.convergenceStandardError;
+  if (hooks_.writeFiles)
+    appendMetrics({{"convergence",
+                    {{"stage", st.name},
+                     {"stage_iteration", done},
+                     {"passes", passes},
+                     {"ratio", m.ratio},
+                     {"movement", m.movement},
+                     {"standard_error", m.standardError},
+                     {"pairs", m.pairs},
+                     {"converged", converged}}}});
+  spdlog::info("fit: stage {} after {} iterations ({:.1f} passes): movement {:.2f}x the noise's (median {:.4f}), "
+               "median standard error {:.4f}",
+                st.name, done, passes, m.ratio, m.movement, m.standardError);
+  if (!converged) return;
+  const int ends = settles ? 2 * done : done;
+  st.convergedAt = done;
+  st.iterations = ends;
+  progress.setTotal(static_cast<size_t>(st.iterations));
+  spdlog::info("fit: stage {} converged after {} iterations ({:.1f} passes): its albedo moved {:.2f}x what its "
+               "noise gives (at most {:.2f}), median standard error {:.4f} (at most {:.4f}); {}",
+               st.name, done, passes, m.ratio, c_.convergenceRatio, m.standardError, c_.convergenceStandardError,
+               ends == done ? std::string("it ends") : fmt::format("it settles until iteration {}", ends));
+}
+
+Json Fit::convergenceSummary() const {
+  if (!c_.stopOnConvergence) return nullptr;
+  Json j = {{"ratio", c_.convergenceRatio},
+            {"standard_error", c_.convergenceStandardError},
+            {"check_passes", c_.convergenceCheckPasses},
+            {"stages", Json::array()}};
+  for (const Stage& st : stages_)
+    if (st.endsOnConvergence && !skips(st))
+      j["stages"].push_back(
+          {{"stage", st.name}, {"iterations", st.iterations}, {"converged_at", st.convergedAt}, {"longest", st.longest}});
+  return j;
+}
+
 Json Fit::budgetSummary() const {
   if (!budget_) return nullptr;
   Json j = {{"budget_seconds", c_.timeBudget}, {"fit_seconds", fitSeconds()}};
@@ -587,6 +690,7 @@ Json Fit::budgetSummary() const {
 // The stage's settled groups take their averages; then the decisions at its boundary, before the
 // boundary checkpoint (a run resumed from it starts the next stage with them).
 void Fit::finishStage(const Stage& st, size_t stageIndex, const TexelSpace& space) {
+  convergence_.reset();
   std::vector<ParamGroup> groups = paramGroups(appearance_);
   optimiser_.settle(groups, st);
   if (st.settles.active(ParamKind::Albedo)) settleAlbedoError();
@@ -669,6 +773,7 @@ void Fit::serialiseState(CheckpointIo& io) {
   roles_.serialise(io, w_.dir);
   gains_.serialise(io);
   poses_.serialise(io, w_);
+  if (c_.stopOnConvergence) serialiseConvergence(io);
   if (budget_) {
     double elapsed = fitSeconds();
     budget_->serialise(io, elapsed, (w_.dir / "checkpoint.bin").string());
@@ -677,6 +782,34 @@ void Fit::serialiseState(CheckpointIo& io) {
       budget_->apply(stages_);
     }
   }
+}
+
+// With stop_on_convergence: the stages' lengths (those that converged are shorter than the
+// schedule's) and the running stage's last check.
+void Fit::serialiseConvergence(CheckpointIo& io) {
+  std::vector<int> lengths, convergedAt;
+  for (const Stage& st : stages_) lengths.push_back(st.iterations), convergedAt.push_back(st.convergedAt);
+  io.array("convergence.stage_iterations", lengths);
+  io.array("convergence.converged_at", convergedAt);
+  for (size_t i = 0; i < stages_.size(); ++i) {
+    if (lengths[i] < 0 || convergedAt[i] < 0 || (stages_[i].endsOnConvergence ? lengths[i] > stages_[i].longest
+                                                                              : lengths[i] != stages_[i].iterations))
+      fail("{}: the stage lengths do not fit this fit's schedule", (w_.dir / "checkpoint.bin").string());
+    stages_[i].iterations = lengths[i], stages_[i].convergedAt = convergedAt[i];
+  }
+  if (!io.optional("convergence.values", convergence_ && !convergence_->lastValues().empty())) return;
+  int stage = convergenceStage_;
+  size_t values = convergence_ ? convergence_->lastValues().size() : 0;
+  io.single("convergence.stage", stage);
+  io.single("convergence.size", values);
+  if (!io.writing()) {
+    if (stage < 0 || static_cast<size_t>(stage) >= stages_.size() || values > (size_t{6} << 20))
+      fail("{}: the convergence check's stage or size is out of range", (w_.dir / "checkpoint.bin").string());
+    convergence_.emplace(std::vector<std::pair<uint32_t, uint32_t>>{});
+    convergence_->lastValues().resize(values);
+    convergenceStage_ = stage;
+  }
+  io.array("convergence.values", convergence_->lastValues());
 }
 
 void Fit::writeCheckpoint(size_t stage, int iteration, const TexelSpace& space) {

@@ -59,6 +59,10 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("emission_texture_iterations", ConfigField(&c.emissionTextureIterations));
   fn("albedo_passes", ConfigField(&c.albedoPasses));
   fn("max_stage_iterations", ConfigField(&c.maxStageIterations));
+  fn("stop_on_convergence", ConfigField(&c.stopOnConvergence));
+  fn("convergence_ratio", ConfigField(&c.convergenceRatio));
+  fn("convergence_standard_error", ConfigField(&c.convergenceStandardError));
+  fn("convergence_check_passes", ConfigField(&c.convergenceCheckPasses));
   fn("max_resolution", ConfigField(&c.maxResolution));
   fn("time_budget", ConfigField(&c.timeBudget));
   fn("memory_budget_mib", ConfigField(&c.memoryBudgetMib));
@@ -149,6 +153,17 @@ void FitConfig::validate(const std::string& where) const {
        "stage lengths must be >= 0 (max_stage_iterations >= 1)");
   need(std::isfinite(c.albedoPasses) && c.albedoPasses > 0 && c.albedoPasses <= 1e4,
        "albedo_passes must be in (0, 1e4]");
+  need(std::isfinite(c.convergenceRatio) && c.convergenceRatio > 0 && c.convergenceRatio <= 1e3,
+       "convergence_ratio must be in (0, 1e3]");
+  need(std::isfinite(c.convergenceStandardError) && c.convergenceStandardError > 0 && c.convergenceStandardError <= 1,
+       "convergence_standard_error must be in (0, 1]");
+  need(std::isfinite(c.convergenceCheckPasses) && c.convergenceCheckPasses > 0 && c.convergenceCheckPasses <= 100,
+       "convergence_check_passes must be in (0, 100]");
+  // The movement is measured on the Gauss-Newton step's standard errors.
+  need(!c.stopOnConvergence || (c.albedoStep == AlbedoStep::GaussNewton && c.albedoStandardError),
+       "stop_on_convergence needs albedo_step gauss-newton and albedo_standard_error");
+  need(!c.stopOnConvergence || c.timeBudget == 0,
+       "stop_on_convergence and time_budget both choose the albedo stages' lengths: set one");
   need(c.maxResolution >= 0, "max_resolution must be >= 0");
   need(std::isfinite(c.timeBudget) && c.timeBudget >= 0 && c.timeBudget <= 1e7,
        "time_budget must be in [0, 1e7] seconds (0 = the fixed schedule)");

@@ -132,6 +132,17 @@ struct FitConfig {
   int emissionIterations = 200, materialIterations = 300, emissionTextureIterations = 100;
   float albedoPasses = 100.0f;           // albedo stage length: expected draws per sampleable texel
   int maxStageIterations = 2000;         // cap on any albedo stage
+  // true: each albedo stage (not the scale probes) may run up to albedo_passes, ending once its
+  // albedo has stopped moving by more than its noise (optim/albedo_convergence.h) and that noise
+  // is small: checked every `convergence_check_passes`, ended when the movement is at most
+  // `convergence_ratio` times what the noise alone gives and the median standard error of the
+  // albedo at most `convergence_standard_error` (a stage that settles unknowns then runs as long
+  // again, its settling half). max_stage_iterations does not apply to them. false: the fixed
+  // lengths above.
+  bool stopOnConvergence = false;
+  float convergenceRatio = 1.5f;
+  float convergenceStandardError = 0.03f;
+  float convergenceCheckPasses = 2.0f;
   int maxResolution = 0;                 // cap on the final albedo resolution; 0 = what the frames resolve
   // Seconds the fit may take: the stage lengths are chosen from measured iteration costs so that
   // it ends then (product/time_budget.h); 0 = the fixed schedule above.

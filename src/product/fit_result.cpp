@@ -80,6 +80,7 @@ fs::path writeFitResult(const Workspace& w, const Appearance& appearance, const 
       {"peak_rss_mib", peakRssMiB()}, {"memory_bytes", progress.peakMemory}};
   if (!progress.budget.is_null()) summary["time_budget"] = progress.budget;
   if (!progress.memoryBudget.is_null()) summary["memory_budget"] = progress.memoryBudget;
+  if (!progress.convergence.is_null()) summary["convergence"] = progress.convergence;
   killPoint("result-half");
   writeJson(staging / "materials.json", summary);
   writeJson(staging / "lights.json",

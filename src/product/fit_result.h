@@ -21,6 +21,7 @@ struct FitProgress {
   const Json& peakMemory;       // the largest fitMemory seen
   const Json& budget;           // with time_budget, what it chose (null otherwise)
   const Json& memoryBudget;     // with memory_budget_mib, its plan (MemoryPlan::toJson; null otherwise)
+  const Json& convergence;      // with stop_on_convergence, where each albedo stage ended (null otherwise)
 };
 
 // Writes WORK/result/ atomically (WORK/result.partial/, then renamed); returns its path.

@@ -114,6 +114,11 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
         {fmt::format("albedo@{}", resolutions[i]), afterMaterials, resolutions[i], albedoIterations(resolutions[i])});
     passStage(s.back(), passIterations(resolutions[i]));
   }
+  // The albedo stages proper (not the probes, whose scale wants a fixed share of the first) may
+  // run all their passes, ending on convergence.
+  if (c.stopOnConvergence)
+    for (Stage& st : s)
+      if (st.lengthFromPasses && st.name.starts_with("albedo@")) st.endsOnConvergence = true, st.iterations = st.longest;
   s.back().settles = s.back().active;
   if (c.materialStageSettles) {
     s[materialStage].settles.set(K::Roughness, true);

@@ -34,6 +34,11 @@ struct Stage {
   bool afterClippedScale = false;                // run only while their last scale moved them
   bool refinePosesAfter = false;                 // the frames' poses are refined at its end (with refine_poses)
   bool lengthFromPasses = false;                 // its length is albedo passes
+  // With stop_on_convergence: it runs up to its albedo passes and ends once its albedo has
+  // stopped moving by more than its noise (product/fit.cpp); `convergedAt` is the iteration at
+  // which it did (0: not yet).
+  bool endsOnConvergence = false;
+  int convergedAt = 0;
   // With a time budget, the most it may run: its albedo_passes without max_stage_iterations.
   int longest = 0;
 

@@ -561,6 +561,23 @@ std::string budgetSentence(const Json& budget) {
                              : std::string());
 }
 
+// With stop_on_convergence, where each albedo stage ended (materials.json's convergence; empty
+// without it).
+std::string convergenceSentence(const Json& convergence) {
+  if (!convergence.is_object()) return "";
+  std::string stages;
+  for (const Json& st : convergence.value("stages", Json::array())) {
+    const int at = st.value("converged_at", 0), n = st.value("iterations", 0), longest = st.value("longest", 0);
+    stages += at > 0 ? fmt::format("{} converged after {} iterations{} (of at most {}), ", html(st.value("stage", "")), at,
+                                   n > at ? fmt::format(" and settled until {}", n) : std::string(), longest)
+                     : fmt::format("{} ran all its {} iterations, ", html(st.value("stage", "")), n);
+  }
+  return fmt::format(
+      "<p>Albedo stages ended on convergence, once their albedo moved by at most {:.2f}x what its noise gives and "
+      "its median standard error was at most {:.3f}: {}.</p>",
+      convergence.value("ratio", 0.0), convergence.value("standard_error", 0.0), stages.substr(0, stages.size() - 2));
+}
+
 std::string prepareSection(const Json& prepare, const Json& materials) {
   std::string s = "<table><tr><th>phase</th><th>time</th></tr>";
   for (const auto& [phase, p] : prepare.at("phases").items())
@@ -646,6 +663,7 @@ img.tex{width:256px;height:256px} figure{display:inline-block;margin:4px} figcap
   page += "<h2>Frames</h2>" +
           framesSection(prepare, gains, pathExists(consistencyFile) ? readJson(consistencyFile) : Json::object());
   page += "<h2>Loss and time per stage</h2>" + budgetSentence(materials.value("time_budget", Json())) +
+          convergenceSentence(materials.value("convergence", Json())) +
           stagesSection(readJsonLines(work / "metrics.jsonl"));
   page += "<h2>Prepare and memory</h2>" + prepareSection(prepare, materials);
   page += "<h2>Config</h2><pre>" + html(materials.value("config", Json::object()).dump(2)) + "</pre></body></html>\n";

@@ -6,6 +6,7 @@
 
 #include "core/error.h"
 #include "optim/adam.h"
+#include "optim/albedo_convergence.h"
 #include "optim/checkpoint.h"
 #include "optim/gauss_newton.h"
 #include "optim/upsample.h"
@@ -409,4 +410,62 @@ TEST(Upsample, KeepsConstantsAndNeverBleedsAcrossObjects) {
     ++checked;
   }
   EXPECT_GT(checked, 1000u);
+}
+
+// Entries fitted to a fixed truth move between checks by their noise alone (ratio ~1), in the
+// plain average and in the damped one beyond 1/damping visits, and independently of one another;
+// entries whose truth still moves (the light they see changing) move together, by more.
+TEST(AlbedoConvergence, MovementIsMeasuredAgainstTheNoise) {
+  const size_t entries = 6000;
+  const float a = 0.6f, C = 0.05f, X = 1.0f;
+  uint64_t state = 777;
+  auto uniform = [&] {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return (static_cast<double>(state >> 11) + 0.5) / 9007199254740992.0;
+  };
+  auto normal = [&] {
+    return static_cast<float>(std::sqrt(-2 * std::log(uniform())) * std::cos(6.283185307179586 * uniform()));
+  };
+  GaussNewtonSettings settings;
+  settings.damping = 0.02f;  // plain average up to 50 visits, then an average over ~50
+  settings.maxStep = 1.0f;
+  std::vector<std::pair<uint32_t, uint32_t>> pairs;
+  for (uint32_t i = 0; i + 1 < entries; i += 2) pairs.emplace_back(i, i + 1);
+  for (float drift : {0.0f, 0.02f}) {  // the truth's change per iteration
+    GaussNewtonState s(entries, true);
+    AlbedoConvergence convergence(pairs);
+    std::vector<float> x(entries, 0.3f);
+    std::vector<double> ratios;
+    for (int k = 1; k <= 200; ++k) {
+      const float truth = a + drift * k, I = truth * X + C;
+      std::vector<float> g(entries, 0.0f), h(entries, 0.0f);
+      for (size_t i = 0; i < entries; ++i) {
+        if (uniform() > 0.7) continue;  // not drawn this iteration
+        const float primal = X * (1 + 0.5f * normal()), adjoint = X * (1 + 0.5f * normal());
+        g[i] = (x[i] * primal + C - I) * adjoint, h[i] = primal * adjoint;
+      }
+      s.step(x, g, h, -10.0f, 10.0f, settings);
+      if (k % 10 == 0) {
+        const AlbedoMovement m = convergence.check(s, 10.0f);
+        if (k == 10) {
+          EXPECT_EQ(m.pairs, 0u);  // the first check only takes the values
+          continue;
+        }
+        EXPECT_GT(m.pairs, pairs.size() * 9 / 10);
+        EXPECT_GT(m.standardError, 0.0);
+        ratios.push_back(m.ratio);
+      }
+    }
+    // Measured: 0.97-1.03 at a fixed truth; with a truth moving by 0.02 per iteration (a visit's
+    // noise is about 0.4), 1.7 at the second check and 2.9-7.8 after.
+    for (size_t j = 0; j < ratios.size(); ++j) {
+      SCOPED_TRACE(testing::Message() << "drift " << drift << ", check " << j + 2);
+      if (drift == 0) {
+        EXPECT_GT(ratios[j], 0.9);
+        EXPECT_LT(ratios[j], 1.1);
+      } else {
+        EXPECT_GT(ratios[j], j == 0 ? 1.5 : 2.5);
+      }
+    }
+  }
 }

@@ -140,7 +140,7 @@ struct FitConfig {
   // again, its settling half). max_stage_iterations does not apply to them. false: the fixed
   // lengths above.
   bool stopOnConvergence = false;
-  float convergenceRatio = 1.5f;
+  float convergenceRatio = 1.05f;
   float convergenceStandardError = 0.03f;
   float convergenceCheckPasses = 2.0f;
   int maxResolution = 0;                 // cap on the final albedo resolution; 0 = what the frames resolve

@@ -10,6 +10,7 @@
 #include "product/fit.h"
 #include "product/report.h"
 #include "product/time_budget.h"
+#include "support/fitted_values.h"
 #include "support/prepared_capture.h"
 
 using namespace relume;
@@ -239,13 +240,6 @@ FitConfig budgetConfig(double seconds) {
   c.checkpointEvery = 1000000;
   c.timeBudget = static_cast<float>(seconds);
   return c;
-}
-
-std::vector<float> fittedValues(const fs::path& work) {
-  std::vector<float> v;
-  SceneDescription fit = loadSceneFile(work / "result" / "scene.json");
-  for (const ParamGroup& g : paramGroups(fit.appearance)) v.insert(v.end(), g.values.begin(), g.values.end());
-  return v;
 }
 
 }  // namespace

@@ -651,8 +651,8 @@ void Fit::checkConvergence(size_t stageIndex, int done, const TexelSpace& space,
                      {"standard_error", m.standardError},
                      {"pairs", m.pairs},
                      {"converged", converged}}}});
-  spdlog::info("fit: stage {} after {} iterations ({:.1f} passes): movement {:.2f}x the noise's (median {:.4f}), "
-               "median standard error {:.4f}",
+  spdlog::debug("fit: stage {} after {} iterations ({:.1f} passes): movement {:.2f}x the noise's (median {:.4f}), "
+                "median standard error {:.4f}",
                 st.name, done, passes, m.ratio, m.movement, m.standardError);
   if (!converged) return;
   const int ends = settles ? 2 * done : done;

@@ -3,11 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <iterator>
 
 #include "core/error.h"
 
 #include "io/json.h"
 #include "product/fit.h"
+#include "product/report.h"
 #include "support/fitted_values.h"
 #include "support/prepared_capture.h"
 
@@ -66,6 +68,11 @@ TEST(StopOnConvergence, TheAlbedoStageEndsOnceItsMovementIsItsNoiseAndAResumedFi
   EXPECT_EQ(stage["iterations"].get<int>(), stage["converged_at"].get<int>());
   EXPECT_LT(2 * stage["iterations"].get<int>(), stage["longest"].get<int>());
   const std::vector<float> uninterrupted = fittedValues(work);
+  std::ifstream page(writeFitReport(work));
+  const std::string html((std::istreambuf_iterator<char>(page)), std::istreambuf_iterator<char>());
+  EXPECT_NE(html.find(fmt::format("albedo@128 converged after {} iterations (of at most {})",
+                                  stage["converged_at"].get<int>(), stage["longest"].get<int>())),
+            std::string::npos);
 
   // Without it the same passes run to the end.
   FitConfig all = convergingConfig();

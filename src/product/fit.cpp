@@ -84,9 +84,13 @@ class Fit {
   void runStage(size_t stageIndex, int firstIteration, const TexelSpace& space);
   void iterate(size_t stageIndex, int firstIteration, const TexelSpace& space);
   void planBudget(size_t stageIndex, int done);
+  // Iterations per pass over `space`'s sampleable texels (as the schedule counts albedo passes).
+  double iterationsPerPass(const TexelSpace& space) const {
+    const int drawn = c_.sampler == SamplerKind::Texture ? c_.batchTexels : c_.imageRays;
+    return static_cast<double>(space.sampleable.size()) / std::max(1, drawn);
+  }
   int convergenceCheckEvery(const TexelSpace& space) const {
-    return std::max(1, static_cast<int>(std::ceil(c_.convergenceCheckPasses * static_cast<double>(space.sampleable.size()) /
-                                                  std::max(1, c_.batchTexels))));
+    return std::max(1, static_cast<int>(std::ceil(c_.convergenceCheckPasses * iterationsPerPass(space))));
   }
   void startConvergence(size_t stageIndex, const TexelSpace& space);
   void checkConvergence(size_t stageIndex, int done, const TexelSpace& space, Progress& progress);
@@ -626,9 +630,9 @@ void Fit::startConvergence(size_t stageIndex, const TexelSpace& space) {
 }
 
 // Whether stage `stageIndex`'s albedo has stopped moving by more than its noise after `done`
-// iterations, and that noise is at most convergence_standard_error; if so it ends: now when it settles nothing, else after as many again (its settling
-// half: the learning rates' decay and the averages need it). A settling stage is checked only in
-// its first half.
+// iterations, and that noise is at most convergence_standard_error; if so the stage ends: at once
+// when it settles nothing, else after as many iterations again (its settling half: the learning
+// rates' decay and the averages need it). A settling stage is checked in its first half only.
 void Fit::checkConvergence(size_t stageIndex, int done, const TexelSpace& space, Progress& progress) {
   Stage& st = stages_[stageIndex];
   CHECK(convergence_ && convergenceStage_ == static_cast<int>(stageIndex));
@@ -637,8 +641,7 @@ void Fit::checkConvergence(size_t stageIndex, int done, const TexelSpace& space,
   if (settles && done > st.iterations / 2) return;  // settling already
   const ParamGroup albedo = paramGroups(appearance_).front();
   const AlbedoMovement m = convergence_->check(optimiser_.albedoNewton(), albedo.hi - albedo.lo);
-  const double passes =
-      done * static_cast<double>(std::max(1, c_.batchTexels)) / std::max<size_t>(1, space.sampleable.size());
+  const double passes = done / std::max(1e-9, iterationsPerPass(space));
   const bool converged =
       m.pairs > 0 && m.ratio <= c_.convergenceRatio && m.standardError <= c_.convergenceStandardError;
   if (hooks_.writeFiles)

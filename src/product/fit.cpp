@@ -78,6 +78,8 @@ class Fit {
   void initialiseAlbedo(const TexelSpace& space);
   std::vector<float> medianRadiance(const TexelSpace& space) const;
   void settleAlbedoError();
+  // Per texel of `space`, whether its albedo is fitted: updatable, on the frames, not held by a light.
+  std::vector<uint8_t> fittedAlbedoTexels(const TexelSpace& space) const;
   void smoothAlbedo(const TexelSpace& space);
   void upsampleAlbedo(const TexelSpace& from, const TexelSpace& to);
   bool skips(const Stage& st) const;
@@ -602,14 +604,11 @@ void Fit::planBudget(size_t stageIndex, int done) {
 // keeps the interrupted run's last check (serialiseConvergence).
 void Fit::startConvergence(size_t stageIndex, const TexelSpace& space) {
   const bool resumed = convergence_ && convergenceStage_ == static_cast<int>(stageIndex);
-  const std::vector<uint8_t> held = decisions_.albedoHeld();
-  auto fitted = [&](size_t t) {
-    return space.updatable[t] && space.map.covered(t) && !held[space.objectOf(t, w_.mesh)];
-  };
+  const std::vector<uint8_t> fitted = fittedAlbedoTexels(space);
   std::vector<uint32_t> first;  // of each pair
   const size_t width = static_cast<size_t>(space.resolution);
   for (size_t t = 0; t < space.map.texelCount(); ++t)
-    if (t % width + 2 < width && fitted(t) && fitted(t + 2) &&
+    if (t % width + 2 < width && fitted[t] && fitted[t + 2] &&
         space.objectOf(t, w_.mesh) == space.objectOf(t + 2, w_.mesh))
       first.push_back(static_cast<uint32_t>(t));
   constexpr size_t kFollowedPairs = 1 << 16;
@@ -728,6 +727,14 @@ void Fit::settleAlbedoError() {
   settled_.standardError = optimiser_.albedoStandardError(albedo.hi - albedo.lo);
 }
 
+std::vector<uint8_t> Fit::fittedAlbedoTexels(const TexelSpace& space) const {
+  const std::vector<uint8_t> held = decisions_.albedoHeld();
+  std::vector<uint8_t> fitted(space.map.texelCount(), 0);
+  for (size_t t = 0; t < fitted.size(); ++t)
+    fitted[t] = space.updatable[t] && space.map.covered(t) && !held[space.objectOf(t, w_.mesh)];
+  return fitted;
+}
+
 // With albedo_smoothing, the settled albedo smoothed by its standard errors
 // (optim/texel_smoothing.h) on the texels whose albedo is fitted.
 void Fit::smoothAlbedo(const TexelSpace& space) {
@@ -739,10 +746,7 @@ void Fit::smoothAlbedo(const TexelSpace& space) {
                  enumName(c_.albedoSmoothing), enumName(c_.albedoStep));
     return;
   }
-  const std::vector<uint8_t> held = decisions_.albedoHeld();
-  std::vector<uint8_t> eligible(space.map.texelCount(), 0);
-  for (size_t t = 0; t < eligible.size(); ++t)
-    eligible[t] = space.updatable[t] && space.map.covered(t) && !held[space.objectOf(t, w_.mesh)];
+  const std::vector<uint8_t> eligible = fittedAlbedoTexels(space);
   const std::vector<float> guide =
       c_.albedoSmoothing == AlbedoSmoothing::Albedo ? std::vector<float>{} : medianRadiance(space);
   TexelSmoothingSettings settings;

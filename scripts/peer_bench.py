@@ -396,9 +396,9 @@ def cmd_table(a):
     # (c)
     P("## (c) Time to accuracy: albedo texture + emission, equal wall clock")
     P("")
-    P("relume: `relume prepare --res %d` once, then `relume fit` with `%s` (albedo_passes sized to the budget); "
-      "time = wall clock of the prepare process + the fit process up to its `fit: result in` line (loading, all stages, "
-      "writing the result; not the HTML report written after it). "
+    P("relume: `relume prepare --res %d` once, then `relume fit --config C --time-budget B --no-report` with C = `%s` "
+      "and B the budget less prepare's time; "
+      "time = wall clock of the prepare process + the fit process (loading, all stages, writing the result). "
       "Mitsuba: `peer_bench.py fit` (prb depth 9+1, Adam(mask_updates=True), lr 0.05 albedo / 0.5 emission, one random "
       "training frame per iteration at 256x192, 1 spp; from albedo 0.5, emission (1,1,1) on the two true emitters), "
       "its clock started after loading the scene and frames, snapshots at relume's times. "
@@ -431,59 +431,38 @@ def cmd_table(a):
 
 
 def cmd_relumefits(a):
-    """relume fit at each budget: albedo_passes sized from the previous run's speed; the time is the
-    wall clock from the process start to the line `fit: result in` (the HTML report written after it
-    is not counted) plus prepare's wall clock."""
-    import subprocess
+    """relume fit at each budget, as a user runs it: `relume fit WORK --time-budget T --no-report`, T
+    the budget less prepare's wall clock. The time is prepare's wall clock plus the fit process's
+    (start to exit: loading, every stage, the result)."""
+    import shutil, subprocess
     budgets = [float(b) for b in a.budgets.split(",")]
-    base = json.loads(a.config)
-    per_iter, setup, it_per_pass = a.guess_iteration_s, 3.0, None
+    cfgp = os.path.join(a.out, "fit_config.json")
+    json.dump(json.loads(a.config), open(cfgp, "w"))
     runs = []
     for k, T in enumerate(budgets):
         work = a.work
         for f in ("checkpoint.bin", "metrics.jsonl"):
             if os.path.exists(os.path.join(work, f)):
                 os.remove(os.path.join(work, f))
-        sampleable = None
-        cfg = dict(base)
-        if it_per_pass is None:
-            it_per_pass = 20.0
-        left = (T - a.prepare_seconds - setup) / per_iter - cfg.get("emission_iterations", 200)
-        cfg["albedo_passes"] = round(max(1.0, left / it_per_pass), 2)
-        cfgp = os.path.join(a.out, "fit_%d.json" % k)
-        json.dump(cfg, open(cfgp, "w"))
         load = open("/proc/loadavg").read().split()[0]
         t0 = time.perf_counter()
-        proc = subprocess.Popen([a.relume, "--log", "info", "fit", work, "--config", cfgp], stderr=subprocess.STDOUT,
-                                stdout=subprocess.PIPE, text=True, errors="replace")
-        t_result, iters, log = None, None, []
-        for line in proc.stdout:
-            for part in line.split("\r"):
-                if "info" in part:
-                    log.append(part.rstrip())
-            if "fit: result in" in line and t_result is None:
-                t_result = time.perf_counter() - t0
-            m = re.search(r"fit: (\d+) iterations in", line)
-            if m:
-                iters = int(m.group(1))
-            m = re.search(r"\((\d+) texels sampleable", line)
-            if m:
-                sampleable = int(m.group(1))
-        if proc.wait() != 0 or t_result is None:
+        proc = subprocess.run([a.relume, "--log", "info", "fit", work, "--config", cfgp, "--no-report",
+                               "--time-budget", "%.1f" % (T - a.prepare_seconds)],
+                              stderr=subprocess.STDOUT, stdout=subprocess.PIPE, text=True, errors="replace")
+        t_fit = time.perf_counter() - t0
+        log = [part.rstrip() for line in proc.stdout.splitlines() for part in line.split("\r") if "info" in part]
+        m = re.search(r"fit: (\d+) iterations in", proc.stdout)
+        if proc.returncode != 0 or not m:
             sys.exit("peer_bench.py: relume fit failed:\n" + "\n".join(log[-20:]))
-        if sampleable:
-            it_per_pass = sampleable / float(cfg.get("batch_texels", 8192))
-        per_iter = max(0.02, (t_result - setup) / max(iters, 1))
         dst = os.path.join(a.out, "relume_%d" % k)
         if os.path.exists(dst):
-            import shutil
             shutil.rmtree(dst)
         os.rename(os.path.join(work, "result"), dst)
         open(os.path.join(a.out, "relume_%d.log" % k), "w").write("\n".join(log) + "\n")
-        r = {"budget": T, "seconds": t_result + a.prepare_seconds, "fit_seconds": t_result, "iterations": iters,
-             "albedo_passes": cfg["albedo_passes"], "load": load}
-        print("relume fit: budget %.0f s: %.1f s (prepare %.1f + fit to result %.1f), %d iterations, load %s"
-              % (T, r["seconds"], a.prepare_seconds, t_result, iters, load), flush=True)
+        r = {"budget": T, "seconds": t_fit + a.prepare_seconds, "fit_seconds": t_fit, "iterations": int(m.group(1)),
+             "load": load}
+        print("relume fit: budget %.0f s: %.1f s (prepare %.1f + fit %.1f), %d iterations, load %s"
+              % (T, r["seconds"], a.prepare_seconds, t_fit, r["iterations"], load), flush=True)
         runs.append(r)
     json.dump(runs, open(os.path.join(a.out, "relume_runs.json"), "w"), indent=1)
     print(",".join("%.2f" % r["seconds"] for r in runs))
@@ -527,7 +506,6 @@ def main():
         ap.add_argument("--budgets", required=True)
         ap.add_argument("--config", required=True)
         ap.add_argument("--prepare-seconds", type=float, required=True)
-        ap.add_argument("--guess-iteration-s", type=float, default=0.4)
         cmd_relumefits(ap.parse_args(sys.argv[2:]))
     elif mode == "table":
         ap.add_argument("out")

@@ -7,15 +7,15 @@
 # dependency of relume (pip install mitsuba; its llvm_ad_rgb variant needs libLLVM >= 16 on
 # bookworm: apt-get install libllvm19, Debian's libLLVM 14/15 fail to compile its kernels).
 #
-# Usage: scripts/peer_bench.sh [OUT]      (default out/peer_bench; ~25 minutes on 2 cores)
-# Environment: ROUNDS=3 (interleaved relume/Mitsuba rounds of (a)), BUDGETS=60,120,240 (seconds, (c)),
+# Usage: scripts/peer_bench.sh [OUT]      (default out/peer_bench; ~55 minutes on 2 cores, (c) ~35 of them)
+# Environment: ROUNDS=3 (interleaved relume/Mitsuba rounds of (a)), BUDGETS=120,300,600 (seconds, (c)),
 #   FWD_SPP=16 (spp per half of (b)), SETTINGS="65536:2 65536:4 65536:8 65536:16 16384:8 262144:8" (rays:depth),
 #   PARTS="a b c e" (which parts to run; the table shows the parts whose results OUT holds)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 OUT="$(mkdir -p "${1:-$ROOT/out/peer_bench}" && cd "${1:-$ROOT/out/peer_bench}" && pwd)"
 ROUNDS="${ROUNDS:-3}"
-BUDGETS="${BUDGETS:-60,120,240}"
+BUDGETS="${BUDGETS:-120,300,600}"
 FWD_SPP="${FWD_SPP:-16}"
 SETTINGS="${SETTINGS:-65536:2 65536:4 65536:8 65536:16 16384:8 262144:8}"
 PARTS="${PARTS:-a b c e}"
@@ -61,7 +61,7 @@ stamp "synth"
 
 # (a) one gradient iteration. The Mitsuba batch is one held-out camera at 1 spp, sized to N pixels;
 # its L2 reference is relume's 4-spp render of that camera.
-for s in $SETTINGS; do
+part a && for s in $SETTINGS; do
   n=${s%%:*}; side=$(python3 -c "import math; print(int(round(math.sqrt($n))))")
   [[ -f "$OUT/iter/ref_$side/ref_$side.exr" ]] && continue
   python3 "$PY" camera "$OUT/cap/transforms_test.json" "$OUT/iter/cam_$side.json" --rays "$n"
@@ -100,7 +100,8 @@ if part b; then
 fi
 
 if part c; then
-  # (c) time to accuracy. relume: prepare at 512^2 (the resolution the frames resolve), then one fit per budget.
+  # (c) time to accuracy. relume: prepare at 512^2 (the resolution the frames resolve), then
+  # `relume fit --time-budget` once per budget.
   stamp "(c) prepare"
   tp0=$(date +%s.%N)
   "$R" --log warn prepare "$OUT/cap" --out "$OUT/work" --res "$RES" --gutter-res "$RES" --force

@@ -216,7 +216,7 @@ void registerBench(CLI::App& app, CommandTable& table) {
       ->capture_default_str();
   c->add_option("--out", o->out, "where bench.md, bench.csv, curves.csv and the charts go")->capture_default_str();
   c->add_option("--sweeps", *sweeps, "comma list of " + names + " (default: all)");
-  c->add_option("--config", *config, "base fit config JSON (default: the demo's, shortened; docs/user/commands.md)")
+  c->add_option("--config", *config, "base fit config JSON (default: the demo's, shortened; the budget sweep: the fit's defaults)")
       ->check(kExistingFile);
   c->add_option("--truth", o->truth, "ground-truth scene.json (default: CAPTURE/gt/scene.json)")->check(kExistingFile);
   c->add_option("--test-cameras", o->testCameras, "held-out frames (default: CAPTURE/transforms_test.json)")
@@ -231,7 +231,7 @@ void registerBench(CLI::App& app, CommandTable& table) {
     std::stringstream ss(*sweeps);
     for (std::string item; std::getline(ss, item, ',');)
       if (!item.empty()) o->sweeps.push_back(item);
-    if (!config->empty()) o->base = FitConfig::load(*config);
+    if (!config->empty()) o->base = o->schedule = FitConfig::load(*config);
     runBench(*o);
     spdlog::info("bench: {}", (o->out / "bench.md").string());
     return 0;
@@ -266,7 +266,7 @@ void registerFit(CLI::App& app, CommandTable& table) {
   auto untilConverged = std::make_shared<bool>(false);
   c->add_flag("--until-converged", *untilConverged,
               "end each albedo stage once its albedo has stopped moving by more than its noise, up to albedo_passes "
-              "(sets stop_on_convergence)");
+              "or what --time-budget plans for it (sets stop_on_convergence)");
   auto noReport = std::make_shared<bool>(false);
   c->add_flag("--no-report", *noReport, "skip WORK/report/ (`relume report WORK` writes it later)");
   table[c] = [=] {

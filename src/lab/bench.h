@@ -16,6 +16,10 @@ struct BenchSweep {
   std::string name, key;  // e.g. "spp", "samples_per_ray"
   std::vector<Json> values;
   Json with = Json::object();  // other keys every value of this sweep needs (then the baseline run is not reused)
+  // Runs from the fit's own schedule (BenchOptions::schedule), not the shortened base: a time budget
+  // chooses the stage lengths itself, and against the shortened base every long budget would end
+  // with it. Its runs are also drawn against the wall clock they took (OUT/<name>_end.svg).
+  bool fromFitSchedule = false;
 };
 // Every sweep `relume bench` knows.
 const std::vector<BenchSweep>& benchSweeps();
@@ -28,6 +32,7 @@ struct BenchOptions {
   std::filesystem::path testCameras;  // held-out frames (default: CAPTURE/transforms_test.json if there)
   std::vector<std::string> sweeps;    // names from benchSweeps(); empty: all
   FitConfig base = baseConfig();
+  FitConfig schedule;  // the fromFitSchedule sweeps' base: `relume fit`'s defaults, or --config's
   int evaluateEvery = 25;  // iterations between points of the error-vs-time curve
   int testSpp = 16;
   static FitConfig baseConfig();  // the demo's, shortened so a sweep takes minutes

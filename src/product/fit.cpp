@@ -660,6 +660,7 @@ void Fit::checkConvergence(size_t stageIndex, int done, const TexelSpace& space,
   const int ends = settles ? 2 * done : done;
   st.convergedAt = done;
   st.iterations = ends;
+  if (budget_) budget_->endStage(stageIndex, ends);
   progress.setTotal(static_cast<size_t>(st.iterations));
   spdlog::info("fit: stage {} converged after {} iterations ({:.1f} passes): its albedo moved {:.2f}x what its "
                "noise gives (at most {:.2f}), median standard error {:.4f} (at most {:.4f}); {}",
@@ -792,17 +793,20 @@ void Fit::serialiseState(CheckpointIo& io) {
 }
 
 // With stop_on_convergence: the stages' lengths (those that converged are shorter than the
-// schedule's) and the running stage's last check.
+// schedule's; under a time budget its plan restores them, TimeBudget::endStage having kept it in
+// step) and the running stage's last check.
 void Fit::serialiseConvergence(CheckpointIo& io) {
   std::vector<int> lengths, convergedAt;
   for (const Stage& st : stages_) lengths.push_back(st.iterations), convergedAt.push_back(st.convergedAt);
   io.array("convergence.stage_iterations", lengths);
   io.array("convergence.converged_at", convergedAt);
   for (size_t i = 0; i < stages_.size(); ++i) {
-    if (lengths[i] < 0 || convergedAt[i] < 0 || (stages_[i].endsOnConvergence ? lengths[i] > stages_[i].longest
-                                                                              : lengths[i] != stages_[i].iterations))
+    const Stage& st = stages_[i];
+    if (lengths[i] < 0 || convergedAt[i] < 0 || convergedAt[i] > lengths[i] ||
+        (!budget_ && (st.endsOnConvergence ? lengths[i] > st.longest : lengths[i] != st.iterations)))
       fail("{}: the stage lengths do not fit this fit's schedule", (w_.dir / "checkpoint.bin").string());
-    stages_[i].iterations = lengths[i], stages_[i].convergedAt = convergedAt[i];
+    if (!budget_) stages_[i].iterations = lengths[i];
+    stages_[i].convergedAt = convergedAt[i];
   }
   if (!io.optional("convergence.values", convergence_ && !convergence_->lastValues().empty())) return;
   int stage = convergenceStage_;

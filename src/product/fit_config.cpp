@@ -162,8 +162,6 @@ void FitConfig::validate(const std::string& where) const {
   // The movement is measured on the Gauss-Newton step's standard errors.
   need(!c.stopOnConvergence || (c.albedoStep == AlbedoStep::GaussNewton && c.albedoStandardError),
        "stop_on_convergence needs albedo_step gauss-newton and albedo_standard_error");
-  need(!c.stopOnConvergence || c.timeBudget == 0,
-       "stop_on_convergence and time_budget both choose the albedo stages' lengths: set one");
   need(c.maxResolution >= 0, "max_resolution must be >= 0");
   need(std::isfinite(c.timeBudget) && c.timeBudget >= 0 && c.timeBudget <= 1e7,
        "time_budget must be in [0, 1e7] seconds (0 = the fixed schedule)");

@@ -115,10 +115,14 @@ std::vector<Stage> buildSchedule(const FitConfig& c, const std::vector<int>& res
     passStage(s.back(), passIterations(resolutions[i]));
   }
   // The albedo stages proper (not the probes, whose scale wants a fixed share of the first) may
-  // run all their passes, ending on convergence.
+  // run all their passes, ending on convergence. Under a time budget they run what its plan gives
+  // them (up to all their passes), and end sooner if they converge.
   if (c.stopOnConvergence)
     for (Stage& st : s)
-      if (st.lengthFromPasses && st.name.starts_with("albedo@")) st.endsOnConvergence = true, st.iterations = st.longest;
+      if (st.lengthFromPasses && st.name.starts_with("albedo@")) {
+        st.endsOnConvergence = true;
+        if (c.timeBudget == 0) st.iterations = st.longest;
+      }
   s.back().settles = s.back().active;
   if (c.materialStageSettles) {
     s[materialStage].settles.set(K::Roughness, true);

@@ -123,6 +123,12 @@ Json TimeBudget::plan(std::vector<Stage>& stages, size_t current, int done, doub
   return j;
 }
 
+void TimeBudget::endStage(size_t stage, int length) {
+  CHECK(stage < lengths_.size() && length >= 0 && length <= lengths_[stage]);
+  lengths_[stage] = length;
+  longest_[stage] = std::min(longest_[stage], length);
+}
+
 void TimeBudget::apply(std::vector<Stage>& stages) const {
   CHECK(stages.size() == lengths_.size());
   for (size_t i = 0; i < stages.size(); ++i) stages[i].iterations = lengths_[i];

@@ -52,6 +52,10 @@ class TimeBudget {
   // schedule. Returns the plan, for the log and metrics.
   Json plan(std::vector<Stage>& stages, size_t current, int done, double elapsed, const std::vector<bool>& runs);
 
+  // Stage `stage` ends after `length` iterations, before its plan's end (it converged): no later
+  // plan lengthens it, and the stages after it are planned with the time it leaves.
+  void endStage(size_t stage, int length);
+
   // The planned lengths onto `stages` (a resumed fit's schedule, built with the defaults).
   void apply(std::vector<Stage>& stages) const;
 

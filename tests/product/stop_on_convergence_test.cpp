@@ -96,9 +96,37 @@ TEST(StopOnConvergence, TheAlbedoStageEndsOnceItsMovementIsItsNoiseAndAResumedFi
   EXPECT_TRUE(fittedValues(work) == uninterrupted) << "the resumed fit differs from the uninterrupted one";
 }
 
-TEST(StopOnConvergence, ConfigRefusesATimeBudgetBesideIt) {
-  FitConfig c;
-  c.stopOnConvergence = true;
-  c.timeBudget = 60;
-  EXPECT_THROW(c.validate("test"), Error);
+// Under a time budget the albedo stage runs what the plan gives it, and ends sooner when it
+// converges: the stages after it are planned with the time it leaves, and the fit ends early. The
+// budget here is long enough for every stage at its longest, so the plan does not depend on the
+// machine's speed: the stage converges where it does without a budget.
+TEST(StopOnConvergence, UnderATimeBudgetAConvergedStageEndsTheFitBeforeTheBudget) {
+  const fs::path dir = smallPreparedRoom("stop_on_convergence_budget"), work = dir / "work";
+  const FitSummary alone = runFit(work, convergingConfig(), false, FitHooks{});
+  const Json converged = readJson(work / "result" / "materials.json")["convergence"]["stages"][0];
+  fs::remove_all(work / "result");
+  fs::remove(work / "metrics.jsonl");
+  FitConfig budgeted = convergingConfig();
+  budgeted.timeBudget = 1e6;
+  const FitSummary fit = runFit(work, budgeted, false, FitHooks{});
+  const Json materials = readJson(work / "result" / "materials.json");
+  const Json& stage = materials["convergence"]["stages"][0];
+  EXPECT_EQ(stage["stage"], "albedo@128");
+  EXPECT_EQ(stage["converged_at"], converged["converged_at"]);
+  EXPECT_EQ(stage["iterations"], converged["iterations"]);
+  EXPECT_LT(stage["iterations"].get<int>(), stage["longest"].get<int>());
+  EXPECT_EQ(fit.iterations, alone.iterations);
+  // The plans made before the stage converged gave it all its passes; the budget's summary has
+  // the length it ended at.
+  bool plannedLongest = false;
+  std::ifstream metrics(work / "metrics.jsonl");
+  for (std::string line; std::getline(metrics, line);)
+    if (Json j = Json::parse(line); j.contains("budget") && j["budget"]["stage"] == "albedo@128")
+      plannedLongest |= j["budget"]["iterations"][0][1] == stage["longest"];
+  EXPECT_TRUE(plannedLongest);
+  int ended = -1;
+  for (const Json& st : materials["time_budget"]["iterations"])
+    if (st[0] == "albedo@128") ended = st[1].get<int>();
+  EXPECT_EQ(ended, stage["iterations"].get<int>());
+  EXPECT_LT(materials["time_budget"]["fit_seconds"].get<double>(), budgeted.timeBudget);
 }

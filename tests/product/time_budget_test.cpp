@@ -142,6 +142,27 @@ TEST(TimeBudget, AStageKeepsItsSettlingHalfAhead) {
   EXPECT_EQ(f.stages[1].iterations, 2000);
 }
 
+TEST(TimeBudget, AConvergedStageIsNotLengthenedAndTheFitEndsBeforeTheBudget) {
+  FourStages f;
+  f.stages[1].longest = 4000;
+  TimeBudget b = measured(200, f);
+  b.plan(f.stages, 0, 11, 2.0, kAllRun);
+  ASSERT_NEAR(f.stages[1].iterations, 2991, 1);
+  // In the albedo stage at 0.05 s per iteration, 63 s spent: it converged after 1000 iterations
+  // and settles until 2000 (as Fit::checkConvergence sets it).
+  b.recordBoundary(1.0);
+  for (int i = 0; i < 1000; ++i) b.recordIteration(1, 0.05);
+  b.endStage(1, 2000);
+  f.stages[1].iterations = 2000;
+  const Json plan = b.plan(f.stages, 1, 1000, 63.0, kAllRun);
+  // Planned as before it would run about 2,980: it keeps 2000, the others their defaults, and the
+  // fit ends at 63 + 50 + 30 + 5 s of iterations and 3 boundaries, 49 s before the budget.
+  EXPECT_EQ(f.stages[1].iterations, 2000);
+  EXPECT_EQ(f.stages[2].iterations, 300);
+  EXPECT_EQ(f.stages[3].iterations, 100);
+  EXPECT_NEAR(plan["predicted_end_seconds"].get<double>(), 151, 1e-9);
+}
+
 TEST(TimeBudget, AStagePlannedAtItsLastIterationIsNotLengthened) {
   FourStages f;
   f.stages[0].iterations = 2;

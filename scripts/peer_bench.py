@@ -401,7 +401,7 @@ def cmd_table(a):
       "time = wall clock of the prepare process + the fit process (loading, all stages, writing the result). "
       "Mitsuba: `peer_bench.py fit` (prb depth 9+1, Adam(mask_updates=True), lr 0.05 albedo / 0.5 emission, one random "
       "training frame per iteration at 256x192, 1 spp; from albedo 0.5, emission (1,1,1) on the two true emitters), "
-      "its clock started after loading the scene and frames, snapshots at relume's times. "
+      "its clock started after loading the scene and frames, snapshots at the budgets. "
       "Both scored by `relume eval --truth cap/gt/scene.json --coverage work/coverage.exr` (albedo MAE over the "
       "texels observed >= 5 times, in relume's atlas at %d^2; emission error over the true emitters)."
       % (meta["res"], json.dumps(meta["fit_config"]), meta["res"]))
@@ -465,7 +465,6 @@ def cmd_relumefits(a):
               % (T, r["seconds"], a.prepare_seconds, t_fit, r["iterations"], load), flush=True)
         runs.append(r)
     json.dump(runs, open(os.path.join(a.out, "relume_runs.json"), "w"), indent=1)
-    print(",".join("%.2f" % r["seconds"] for r in runs))
 
 
 def main():

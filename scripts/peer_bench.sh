@@ -4,7 +4,7 @@
 # (a) time and peak RSS of one gradient iteration by path depth and batch size, (b) forward
 # agreement (scripts/mitsuba_compare.sh), (c) albedo error of the same reconstruction at equal wall
 # clock, (e) each renderer's efficiency (its render against its Embree traversal alone on the same rays). Writes OUT/peer.md (and prints it). Not part of the test suite; Mitsuba is never a
-# dependency of relume (pip install mitsuba; its llvm_ad_rgb variant needs libLLVM >= 16 on
+# dependency of relume (pip install mitsuba OpenEXR; its llvm_ad_rgb variant needs libLLVM >= 16 on
 # bookworm: apt-get install libllvm19, Debian's libLLVM 14/15 fail to compile its kernels).
 #
 # Usage: scripts/peer_bench.sh [OUT]      (default out/peer_bench; ~55 minutes on 2 cores, (c) ~35 of them)
@@ -29,7 +29,8 @@ T0=$(date +%s)
   cmake --build "$ROOT/build" -j2 --target relume; }
 
 # Mitsuba with a working LLVM backend (a principled-BSDF kernel exercises the f32 min/max LLVM 14/15 cannot select).
-python3 - << 'PYEOF' || { echo "peer_bench: Mitsuba 3 llvm_ad_rgb does not work here (pip install mitsuba; apt-get install libllvm19)" >&2; exit 1; }
+python3 - << 'PYEOF' || { echo "peer_bench: Mitsuba 3 llvm_ad_rgb does not work here (pip install mitsuba OpenEXR; apt-get install libllvm19)" >&2; exit 1; }
+import OpenEXR  # peer_bench.py writes the Mitsuba fit's textures with it
 import mitsuba as mi
 mi.set_variant("llvm_ad_rgb")
 s = mi.load_dict({"type": "scene", "s": {"type": "sphere", "bsdf": {"type": "principled"}},
@@ -108,16 +109,17 @@ if part c; then
   tp=$(python3 -c "print($(date +%s.%N) - $tp0)")
   CONFIG=$(python3 -c "import json; print(json.dumps(json.load(open('$OUT/meta.json'))['fit_config']))")
   stamp "(c) relume fits, budgets $BUDGETS"
-  SNAPS=$(python3 "$PY" relumefits "$R" "$OUT/work" "$OUT/fit" --budgets "$BUDGETS" --config "$CONFIG" --prepare-seconds "$tp" | tail -1)
+  python3 "$PY" relumefits "$R" "$OUT/work" "$OUT/fit" --budgets "$BUDGETS" --config "$CONFIG" --prepare-seconds "$tp"
   # Mitsuba: from mid-grey albedo, roughness/specular 0.5 (as relume's fit keeps them), emitters (1,1,1)
-  # on the true emitters; snapshots at relume's wall-clock times.
+  # on the true emitters; snapshots at the budgets (relume may end before its budget: its schedule
+  # at its longest, or converged).
   python3 "$PY" initscene "$OUT/cap/gt/scene.json" "$OUT/work" "$OUT/fit/mitsuba_init" --res "$RES"
   "$R" --log warn export "$OUT/fit/mitsuba_init/scene.json" --mitsuba "$OUT/fit/mitsuba_init/mitsuba" --max-depth 9
-  stamp "(c) Mitsuba fit, snapshots at $SNAPS s"
+  stamp "(c) Mitsuba fit, snapshots at $BUDGETS s"
   cut -d' ' -f1 /proc/loadavg > "$OUT/fit/mitsuba_load.txt"
   rm -rf "$OUT/fit/mitsuba"
   python3 "$PY" fit "$OUT/fit/mitsuba_init/mitsuba/scene.xml" "$OUT/cap/transforms.json" "$OUT/fit/mitsuba_init/scene.json" \
-    "$OUT/fit/mitsuba" --snapshots "$SNAPS" --depth 9
+    "$OUT/fit/mitsuba" --snapshots "$BUDGETS" --depth 9
   stamp "(c) eval"
   for k in $(seq 0 $(( $(tr ',' '\n' <<< "$BUDGETS" | wc -l) - 1 ))); do
     for sc in "$OUT/fit/relume_$k" "$OUT/fit/mitsuba/t$k"; do

@@ -224,8 +224,10 @@ std::vector<BenchRun> runBench(const BenchOptions& o) {
     // A budget's run is timed as `relume fit` runs: no evaluation inside its clock.
     BenchRun r = benchRun(ev.work, c, ev, c.timeBudget > 0 ? 0 : o.evaluateEvery);
     r.sweep = sweep, r.value = value;
-    if (!runs.empty() && runs.front().sweep == "baseline")
-      r.maeAtBaselineCost = sweep == "baseline" ? r.albedoMae : errorAt(r, runs.front().cpuSeconds);
+    if (sweep == "baseline")
+      r.maeAtBaselineCost = r.albedoMae;
+    else if (!runs.empty() && runs.front().sweep == "baseline")
+      r.maeAtBaselineCost = errorAt(r, runs.front().cpuSeconds);
     spdlog::info("bench: {} = {}: {:.0f} s ({:.0f} CPU s), albedo MAE {:.4f}{}, test PSNR {:.2f} dB", sweep, value,
                  r.seconds, r.cpuSeconds, r.albedoMae,
                  std::isfinite(r.maeAtBaselineCost) ? fmt::format(" ({:.4f} at the baseline's cost)", r.maeAtBaselineCost)

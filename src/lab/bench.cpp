@@ -118,6 +118,14 @@ BenchRun benchRun(const fs::path& work, const FitConfig& config, const Evaluatio
   return run;
 }
 
+// One run's row of bench.md; `atBaselineCost`: with its error at the baseline's cost.
+std::string tableRow(const std::string& value, const BenchRun& r, bool atBaselineCost) {
+  return fmt::format("| {} | {:.0f} s ({:.0f} s) | {} | {:.4f} | {}{:.2f} dB | {:.4f} | {:.0f} MiB |\n", value,
+                     r.seconds, r.cpuSeconds, r.iterations, r.albedoMae,
+                     atBaselineCost ? fmt::format("{:.4f} | ", r.maeAtBaselineCost) : std::string(), r.psnr, r.msre,
+                     r.memoryMiB);
+}
+
 // A sweep's runs by the wall clock each took: its albedo error and held-out PSNR at the end.
 void writeEndCharts(const fs::path& out, const BenchSweep& sw, const std::vector<BenchRun>& runs, std::string& md) {
   ChartSeries mae, psnr;
@@ -166,9 +174,7 @@ void writeOutputs(const fs::path& out, const std::vector<BenchRun>& runs, const 
           "PSNR | MSRE | fit memory |\n| --- | --- | --- | --- | --- | --- | --- |\n",
           sw->name, sw->key);
       for (const BenchRun& r : runs)
-        if (r.sweep == sw->name)
-          md += fmt::format("| {} | {:.0f} s ({:.0f} s) | {} | {:.4f} | {:.2f} dB | {:.4f} | {:.0f} MiB |\n", r.value,
-                            r.seconds, r.cpuSeconds, r.iterations, r.albedoMae, r.psnr, r.msre, r.memoryMiB);
+        if (r.sweep == sw->name) md += tableRow(r.value, r, false);
       writeEndCharts(out, *sw, runs, md);
       continue;
     }
@@ -182,9 +188,7 @@ void writeOutputs(const fs::path& out, const std::vector<BenchRun>& runs, const 
       if (r.sweep != sw->name && !(isBase && std::count(sw->values.begin(), sw->values.end(), baseJson[sw->key])))
         continue;
       const std::string value = isBase ? valueText(baseJson[sw->key]) + " (baseline)" : r.value;
-      md += fmt::format("| {} | {:.0f} s ({:.0f} s) | {} | {:.4f} | {:.4f} | {:.2f} dB | {:.4f} | {:.0f} MiB |\n",
-                        value, r.seconds, r.cpuSeconds, r.iterations, r.albedoMae, r.maeAtBaselineCost, r.psnr, r.msre,
-                        r.memoryMiB);
+      md += tableRow(value, r, true);
       series.push_back({value, r.curveCpuSeconds, r.curveMae});
     }
     md += fmt::format("\n![{}]({}.svg)\n\n", sw->name, sw->name);

@@ -18,7 +18,7 @@ struct BenchSweep {
   Json with = Json::object();  // other keys every value of this sweep needs (then the baseline run is not reused)
   // Runs from the fit's own schedule (BenchOptions::schedule), not the shortened base: a time budget
   // chooses the stage lengths itself, and against the shortened base every long budget would end
-  // with it. Its runs are also drawn against the wall clock they took (OUT/<name>_end.svg).
+  // with it. Its runs are drawn against the wall clock they took (OUT/<name>_mae.svg, _psnr.svg).
   bool fromFitSchedule = false;
 };
 // Every sweep `relume bench` knows.

@@ -706,6 +706,15 @@ void Fit::finishStage(const Stage& st, size_t stageIndex, const TexelSpace& spac
   }
   if (st.pruneAfter && c_.emitterParameterisation && c_.clippedLightScale) decisions_.findClippedLights(space);
   if (st.scaleClippedLightsAfter && decisions_.scaleClippedLights(space, st.name)) optimiser_.restartAfterLightChange();
+  // The colours from the outlines once the scale is done (the last probe that runs), so that the
+  // albedo stage proper fits under them. Earlier, the probes' scales moved with them (the note).
+  const bool probeFollows = stageIndex + 1 < stages_.size() && stages_[stageIndex + 1].scaleClippedLightsAfter &&
+                            !skips(stages_[stageIndex + 1]);
+  if (st.scaleClippedLightsAfter && !probeFollows && c_.clippedLightSilhouetteColour &&
+      decisions_.colourClippedLights(space, st.name)) {
+    optimiser_.restartAfterLightChange();
+    lights_.reset();
+  }
   if (st.refinePosesAfter && refinePoses_) refinePoses(st.name);
   if (hooks_.writeFiles) writeCheckpoint(stageIndex + 1, 0, space);
 }

@@ -76,6 +76,7 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("clipped_light_scale", ConfigField(&c.clippedLightScale));
   fn("clipped_scale_shown_radiance", ConfigField(&c.clippedScaleShownRadiance));
   fn("clipped_scale_material_choice", ConfigField(&c.clippedScaleMaterialChoice));
+  fn("clipped_light_silhouette_colour", ConfigField(&c.clippedLightSilhouetteColour));
   fn("emission_refit_iterations", ConfigField(&c.emissionRefitIterations));
   fn("lights", ConfigField(&c.lights));
   fn("light_albedo_zero", ConfigField(&c.lightAlbedoZero));

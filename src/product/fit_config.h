@@ -175,6 +175,10 @@ struct FitConfig {
   // albedo is most uniform under at the lights' shared scale; false: both lobes as one, the fit's
   // materials.
   bool clippedScaleMaterialChoice = true;
+  // After their last scale, each one's colour measured where its outline mixes into its pixels
+  // unclipped (product/silhouette_colour.h), where that is known; false = the colour the emission
+  // stage and the per-channel scales gave them.
+  bool clippedLightSilhouetteColour = true;
   // A light source's radiance is all emission (albedo 0, not fitted): from any view a Lambertian
   // emission and a diffuse reflection look the same, and windows and shades transmit their light.
   bool lightAlbedoZero = true;

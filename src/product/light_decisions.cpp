@@ -14,6 +14,7 @@
 #include "core/rng.h"
 #include "core/system.h"
 #include "product/clipped_light_scale.h"
+#include "product/silhouette_colour.h"
 #include "render/bsdf.h"
 #include "render/lights.h"
 #include "render/path_tracer.h"
@@ -239,6 +240,37 @@ void LightDecisions::findClippedLights(const TexelSpace& space) {
       lightsSeenOnlySaturated(w_, space, a_, r_.emitter, gains_, clippedLightSettings(c_), c_.seed);
   r_.clippedLights = !lights.empty();
   for (int o : lights) spdlog::info("fit: light {} ({}) is seen only saturated", o, a_.names[o]);
+}
+
+bool LightDecisions::colourClippedLights(const TexelSpace& space, const std::string& after) {
+  const std::vector<int> lights =
+      lightsSeenOnlySaturated(w_, space, a_, r_.emitter, gains_, clippedLightSettings(c_), c_.seed);
+  if (lights.empty()) return false;
+  bool changed = false;
+  Json entries = Json::array();
+  for (const SilhouetteColour& m : measureSilhouetteColours(w_, gains_, lights, a_.emission, r_.emitter)) {
+    const Color before = a_.emission[m.light];
+    if (m.known) a_.emission[m.light] = m.colour * luminance(before), changed = true;
+    const Color& e = a_.emission[m.light];
+    if (!m.measured)
+      spdlog::info("fit: after {}: light {} ({}): its outline has too few unclipped pixels to show its colour ({} in "
+                   "{} frames); its colour kept",
+                   after, m.light, a_.names[m.light], m.pixels, m.frames);
+    else
+      spdlog::info("fit: after {}: light {} ({}): its outline shows the colour {:.3f} {:.3f} {:.3f} (log error {:.3f} "
+                   "{:.3f} {:.3f}; {} pixels in {} frames){}",
+                   after, m.light, a_.names[m.light], m.colour[0], m.colour[1], m.colour[2], m.logError[0],
+                   m.logError[1], m.logError[2], m.pixels, m.frames,
+                   m.known ? fmt::format(": emission {:.3g} {:.3g} {:.3g} -> {:.3g} {:.3g} {:.3g}", before[0],
+                                         before[1], before[2], e[0], e[1], e[2])
+                           : std::string(": not known well enough, its colour kept"));
+    Json entry = m.toJson();
+    entry["id"] = m.light;
+    entry["name"] = a_.names[m.light];
+    entries.push_back(std::move(entry));
+  }
+  r_.lightDecisions.push_back({{"after", after}, {"silhouette_colour", entries}});
+  return changed;
 }
 
 bool LightDecisions::scaleClippedLights(const TexelSpace& space, const std::string& after) {

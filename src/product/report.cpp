@@ -1,5 +1,6 @@
 #include "product/report.h"
 
+#include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 
 #include <cmath>
@@ -434,6 +435,26 @@ std::string lightsSection(const fs::path& file) {
                         "(docs/design/light-sources.md).</p>"
                       : "<p>Test <code>" + html(test) + "</code>.</p>";
   for (const Json& d : lights.value("decisions", Json::array())) {
+    if (const Json outline = d.value("silhouette_colour", Json()); outline.is_array()) {
+      s += "<h3>Colours of the lights seen only saturated, from their outlines, after " +
+           html(d.value("after", std::string())) +
+           "</h3><table><tr><th>light</th><th>colour (luminance 1)</th><th>log error</th><th>pixels</th>"
+           "<th>frames</th><th>used</th></tr>";
+      for (const Json& m : outline) {
+        const auto channels = [](const Json& v) {
+          std::vector<std::string> text;
+          if (!v.is_array()) return std::string("too few pixels");
+          for (const Json& c : v) text.push_back(c.is_null() ? std::string("?") : fmt::format("{:.3f}", c.get<double>()));
+          return fmt::format("{}", fmt::join(text, " "));
+        };
+        s += fmt::format("<tr><td>{} {}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>", m.value("id", 0),
+                         html(m.value("name", std::string())), channels(m.value("colour", Json::array())),
+                         channels(m.value("log_error", Json::array())), m.value("pixels", 0), m.value("frames", 0),
+                         m.value("known", false) ? "yes" : "no: the emission stage's colour kept");
+      }
+      s += "</table>";
+      continue;
+    }
     if (const Json scale = d.value("clipped_light_scale", Json()); scale.is_object()) {
       s += "<h3>Lights seen only saturated, after " + html(d.value("after", std::string())) + "</h3><p>" +
            html(scale.value("why", std::string())) + ".</p>";

@@ -67,6 +67,21 @@ TEST(Report, FitWritesASelfContainedPageWithCurvesImagesAndMaterials) {
   for (const Json& d : lights["decisions"])
     EXPECT_NE(html.find("<h3>After " + d["after"].get<std::string>() + "</h3>"), std::string::npos);
   EXPECT_NE(html.find("missing; light from"), std::string::npos);
+  // The colours of lights seen only saturated, from their outlines: a table row per light.
+  Json withOutline = lights;
+  withOutline["decisions"].push_back(
+      {{"after", "emission"},
+       {"silhouette_colour", Json::array({{{"id", 1}, {"name", "lamp"}, {"colour", {1.1, 0.98, 0.8}},
+                                           {"log_error", {0.01, 0.002, nullptr}}, {"pixels", 40}, {"frames", 3},
+                                           {"known", true}}})}});
+  writeJson(dir / "work" / "result" / "lights.json", withOutline);
+  writeFitReport(dir / "work");
+  std::stringstream outline;
+  outline << std::ifstream(page).rdbuf();
+  EXPECT_NE(outline.str().find("from their outlines, after emission</h3>"), std::string::npos);
+  EXPECT_NE(outline.str().find("<td>1 lamp</td><td>1.100 0.980 0.800</td><td>0.010 0.002 ?</td><td>40</td><td>3</td>"
+                               "<td>yes</td>"),
+            std::string::npos);
   // A work folder copied without prepare's pictures still gets its report, without those figures.
   fs::remove(dir / "work" / "albedo_init.png");
   fs::remove(dir / "work" / "report" / "albedo_init.png");

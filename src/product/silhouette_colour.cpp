@@ -34,19 +34,33 @@ struct Region {
   size_t size() const { return static_cast<size_t>(std::max(0, width())) * static_cast<size_t>(std::max(0, height())); }
 };
 
-// The stored pixels around where the light's vertices project, `margin` pixels wider; the whole
-// image when some vertex lies behind the camera.
+// The stored pixels around where the light's triangles (`vertices`, three per triangle) project,
+// `margin` pixels wider, clipped to the image (empty when they miss it). Triangles are cut at a
+// plane just in front of the camera, so that a light partly behind it spans only what lies in front.
 Region regionAround(const Camera& cam, const std::vector<Vec3>& vertices, int downscale, int storedWidth,
                     int storedHeight, int margin) {
+  constexpr float kNear = 1e-3f;
   float lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
-  for (const Vec3& v : vertices) {
-    const auto p = cam.project(v);
-    if (!p) return {0, 0, storedWidth, storedHeight};
-    for (int k = 0; k < 2; ++k) lo[k] = std::min(lo[k], (*p)[k]), hi[k] = std::max(hi[k], (*p)[k]);
-  }
-  const auto stored = [&](float v) { return static_cast<int>(std::floor(v / static_cast<float>(downscale))); };
-  return {std::max(0, stored(lo[0]) - margin), std::max(0, stored(lo[1]) - margin),
-          std::min(storedWidth, stored(hi[0]) + margin + 1), std::min(storedHeight, stored(hi[1]) + margin + 1)};
+  const auto add = [&](const Vec3& v) {
+    if (const auto p = cam.project(v); p && p->allFinite())
+      for (int k = 0; k < 2; ++k) lo[k] = std::min(lo[k], (*p)[k]), hi[k] = std::max(hi[k], (*p)[k]);
+  };
+  const auto depth = [&](const Vec3& v) { return (cam.rotation.transpose() * (v - cam.position)).z(); };
+  for (size_t t = 0; t + 2 < vertices.size(); t += 3)
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 &a = vertices[t + k], &b = vertices[t + (k + 1) % 3];
+      const float za = depth(a), zb = depth(b);
+      if (za >= kNear) add(a);
+      if ((za - kNear) * (zb - kNear) < 0) add(a + (b - a) * ((kNear - za) / (zb - za)));
+    }
+  if (!(lo[0] <= hi[0] && lo[1] <= hi[1])) return {};
+  // Clamped as floats first: a point just in front of the camera projects far outside the image.
+  const auto stored = [&](float v, int size) {
+    return static_cast<int>(std::floor(std::clamp(v / static_cast<float>(downscale), -1.0f, size + 1.0f)));
+  };
+  return {std::max(0, stored(lo[0], storedWidth) - margin), std::max(0, stored(lo[1], storedHeight) - margin),
+          std::min(storedWidth, stored(hi[0], storedWidth) + margin + 1),
+          std::min(storedHeight, stored(hi[1], storedHeight) + margin + 1)};
 }
 
 // Chessboard distance of every pixel to the nearest one where `inside` holds (kFar: none).
@@ -89,6 +103,7 @@ std::vector<ColourSample> frameSamples(const Workspace& w, uint32_t frame, const
   // to `far` hold none and are the background.
   const int inner = static_cast<int>(std::ceil(cam.filter.radius() / static_cast<float>(ds))) + 1;
   const int near = inner + 2, far = inner + 4;
+  if (!std::isfinite(stats.clipHigh)) return {};  // a float frame clips nothing: no light in it is seen only saturated
   const Region r = regionAround(cam, vertices, ds, static_cast<int>(stats.width), static_cast<int>(stats.height), far);
   if (r.size() == 0 || r.size() > s.maxPixelsPerFrame) return {};
   std::vector<int> label(r.size(), -1);
@@ -236,15 +251,14 @@ std::vector<SilhouetteColour> measureSilhouetteColours(const Workspace& w, const
     for (size_t t = 0; t < w.mesh.triangles.size(); ++t)
       if (w.mesh.faceObject[t] == light)
         for (int k = 0; k < 3; ++k) vertices.push_back(w.mesh.positions[w.mesh.triangles[t][k]]);
-    // The kept frames the light's vertices may project into, then up to maxFrames of them, evenly.
+    // The kept frames the light's triangles project into, then up to maxFrames of them, evenly.
     std::vector<uint32_t> candidates;
     for (uint32_t f : w.kept) {
-      const Camera& cam = w.frames[f].camera;
-      const bool inView = std::any_of(vertices.begin(), vertices.end(), [&](const Vec3& v) {
-        const auto p = cam.project(v);
-        return !p || ((*p)[0] >= 0 && (*p)[1] >= 0 && (*p)[0] < cam.width && (*p)[1] < cam.height);
-      });
-      if (inView) candidates.push_back(f);
+      const FrameStats& stats = w.store->stats(f);
+      if (regionAround(w.frames[f].camera, vertices, static_cast<int>(stats.downscale), static_cast<int>(stats.width),
+                       static_cast<int>(stats.height), 0)
+              .size() > 0)
+        candidates.push_back(f);
     }
     std::vector<uint32_t> chosen;
     const size_t n = std::min(candidates.size(), static_cast<size_t>(s.maxFrames));
@@ -280,6 +294,9 @@ std::vector<SilhouetteColour> measureSilhouetteColours(const Workspace& w, const
           std::erase_if(samples, [&](const ColourSample& p) { return std::abs(p.logColour[c] - centre) > kOutlierMads * mad; });
       }
       count();
+      result.measured = result.pixels >= static_cast<size_t>(s.minPixels);
+    }
+    if (result.measured) {
       const Eigen::Array3d logColour = meanLogColour(samples, kNoUnit);
       result.colour = logColour.exp().cast<float>();
       // Jackknife over the units and, with more than one frame, over the frames (a frame's error in

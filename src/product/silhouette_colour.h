@@ -11,8 +11,9 @@
 //   x = I - B,  f = lum(x) / (lum(E) - lum(B)),  E' = x / f + B,  colour = E' / lum(E'),
 // with lum(E) the current emission's luminance, at least the frame's clip level (the light clips
 // there). Where E outshines B the colour hardly depends on lum(E). Over the light's pixels the
-// colour is each channel's median weighted by lum(x), normalised to luminance 1; its error a
-// jackknife over frames. Pixels are labelled by the mesh at their centres, so a pose off by a pixel
+// colour is the weighted mean of the log colour (weights lum(x)^2 over the background's spread^2
+// and the 8-bit step^2), after dropping pixels beyond 4 robust deviations of the weighted median,
+// normalised to luminance 1; its error a jackknife over 8 x 8 tiles and over frames. Pixels are labelled by the mesh at their centres, so a pose off by a pixel
 // moves which ones count, not what they measure.
 #pragma once
 #include <cstdint>

@@ -28,8 +28,9 @@ fs::path clippedRoom(const std::string& name, const PixelFilter& filter) {
   return preparedCapture(name, so, 256);
 }
 
-// Every light's measured colour against the truth's, with the emission at `emissionShare` of the
-// truth's luminance (the fit's guess of a light seen only saturated is its clip level, far below).
+// Every light's measured colour against the truth's, with the emission grey at `emissionShare` of
+// the truth's luminance (the fit's guess of a light seen only saturated is near its clip level, far
+// below, and of another colour).
 void expectTrueColours(const fs::path& dir, double emissionShare) {
   const Workspace w(dir / "work");
   const Appearance truth = loadSceneFile(dir / "capture" / "gt" / "scene.json").appearance;
@@ -37,7 +38,9 @@ void expectTrueColours(const fs::path& dir, double emissionShare) {
   std::vector<uint8_t> emitter(truth.objectCount(), 0);
   std::vector<Color> emission = truth.emission;
   for (int o = 0; o < truth.objectCount(); ++o)
-    if (truth.isEmissive(o)) lights.push_back(o), emitter[o] = 1, emission[o] *= static_cast<float>(emissionShare);
+    if (truth.isEmissive(o))
+      lights.push_back(o), emitter[o] = 1,
+          emission[o] = Color::Constant(static_cast<float>(emissionShare * luminance(truth.emission[o])));
   ASSERT_EQ(lights.size(), 2u);
   const FrameGains gains(FrameGainMode::None, w.frames.size(), w.kept, -1, 0.9f);
   for (const SilhouetteColour& m : measureSilhouetteColours(w, gains, lights, emission, emitter)) {

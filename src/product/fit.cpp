@@ -711,7 +711,7 @@ void Fit::finishStage(const Stage& st, size_t stageIndex, const TexelSpace& spac
   const bool probeFollows = stageIndex + 1 < stages_.size() && stages_[stageIndex + 1].scaleClippedLightsAfter &&
                             !skips(stages_[stageIndex + 1]);
   if (st.scaleClippedLightsAfter && !probeFollows && c_.clippedLightSilhouetteColour &&
-      decisions_.colourClippedLights(space, st.name)) {
+      decisions_.colourClippedLights(st.name)) {
     optimiser_.restartAfterLightChange();
     lights_.reset();
   }

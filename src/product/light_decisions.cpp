@@ -242,9 +242,8 @@ void LightDecisions::findClippedLights(const TexelSpace& space) {
   for (int o : lights) spdlog::info("fit: light {} ({}) is seen only saturated", o, a_.names[o]);
 }
 
-bool LightDecisions::colourClippedLights(const TexelSpace& space, const std::string& after) {
-  const std::vector<int> lights =
-      lightsSeenOnlySaturated(w_, space, a_, r_.emitter, gains_, clippedLightSettings(c_), c_.seed);
+bool LightDecisions::colourClippedLights(const std::string& after) {
+  const std::vector<int>& lights = clippedLights_;
   if (lights.empty()) return false;
   bool changed = false;
   Json entries = Json::array();
@@ -276,6 +275,7 @@ bool LightDecisions::colourClippedLights(const TexelSpace& space, const std::str
 bool LightDecisions::scaleClippedLights(const TexelSpace& space, const std::string& after) {
   const ClippedLightScale scale = relume::scaleClippedLights(w_, space, a_, r_.emitter, r_.outOfModel, gains_, path_,
                                                              clippedLightSettings(c_), c_.seed);
+  clippedLights_ = scale.lights;
   if (scale.lights.empty()) return false;
   if (scale.applied)
     spdlog::info("fit: after {}: {}", after, scale.why);

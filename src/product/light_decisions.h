@@ -66,10 +66,10 @@ class LightDecisions {
   // Lights seen only saturated take the emission that makes each object's albedo most uniform
   // (clipped_light_scale.h), recorded with the decisions. Returns whether it changed them.
   bool scaleClippedLights(const TexelSpace& space, const std::string& after);
-  // With clipped_light_silhouette_colour, after the last scale: each light seen only saturated
+  // With clipped_light_silhouette_colour, after the last scale: each light it found seen only saturated
   // takes the colour its outline shows where that is known (silhouette_colour.h), at its luminance,
   // recorded with the decisions. Returns whether it changed some.
-  bool colourClippedLights(const TexelSpace& space, const std::string& after);
+  bool colourClippedLights(const std::string& after);
   // Unobserved texels take their object's mean albedo (or 0.5 on an object no frame saw).
   void fillUnobservedAlbedo(const TexelSpace& space);
   // Which objects the frames show a highlight on. Probe connections either see a light reflected
@@ -101,6 +101,7 @@ class LightDecisions {
   ObjectRoles& r_;
   const PathSettings& path_;
   const FrameGains& gains_;
+  std::vector<int> clippedLights_;  // the lights the last scale found seen only saturated
 };
 
 }  // namespace relume

@@ -440,17 +440,17 @@ std::string lightsSection(const fs::path& file) {
            html(d.value("after", std::string())) +
            "</h3><table><tr><th>light</th><th>colour (luminance 1)</th><th>log error</th><th>pixels</th>"
            "<th>frames</th><th>used</th></tr>";
+      const auto channels = [](const Json& v) {
+        std::vector<std::string> text;
+        if (!v.is_array()) return std::string("too few pixels");
+        for (const Json& c : v) text.push_back(c.is_null() ? std::string("?") : fmt::format("{:.3f}", c.get<double>()));
+        return fmt::format("{}", fmt::join(text, " "));
+      };
       for (const Json& m : outline) {
-        const auto channels = [](const Json& v) {
-          std::vector<std::string> text;
-          if (!v.is_array()) return std::string("too few pixels");
-          for (const Json& c : v) text.push_back(c.is_null() ? std::string("?") : fmt::format("{:.3f}", c.get<double>()));
-          return fmt::format("{}", fmt::join(text, " "));
-        };
         s += fmt::format("<tr><td>{} {}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>", m.value("id", 0),
                          html(m.value("name", std::string())), channels(m.value("colour", Json::array())),
                          channels(m.value("log_error", Json::array())), m.value("pixels", 0), m.value("frames", 0),
-                         m.value("known", false) ? "yes" : "no: the emission stage's colour kept");
+                         m.value("known", false) ? "yes" : "no: its colour kept");
       }
       s += "</table>";
       continue;

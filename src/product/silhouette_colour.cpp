@@ -174,13 +174,8 @@ std::vector<ColourSample> frameSamples(const Workspace& w, uint32_t frame, const
           }
         }
       if (channel[0].size() < 3 || besideOther || coverage(col, row) == 0) continue;
-      const auto median = [](std::vector<float>& v) {
-        auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-        std::nth_element(v.begin(), mid, v.end());
-        return *mid;
-      };
       Color B;
-      for (int c = 0; c < 3; ++c) B[c] = median(channel[c]);
+      for (int c = 0; c < 3; ++c) B[c] = medianOf(channel[c]);
       const Color radiance = *I / gain, background = B / gain, x = radiance - background;
       const double lx = luminance(x), lb = luminance(background);
       if (x.minCoeff() <= 0) continue;
@@ -191,7 +186,7 @@ std::vector<ColourSample> frameSamples(const Workspace& w, uint32_t frame, const
       // The background's spread around its median (MAD, as a standard deviation) is what an error
       // in B amounts to; the colour's error goes as that over lum(x).
       for (float& v : channel[3]) v = std::abs(v - static_cast<float>(lb));
-      const double spread = 1.4826 * median(channel[3]);
+      const double spread = 1.4826 * medianOf(channel[3]);
       const Color e = x / static_cast<float>(f) + background;
       const uint64_t tile = static_cast<uint64_t>((r.y0 + row) / kTile) * 65536 + static_cast<uint64_t>((r.x0 + col) / kTile);
       out.push_back({Color(e / luminance(e)).log().cast<double>(), lx * lx / (spread * spread + quantum * quantum),

@@ -36,6 +36,8 @@ struct SilhouetteColourSettings {
   // what lies behind it (so an error in B moves the colour little).
   double minExcess = 0.05;
   double minOverBackground = 0.25;
+  // ... and at least this many times the background's noise (its spread, and the 8-bit step).
+  double minSignificance = 3;
   double maxShareOfClip = 0.8;  // a pixel counts where every channel is at most this share of the clip level
   int minPixels = 8;
   double maxLogError = 0.1;  // per channel: the colour is used when known to this

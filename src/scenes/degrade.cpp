@@ -35,17 +35,19 @@ fs::path insideFolder(const fs::path& folder, const fs::path& file, const fs::pa
   return relative;
 }
 
-// The held-out frames, unchanged: transforms_test.json byte for byte and every image it names at
-// the same place in `out`.
+// The held-out frames, unchanged: transforms_test.json byte for byte and every image it names
+// (the frames and their albedo passes) at the same place in `out`.
 int copyHeldOut(const fs::path& capture, const fs::path& out) {
   const fs::path json = capture / "transforms_test.json";
   if (!pathExists(json)) return 0;
   const Capture heldOut = readTransforms(json);
-  for (const Frame& f : heldOut.frames) {
-    const fs::path relative = insideFolder(capture, f.image, json);
-    createDirectories((out / relative).parent_path());
-    copyFileOver(f.image, out / relative);
-  }
+  for (const Frame& f : heldOut.frames)
+    for (const fs::path& image : {f.image, f.albedo}) {
+      if (image.empty()) continue;
+      const fs::path relative = insideFolder(capture, image, json);
+      createDirectories((out / relative).parent_path());
+      copyFileOver(image, out / relative);
+    }
   copyFileOver(json, out / "transforms_test.json");
   return static_cast<int>(heldOut.frames.size());
 }

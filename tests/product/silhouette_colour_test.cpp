@@ -17,11 +17,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// The room, 24 frames of 320x240 at 16 spp as 8-bit sRGB bracketed -1.5/0/+1.5 EV, with
-// `filter`, prepared at 256^2.
-fs::path clippedRoom(const std::string& name, const PixelFilter& filter) {
+// The room, 24 frames of 320x240 at `spp` samples per pixel as 8-bit sRGB bracketed -1.5/0/+1.5
+// EV, with `filter`, prepared at 256^2.
+fs::path clippedRoom(const std::string& name, const PixelFilter& filter, int spp = 16) {
   SynthCaptureOptions so;
-  so.frames = 24, so.testFrames = 1, so.width = 320, so.height = 240, so.spp = 16, so.testSpp = 1;
+  so.frames = 24, so.testFrames = 1, so.width = 320, so.height = 240, so.spp = spp, so.testSpp = 1;
   so.atlasResolution = 256;
   so.pixelFilter = filter;
   so.imperfections = parseImperfections("bracket=-1.5,0,1.5;ldr=8");
@@ -30,8 +30,9 @@ fs::path clippedRoom(const std::string& name, const PixelFilter& filter) {
 
 // Every light's measured colour against the truth's, with the emission grey at `emissionShare` of
 // the truth's luminance (the fit's guess of a light seen only saturated is near its clip level, far
-// below, and of another colour).
-void expectTrueColours(const fs::path& dir, double emissionShare) {
+// below, and of another colour). With `mustKnow` false a light may be left unknown, but a colour
+// claimed must still be the truth's.
+void expectTrueColours(const fs::path& dir, double emissionShare, bool mustKnow = true) {
   const Workspace w(dir / "work");
   const Appearance truth = loadSceneFile(dir / "capture" / "gt" / "scene.json").appearance;
   std::vector<int> lights;
@@ -48,7 +49,8 @@ void expectTrueColours(const fs::path& dir, double emissionShare) {
     std::printf("light %d: %.3f %.3f %.3f (log error %.3f %.3f %.3f; %zu pixels, %d frames), truth %.3f %.3f %.3f\n",
                 m.light, m.colour[0], m.colour[1], m.colour[2], m.logError[0], m.logError[1], m.logError[2], m.pixels,
                 m.frames, want[0], want[1], want[2]);
-    EXPECT_TRUE(m.measured && m.known) << m.light;
+    if (mustKnow) EXPECT_TRUE(m.measured && m.known) << m.light;
+    if (!m.known) continue;
     for (int c = 0; c < 3; ++c) {
       const double off = std::abs(std::log(m.colour[c] / want[c]));
       EXPECT_LT(off, 0.03) << "light " << m.light << " channel " << c;
@@ -75,6 +77,16 @@ TEST(SilhouetteColour, ClippedPanelsShowTheirColourAtTheirOutlines) {
 // beside the outline.
 TEST(SilhouetteColour, ThroughAWiderPixelFilter) {
   expectTrueColours(clippedRoom("silhouette_bh", PixelFilter(PixelFilterType::BlackmanHarris, 1.5f)), 0.3);
+}
+
+// At 4 samples per pixel no sample of an outline pixel can find a panel (radiance 11-12, 4-12x
+// the clip levels) and leave the pixel unclipped: the pixels beside the outline that are brighter
+// than their surroundings are the path tracer's noise, and have the ceiling's colour under the
+// panel's light. Taken for outline pixels, they gave the cool panel a warm colour 5 stated errors
+// off. A colour may be left unknown here, never claimed wrong.
+TEST(SilhouetteColour, NoisyFramesClaimNoWrongColour) {
+  expectTrueColours(clippedRoom("silhouette_noisy", PixelFilter(PixelFilterType::BlackmanHarris, 1.5f), 4), 0.3,
+                    false);
 }
 
 // At 64x48 the panels' outlines hold no pixel that stays unclipped: no colour is claimed.

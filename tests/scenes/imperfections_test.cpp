@@ -463,6 +463,25 @@ TEST_F(ImperfectCapture, DegradingTheCleanCaptureWritesWhatSynthImperfectWrites)
   }
 }
 
+// A held-out frame's albedo pass (`albedo_path`: a Cycles capture's, for eval's per-pixel
+// albedo) comes along with it; without it eval of the degraded capture stopped at the missing file.
+TEST_F(ImperfectCapture, DegradeCopiesTheHeldOutFramesAlbedoPasses) {
+  const fs::path clean = write("clean", std::nullopt);
+  Capture heldOut = readTransforms(clean / "transforms_test.json");
+  ASSERT_EQ(heldOut.frames.size(), 1u);
+  Frame& f = heldOut.frames.front();
+  f.albedo = clean / "test" / "00_albedo.exr";
+  fs::copy_file(f.image, f.albedo);
+  writeTransforms(clean / "transforms_test.json", heldOut.frames, heldOut.exactPoses);
+  DegradeOptions o;
+  o.capture = clean, o.out = root / "degraded", o.spec = parseImperfections("bracket=-1.5,0,1.5;ldr=8");
+  EXPECT_EQ(degradeCapture(o).heldOutCopied, 1);
+  const Capture copied = readTransforms(o.out / "transforms_test.json");
+  ASSERT_EQ(copied.frames.size(), 1u);
+  EXPECT_EQ(copied.frames.front().albedo, o.out / "test" / "00_albedo.exr");
+  EXPECT_EQ(bytesOf(copied.frames.front().albedo), bytesOf(f.albedo));
+}
+
 TEST_F(ImperfectCapture, DegradeRefusesQuantisedFramesFlawedCapturesAndFoldersInUse) {
   const auto errorOfDegrade = [&](const fs::path& capture, const fs::path& out) -> std::string {
     DegradeOptions o;

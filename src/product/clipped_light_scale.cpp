@@ -97,17 +97,21 @@ DiffuseTerms diffuseTerms(const ScaleTexel& t, const std::vector<double>& s) {
 // variance of the log-albedo is g' C g, g its gradient in the means, C their covariance).
 double objectTerm(const std::vector<const ScaleTexel*>& texels, const std::vector<double>& s) {
   const size_t K = s.size();
+  // The covariance's weights, per term of each lobe: the lights' scales, then 1 for the rest.
+  std::vector<double> w(2 * (K + 1), 1.0);
+  for (size_t c = 0; c < K; ++c) w[c] = w[K + 1 + c] = s[c];
   double sum = 0, squares = 0, noise = 0;
   for (const ScaleTexel* t : texels) {
     const DiffuseTerms d = diffuseTerms(*t, s);
     // The covariance's blocks weighted by the scales: diffuse-diffuse, diffuse-specular, specular-specular.
     const size_t n = t->specular.empty() ? K + 1 : 2 * (K + 1);
     std::array<double, 3> block{};
-    for (size_t i = 0; i < n; ++i)
-      for (size_t j = 0; j < n; ++j) {
-        const double wi = i % (K + 1) < K ? s[i % (K + 1)] : 1.0, wj = j % (K + 1) < K ? s[j % (K + 1)] : 1.0;
-        block[(i > K) + (j > K)] += wi * wj * t->covariance[i * n + j];
-      }
+    for (size_t i = 0; i < n; ++i) {
+      const double* row = &t->covariance[i * n];
+      const size_t first = i > K;
+      for (size_t j = 0; j <= K; ++j) block[first] += w[i] * w[j] * row[j];
+      for (size_t j = K + 1; j < n; ++j) block[first + 1] += w[i] * w[j] * row[j];
+    }
     double variance = block[0] / (d.received * d.received);
     if (!d.floored) variance += 2 * block[1] / (d.received * d.shown) + block[2] / (d.shown * d.shown);
     const double logAlbedo = std::log(d.shown) - std::log(d.received);

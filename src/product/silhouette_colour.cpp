@@ -187,13 +187,14 @@ std::vector<ColourSample> frameSamples(const Workspace& w, uint32_t frame, const
       // in B amounts to; the colour's error goes as that over lum(x).
       for (float& v : channel[3]) v = std::abs(v - static_cast<float>(lb));
       const double spread = 1.4826 * medianOf(channel[3]);
+      const double noiseSquared = spread * spread + quantum * quantum;  // and the 8-bit step
       // An excess within a few of those of 0 is the background's noise, whose colour is the
       // background's (a path-traced frame at 4 samples per pixel: no sample of an outline pixel
       // can hit a light 10x the clip and leave it unclipped, so every pixel kept was noise).
-      if (lx < s.minSignificance * std::hypot(spread, quantum)) continue;
+      if (lx < s.minSignificance * std::sqrt(noiseSquared)) continue;
       const Color e = x / static_cast<float>(f) + background;
       const uint64_t tile = static_cast<uint64_t>((r.y0 + row) / kTile) * 65536 + static_cast<uint64_t>((r.x0 + col) / kTile);
-      out.push_back({Color(e / luminance(e)).log().cast<double>(), lx * lx / (spread * spread + quantum * quantum),
+      out.push_back({Color(e / luminance(e)).log().cast<double>(), lx * lx / noiseSquared,
                      (static_cast<uint64_t>(frame) << 32) | tile});
     }
   return out;

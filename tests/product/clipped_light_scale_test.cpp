@@ -63,6 +63,38 @@ TEST(ClippedLightScale, LightsThatLightDifferentPlacesGetTheirOwn) {
   EXPECT_NEAR(fit.scale[1] / 1.3, 1.0, 0.04);
 }
 
+// The lights' errors when each has its own scale are the jackknife over objects: each object left
+// out and the scales fitted again. Here each object's albedo also trends with the two lights'
+// direct shares, so the objects disagree on the scales by more than their texels' noise, and the
+// jackknife, not the curvature, sets the error. Fitted from scratch without each object (the
+// grouping given), the left-out scales give the errors the fit states.
+TEST(ClippedLightScale, TheErrorIsTheJackknifeOverObjectsFittedAgain) {
+  std::vector<ScaleTexel> all = texels({1.7, 1.3}, 8, 300, 0.02, 7);
+  std::mt19937 rng(17);
+  std::normal_distribution<double> n(0, 1);
+  std::vector<double> trend(8);
+  for (double& b : trend) b = 0.3 * n(rng);
+  for (ScaleTexel& t : all) t.shown *= std::exp(trend[t.object] * (t.mean[0] - t.mean[1]));
+  const ScaleFit fit = fitClippedScales(all, 32, 0.1);
+  ASSERT_FALSE(fit.common);
+  std::vector<std::vector<double>> leftOut(2);
+  for (int o = 0; o < 8; ++o) {
+    std::vector<ScaleTexel> rest;
+    for (const ScaleTexel& t : all)
+      if (t.object != o) rest.push_back(t);
+    const ScaleFit without = fitClippedScales(rest, 32, 0.1, fit.groupOf);
+    for (int c = 0; c < 2; ++c) leftOut[c].push_back(std::log(without.scale[c]));
+  }
+  for (int c = 0; c < 2; ++c) {
+    double mean = 0, squares = 0;
+    for (double x : leftOut[c]) mean += x / 8;
+    for (double x : leftOut[c]) squares += (x - mean) * (x - mean);
+    const double jackknife = std::sqrt(7.0 / 8.0 * squares);
+    EXPECT_GT(jackknife, 0.01) << c;  // well above the texels' noise
+    EXPECT_NEAR(fit.logError[c] / jackknife, 1.0, 1e-3) << c;
+  }
+}
+
 // Two lights whose light falls everywhere in the same proportion: only their common scale is known.
 TEST(ClippedLightScale, LightsNoSurfaceTellsApartShareOneScale) {
   std::vector<ScaleTexel> same = texels({1.5}, 6, 200, 0.02, 8);

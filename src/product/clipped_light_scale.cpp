@@ -71,9 +71,10 @@ using Objects = std::vector<std::vector<const ScaleTexel*>>;
 constexpr double kMinDiffuseShare = 0.1;
 
 // At scales s: what the texel's diffuse lobe receives (s.D + R) and shows (I - s.G - G_R, at
-// least kMinDiffuseShare I).
+// least kMinDiffuseShare I; `floored` when held there).
 struct DiffuseTerms {
   double received = 0, shown = 0;
+  bool floored = false;
 };
 DiffuseTerms diffuseTerms(const ScaleTexel& t, const std::vector<double>& s) {
   const size_t K = s.size();
@@ -85,21 +86,9 @@ DiffuseTerms diffuseTerms(const ScaleTexel& t, const std::vector<double>& s) {
     if (!t.specular.empty()) specular += s[c] * t.specular[c];
   }
   const double least = kMinDiffuseShare * t.shown;
-  d.shown = std::max(least, t.shown - specular);
+  d.floored = t.shown - specular < least;
+  d.shown = d.floored ? least : t.shown - specular;
   return d;
-}
-
-// How much of the specular lobe's noise counts in a texel's, by the diffuse lobe's share of what
-// the texel shows: all of it from twice the floor's share, none at the floor, smoothly between. At
-// the floor what the diffuse lobe shows is held and no longer depends on the lobe, and toward it
-// the delta method's gradient 1/shown grows without bound where it no longer holds. Counted in
-// full down to the floor and dropped there, the noise would make the term step at each texel
-// crossing it, and the scale would fall on a step (the grid's choice, not the data's); counted in
-// full at the floor as well, a few texels' noise would outweigh their object's whole spread,
-// which would then go uncorrected.
-double lobeNoiseWeight(double diffuseShare) {
-  const double u = std::clamp((diffuseShare - kMinDiffuseShare) / kMinDiffuseShare, 0.0, 1.0);
-  return u * u * (3 - 2 * u);
 }
 
 // One object's term of the negative log-likelihood at light scales s, profiled over its mean
@@ -114,8 +103,7 @@ double objectTerm(const std::vector<const ScaleTexel*>& texels, const std::vecto
   double sum = 0, squares = 0, noise = 0;
   for (const ScaleTexel* t : texels) {
     const DiffuseTerms d = diffuseTerms(*t, s);
-    // The covariance's blocks weighted by the scales: diffuse-diffuse, both diffuse-specular ones
-    // (each the other's transpose), specular-specular.
+    // The covariance's blocks weighted by the scales: diffuse-diffuse, diffuse-specular, specular-specular.
     const size_t n = t->specular.empty() ? K + 1 : 2 * (K + 1);
     std::array<double, 3> block{};
     for (size_t i = 0; i < n; ++i) {
@@ -124,9 +112,8 @@ double objectTerm(const std::vector<const ScaleTexel*>& texels, const std::vecto
       for (size_t j = 0; j <= K; ++j) block[first] += w[i] * w[j] * row[j];
       for (size_t j = K + 1; j < n; ++j) block[first + 1] += w[i] * w[j] * row[j];
     }
-    const double variance = block[0] / (d.received * d.received) +
-                            lobeNoiseWeight(d.shown / t->shown) *
-                                (block[1] / (d.received * d.shown) + block[2] / (d.shown * d.shown));
+    double variance = block[0] / (d.received * d.received);
+    if (!d.floored) variance += 2 * block[1] / (d.received * d.shown) + block[2] / (d.shown * d.shown);
     const double logAlbedo = std::log(d.shown) - std::log(d.received);
     sum += logAlbedo, squares += logAlbedo * logAlbedo, noise += variance;
   }
@@ -188,8 +175,7 @@ Curvature curvature(const Objects& objects, const Grouping& groupOf, const std::
 }
 
 // Newton steps in the log scales from `s` until a step is below 1e-5 or finds no descent; false when
-// the first step could not be taken (the term not convex at `s`, or no descent along it), `s`
-// then unchanged.
+// the first finds the term not convex at `s` (`s` unchanged).
 bool newtonSteps(const Objects& objects, const Grouping& groupOf, std::vector<double>& s, int leftOut) {
   for (int step = 0; step < kNewtonSteps; ++step) {
     const Curvature c = curvature(objects, groupOf, s, leftOut);
@@ -203,7 +189,7 @@ bool newtonSteps(const Objects& objects, const Grouping& groupOf, std::vector<do
       if (pooledTerm(objects, groupOf, next, leftOut) < before) break;
       next = s;
     }
-    if (next == s) return step > 0;
+    if (next == s) break;
     s = next;
     if (delta.lpNorm<Eigen::Infinity>() < 1e-5) break;
   }

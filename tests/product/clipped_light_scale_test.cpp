@@ -5,9 +5,6 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <array>
-#include <filesystem>
-#include <fstream>
 #include <cmath>
 #include <random>
 
@@ -222,51 +219,6 @@ TEST(ClippedLightScale, AHighlightTheAlbedoDoesNotScaleIsTakenOut) {
   EXPECT_GT(std::abs(diffuse / truth - 1.0), 0.04);
   std::printf("ClippedLightScale highlight: scale %.3f with the lobe apart, %.3f counted as diffuse (truth %.1f)\n",
               apart, diffuse, truth);
-}
-
-// Texels the fit drew on the White Room's 8-bit bracketed capture at its first scale probe, the
-// floor and a wall (tests/data/README.md), its three lights taken as one. Many are glossy enough to
-// sit near the floor of their diffuse share, with their specular lobe's noise large there. A
-// texel's specular noise fades out toward the floor, so the term is continuous in the scale: with
-// every direct term multiplied by q, the scale is divided by q, wherever q puts it between the
-// grid's points. With that noise dropped at the floor and counted in full above it, the scale
-// moves over 5% as q moves it within one step of the grid. And the paths' noise still comes out of
-// these objects' spread: counted in full at the floor, a few texels' noise would outweigh it, and
-// the scale would be that of no noise at all.
-TEST(ClippedLightScale, TheScaleDoesNotDependOnTheGrid) {
-  std::ifstream in(std::filesystem::path(RELUME_TEST_DATA) / "white_room_scale_texels.bin", std::ios::binary);
-  ASSERT_TRUE(in);
-  // Per texel 16 doubles: object, I, D, R, G, G_R, then the upper triangle of the 4x4 covariance.
-  std::vector<ScaleTexel> room;
-  std::array<double, 16> r;
-  while (in.read(reinterpret_cast<char*>(r.data()), sizeof r)) {
-    ScaleTexel t;
-    t.object = static_cast<int>(r[0]), t.shown = r[1], t.mean = {r[2], r[3]}, t.specular = {r[4], r[5]};
-    t.covariance.assign(16, 0.0);
-    for (int i = 0, k = 6; i < 4; ++i)
-      for (int j = i; j < 4; ++j, ++k) t.covariance[4 * i + j] = t.covariance[4 * j + i] = r[k];
-    room.push_back(std::move(t));
-  }
-  ASSERT_EQ(room.size(), 1616u);
-  const double step = 2 * std::log(16.0) / 160;  // the common scale's grid
-  std::vector<double> scaleTimesQ;
-  for (int i = 0; i <= 5; ++i) {
-    const double q = std::exp(step * i / 5);
-    std::vector<ScaleTexel> shifted = room;
-    for (ScaleTexel& t : shifted) {
-      t.mean[0] *= q, t.specular[0] *= q;
-      for (int k = 0; k < 4; ++k)
-        for (int j : {0, 2}) t.covariance[4 * k + j] *= q, t.covariance[4 * j + k] *= q;
-    }
-    scaleTimesQ.push_back(fitClippedScales(shifted, 32, 0.2).scale[0] * q);
-  }
-  const auto [lo, hi] = std::minmax_element(scaleTimesQ.begin(), scaleTimesQ.end());
-  EXPECT_LT(*hi / *lo, 1.005) << *lo << " .. " << *hi;
-  std::vector<ScaleTexel> exact = room;
-  for (ScaleTexel& t : exact) std::fill(t.covariance.begin(), t.covariance.end(), 0.0);
-  const double withoutNoise = fitClippedScales(exact, 32, 0.2).scale[0];
-  EXPECT_GT(std::abs(std::log(withoutNoise / scaleTimesQ.front())), 0.02) << withoutNoise;
-  std::printf("ClippedLightScale grid: scale x q %.4f .. %.4f (%.4f with exact paths)\n", *lo, *hi, withoutNoise);
 }
 
 // Traced under the wrong material, an object's direct share is wrong by a factor that varies

@@ -175,7 +175,8 @@ Curvature curvature(const Objects& objects, const Grouping& groupOf, const std::
 }
 
 // Newton steps in the log scales from `s` until a step is below 1e-5 or finds no descent; false when
-// the first finds the term not convex at `s` (`s` unchanged).
+// the first step could not be taken (the term not convex at `s`, or no descent along it), `s`
+// then unchanged.
 bool newtonSteps(const Objects& objects, const Grouping& groupOf, std::vector<double>& s, int leftOut) {
   for (int step = 0; step < kNewtonSteps; ++step) {
     const Curvature c = curvature(objects, groupOf, s, leftOut);
@@ -189,7 +190,7 @@ bool newtonSteps(const Objects& objects, const Grouping& groupOf, std::vector<do
       if (pooledTerm(objects, groupOf, next, leftOut) < before) break;
       next = s;
     }
-    if (next == s) break;
+    if (next == s) return step > 0;
     s = next;
     if (delta.lpNorm<Eigen::Infinity>() < 1e-5) break;
   }

@@ -174,37 +174,6 @@ Curvature curvature(const Objects& objects, const Grouping& groupOf, const std::
   return out;
 }
 
-// Newton steps in the log scales from `s` until a step is below 1e-5 or finds no descent; false when
-// the first step could not be taken (the term not convex at `s`, or no descent along it), `s`
-// then unchanged.
-bool newtonSteps(const Objects& objects, const Grouping& groupOf, std::vector<double>& s, int leftOut) {
-  for (int step = 0; step < kNewtonSteps; ++step) {
-    const Curvature c = curvature(objects, groupOf, s, leftOut);
-    const Eigen::LLT<Eigen::MatrixXd> llt(c.hessian);
-    if (llt.info() != Eigen::Success) return step > 0;
-    const Eigen::VectorXd delta = -llt.solve(c.gradient);
-    const double before = pooledTerm(objects, groupOf, s, leftOut);
-    std::vector<double> next = s;
-    for (double t = 1; t > 1.0 / 64; t /= 2) {
-      for (size_t g = 0; g < s.size(); ++g) next[g] = s[g] * std::exp(t * delta(g));
-      if (pooledTerm(objects, groupOf, next, leftOut) < before) break;
-      next = s;
-    }
-    if (next == s) return step > 0;
-    s = next;
-    if (delta.lpNorm<Eigen::Infinity>() < 1e-5) break;
-  }
-  return true;
-}
-
-// `s`, or NaN entries where a scale lies beyond [1/8, 8] of `common`.
-std::vector<double> withinRange(std::vector<double> s, double common) {
-  for (double x : s)
-    if (!(std::abs(std::log(x / common)) < std::log(kApartRange)))
-      return std::vector<double>(s.size(), std::numeric_limits<double>::quiet_NaN());
-  return s;
-}
-
 // Each group's own scale from `s`: coordinate descent on a log grid within [1/8, 8] of `common`
 // (a group's step may stop at the grid's edge on the way, while the others are still far off),
 // then Newton steps in the log scales, which coordinate descent takes many sweeps to match where
@@ -226,21 +195,27 @@ std::vector<double> scalesApart(const Objects& objects, const Grouping& groupOf,
       const int lowest = static_cast<int>(std::min_element(J.begin(), J.end()) - J.begin());
       s[g] = common * std::exp(onEdge[g] ? gridLog(lowest, kApartSteps, kApartRange) : u);
     }
-  if (std::any_of(onEdge.begin(), onEdge.end(), [](uint8_t e) { return e; }))
-    return std::vector<double>(s.size(), std::numeric_limits<double>::quiet_NaN());
-  newtonSteps(objects, groupOf, s, leftOut);
-  return withinRange(s, common);
-}
-
-// The groups' scales with object `leftOut` left out, from the whole set's `whole`. One object of
-// several moves the minimum a little, so Newton steps from `whole` reach the minimum the
-// coordinate descent from there reaches, for a fraction of its cost (the descent evaluates the term
-// at every grid point of every group, 6 times); the descent where the term is not convex at `whole`.
-std::vector<double> scalesLeftOut(const Objects& objects, const Grouping& groupOf, const std::vector<double>& whole,
-                                  double common, int leftOut) {
-  std::vector<double> s = whole;
-  if (!newtonSteps(objects, groupOf, s, leftOut)) return scalesApart(objects, groupOf, whole, common, leftOut);
-  return withinRange(s, common);
+  const auto nan = std::vector<double>(s.size(), std::numeric_limits<double>::quiet_NaN());
+  if (std::any_of(onEdge.begin(), onEdge.end(), [](uint8_t e) { return e; })) return nan;
+  for (int step = 0; step < kNewtonSteps; ++step) {
+    const Curvature c = curvature(objects, groupOf, s, leftOut);
+    const Eigen::LLT<Eigen::MatrixXd> llt(c.hessian);
+    if (llt.info() != Eigen::Success) break;  // not convex here: the grid's answer stands
+    const Eigen::VectorXd delta = -llt.solve(c.gradient);
+    const double before = pooledTerm(objects, groupOf, s, leftOut);
+    std::vector<double> next = s;
+    for (double t = 1; t > 1.0 / 64; t /= 2) {
+      for (size_t g = 0; g < s.size(); ++g) next[g] = s[g] * std::exp(t * delta(g));
+      if (pooledTerm(objects, groupOf, next, leftOut) < before) break;
+      next = s;
+    }
+    if (next == s) break;
+    s = next;
+    if (delta.lpNorm<Eigen::Infinity>() < 1e-5) break;
+  }
+  for (double x : s)
+    if (!(std::abs(std::log(x / common)) < std::log(kApartRange))) return nan;
+  return s;
 }
 
 // The groups' own scales, each group's log error and the error of each pair's log ratio: the larger
@@ -259,10 +234,10 @@ std::optional<GroupScales> fitGroups(const Objects& objects, const Grouping& gro
   out.scale = scalesApart(objects, groupOf, std::vector<double>(G, common), common, -1);
   if (std::any_of(out.scale.begin(), out.scale.end(), [](double x) { return std::isnan(x); })) return std::nullopt;
   Eigen::MatrixXd leftOut(objects.size(), G);  // the log scales with each object left out
-  tbb::parallel_for(size_t{0}, objects.size(), [&](size_t o) {
-    const std::vector<double> s = scalesLeftOut(objects, groupOf, out.scale, common, static_cast<int>(o));
+  for (size_t o = 0; o < objects.size(); ++o) {
+    const std::vector<double> s = scalesApart(objects, groupOf, out.scale, common, static_cast<int>(o));
     for (int g = 0; g < G; ++g) leftOut(o, g) = std::log(s[g]);
-  });
+  }
   // The covariance from the curvature: the inverse Hessian, where it is regular.
   const Eigen::MatrixXd H = curvature(objects, groupOf, out.scale, -1).hessian;
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(H);

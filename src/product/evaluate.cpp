@@ -189,6 +189,29 @@ std::string differentTriangles(const TriangleMesh& fm, const TriangleMesh& tm) {
   return "";
 }
 
+TexelUvs texelUvs(const TriangleMesh& fitMesh, const TriangleMesh& truthMesh, const TexelMap& map, size_t t) {
+  const uint32_t tri = map.triangle(t);
+  const Vec3 bc = map.barycentrics(fitMesh, t);
+  TexelUvs uvs{Vec2::Zero(), Vec2::Zero()};
+  for (int k = 0; k < 3; ++k) {
+    if (truthMesh.hasUv()) uvs.truth += bc[k] * truthMesh.uvs[truthMesh.triangles[tri][k]];
+    uvs.fit += bc[k] * fitMesh.uvs[fitMesh.triangles[tri][k]];
+  }
+  return uvs;
+}
+
+Image truthAlbedoInAtlas(const TriangleMesh& fitMesh, const SceneDescription& truth, int res) {
+  if (const std::string why = differentTriangles(fitMesh, truth.mesh); !why.empty()) fail("{}", why);
+  const TexelMap map(fitMesh, res);
+  Image albedo(res, res);
+  for (size_t t = 0; t < map.texelCount(); ++t)
+    if (map.covered(t))
+      albedo.set(static_cast<int>(t % res), static_cast<int>(t / res),
+                 truth.appearance.albedoAt(truth.mesh.faceObject[map.triangle(t)],
+                                           texelUvs(fitMesh, truth.mesh, map, t).truth));
+  return albedo;
+}
+
 TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescription& truth, const Image& coverage,
                                  const TruthOptions& o, Image* truthAlbedo) {
   if (const std::string why = differentTriangles(fit.mesh, truth.mesh); !why.empty()) fail("eval: {}", why);
@@ -214,12 +237,7 @@ TruthComparison compareWithTruth(const SceneDescription& fit, const SceneDescrip
   for (size_t t = 0; t < map.texelCount(); ++t) {
     if (!map.covered(t)) continue;
     const uint32_t tri = map.triangle(t);
-    const Vec3 bc = map.barycentrics(fm, t);
-    Vec2 uv = Vec2::Zero(), fitUv = Vec2::Zero();
-    for (int k = 0; k < 3; ++k) {
-      if (tm.hasUv()) uv += bc[k] * tm.uvs[tm.triangles[tri][k]];
-      fitUv += bc[k] * fm.uvs[fm.triangles[tri][k]];
-    }
+    const auto [uv, fitUv] = texelUvs(fm, tm, map, t);
     const int tObj = tm.faceObject[tri], fObj = fm.faceObject[tri];
     const Color truth = ta.albedoAt(tObj, uv);
     if (truthAlbedo) truthAlbedo->set(static_cast<int>(t % res), static_cast<int>(t / res), truth);

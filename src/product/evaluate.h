@@ -10,9 +10,11 @@
 #include <vector>
 
 #include "capture/transforms.h"
+#include "io/image.h"
 #include "io/json.h"
 #include "render/film.h"
 #include "scene/appearance.h"
+#include "scene/texel_map.h"
 
 namespace relume {
 
@@ -104,6 +106,16 @@ struct TruthComparison {
 // Why `fit`'s triangles are not `truth`'s (their count, or a triangle moved by more than half its
 // size; vertices moved by a scan's noise are the same triangles); "" when they are.
 std::string differentTriangles(const TriangleMesh& fit, const TriangleMesh& truth);
+
+// Where covered texel t of `map` (an atlas of `fitMesh`) lies in the truth's uv layout (0 when the
+// truth has none) and in the fit's; the meshes have the same triangles.
+struct TexelUvs {
+  Vec2 truth, fit;
+};
+TexelUvs texelUvs(const TriangleMesh& fitMesh, const TriangleMesh& truthMesh, const TexelMap& map, size_t t);
+// The true albedo at every covered texel of a res^2 atlas of `fitMesh` (0 elsewhere); throws
+// when the meshes' triangles differ.
+Image truthAlbedoInAtlas(const TriangleMesh& fitMesh, const SceneDescription& truth, int res);
 
 // `coverage`: prepare's coverage.exr (observations per texel over the fit's atlas).
 // The two meshes must have the same triangles in the same order (the fit's atlas mesh re-uses

@@ -226,14 +226,12 @@ bool LightDecisions::decide(const TexelSpace& space, const std::string& after, b
   return changed;
 }
 
-namespace {
 ClippedLightSettings clippedLightSettings(const FitConfig& c) {
   return {.texelsPerObject = 4 * c.lightEvidenceTexels,
           .framesPerTexel = c.framesPerTexel,
           .shownRadiance = c.clippedScaleShownRadiance,
           .materialChoice = c.clippedScaleMaterialChoice};
 }
-}  // namespace
 
 void LightDecisions::findClippedLights(const TexelSpace& space) {
   const std::vector<int> lights =

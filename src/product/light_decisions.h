@@ -14,6 +14,7 @@
 #include "product/fit_batches.h"
 #include "product/fit_checkpoint.h"
 #include "product/fit_config.h"
+#include "product/clipped_light_scale.h"
 #include "product/fit_workspace.h"
 #include "product/frame_gains.h"
 #include "product/light_evidence.h"
@@ -43,6 +44,9 @@ struct ObjectRoles {
   // first, and refused when a value is none these fields can hold.
   void serialise(CheckpointIo& io, const std::filesystem::path& work);
 };
+
+// The scale of lights seen only saturated as config `c` sets it up.
+ClippedLightSettings clippedLightSettings(const FitConfig& c);
 
 class LightDecisions {
  public:

@@ -1,18 +1,22 @@
 // The scale estimator of lights seen only saturated (product/clipped_light_scale.h) run on a
 // prepared capture at its ground truth, apart from the fit's state: every texel at its true albedo
 // (objects' uncovered texels at their covered texels' mean), every object's true roughness and
-// specular (or the fit's init, 0.5 / 0.5), the true emission with every light divided by DIVIDE.
-// A scale of DIVIDE for each light is exact; what it gives instead is the estimator's own error on
-// this capture. Prints, per seed, the fit's line, each light's scale and error and each object's
+// specular (or the fit's init, 0.5 / 0.5), the true emission with every light divided by `divide`.
+// A scale of `divide` for each light is exact; what it gives instead is the estimator's own error
+// on this capture. With albedo=absorbed each albedo is the truth's times `divide`, at most 1: what
+// a fit holds while its lights are that much too dark (its albedo takes up the missing light up to
+// its ceiling). Prints, per seed, the fit's line, each light's scale and error and each object's
 // own most uniform scale.
-// Usage: scale_at_truth WORK TRUTH_SCENE.json [DIVIDE=1.5] [RESOLUTION=512] [SEEDS=2]
-//                       [MATERIALS=truth|init] [CHOICE=1] [SHOWN=1]
-// (CHOICE, SHOWN: clipped_scale_material_choice, clipped_scale_shown_radiance.)
+// Usage: scale_at_truth WORK TRUTH_SCENE.json [KEY=VALUE...] with keys (defaults)
+//   divide (1.5), resolution (512), seeds (2), materials (truth | init), albedo (truth | absorbed),
+//   choice (1: clipped_scale_material_choice), shown (1: clipped_scale_shown_radiance),
+//   paths (8: the paths traced per ray for each term), texels (0: the fit's texels drawn per object)
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
+#include <map>
 #include <string>
 
 #include "core/error.h"
@@ -48,19 +52,28 @@ Texture truthAlbedo(const Workspace& w, const TexelSpace& space, const SceneDesc
 
 int run(int argc, char** argv) {
   if (argc < 3) {
-    std::fprintf(stderr,
-                 "usage: scale_at_truth WORK TRUTH_SCENE.json [DIVIDE=1.5] [RESOLUTION=512] [SEEDS=2] "
-                 "[MATERIALS=truth|init] [CHOICE=1] [SHOWN=1]\n");
+    std::fprintf(stderr, "usage: scale_at_truth WORK TRUTH_SCENE.json [divide=1.5] [resolution=512] [seeds=2] "
+                         "[materials=truth|init] [albedo=truth|absorbed] [choice=1] [shown=1]\n");
     return 2;
   }
-  const double divide = argc > 3 ? std::atof(argv[3]) : 1.5;
-  const int res = argc > 4 ? std::atoi(argv[4]) : 512;
-  const int seeds = argc > 5 ? std::atoi(argv[5]) : 2;
-  const bool trueMaterials = argc <= 6 || std::strcmp(argv[6], "init") != 0;
+  std::map<std::string, std::string> keys = {{"divide", "1.5"},    {"resolution", "512"}, {"seeds", "2"},
+                                             {"materials", "truth"}, {"albedo", "truth"},  {"choice", "1"},
+                                             {"shown", "1"},         {"paths", "8"},        {"texels", "0"}};
+  for (int i = 3; i < argc; ++i) {
+    const std::string arg = argv[i];
+    const size_t eq = arg.find('=');
+    if (eq == std::string::npos || !keys.count(arg.substr(0, eq))) fail("scale_at_truth: unknown argument '{}'", arg);
+    keys[arg.substr(0, eq)] = arg.substr(eq + 1);
+  }
+  const double divide = std::atof(keys["divide"].c_str());
+  const int res = std::atoi(keys["resolution"].c_str()), seeds = std::atoi(keys["seeds"].c_str());
+  const bool trueMaterials = keys["materials"] == "truth", absorbed = keys["albedo"] == "absorbed";
   FitConfig config;
-  config.clippedScaleMaterialChoice = argc <= 7 || std::atoi(argv[7]) != 0;
-  config.clippedScaleShownRadiance = argc <= 8 || std::atoi(argv[8]) != 0;
-  if (!(divide > 0) || res < 16 || seeds < 1) fail("scale_at_truth: DIVIDE > 0, RESOLUTION >= 16, SEEDS >= 1");
+  config.clippedScaleMaterialChoice = keys["choice"] != "0";
+  config.clippedScaleShownRadiance = keys["shown"] != "0";
+  if (!(divide > 0) || res < 16 || seeds < 1 || (!trueMaterials && keys["materials"] != "init") ||
+      (!absorbed && keys["albedo"] != "truth"))
+    fail("scale_at_truth: divide > 0, resolution >= 16, seeds >= 1, materials truth or init, albedo truth or absorbed");
 
   const Workspace w(argv[1]);
   const SceneDescription truth = loadSceneFile(argv[2]);
@@ -74,6 +87,8 @@ int run(int argc, char** argv) {
     if (id >= 0 && id < objects) a.names[id] = name;
   std::fill(a.albedoFromTexture.begin(), a.albedoFromTexture.end(), 1);
   a.albedo = truthAlbedo(w, space, truth);
+  if (absorbed)
+    for (float& x : a.albedo.rgb) x = std::min(1.0f, x * static_cast<float>(divide));
   std::vector<uint8_t> emitter(objects, 0), outOfModel(objects, 0);
   for (int o = 0; o < objects; ++o) {
     a.roughness[o] = trueMaterials ? truth.appearance.roughness[o] : 0.5f;
@@ -90,12 +105,16 @@ int run(int argc, char** argv) {
   path.russianRoulette = config.russianRoulette;
   path.rouletteDepth = config.rouletteDepth;
 
-  std::printf("divide %.4g, %d^2, materials %s, choice %d, shown radiance %d\n", divide, res,
-              trueMaterials ? "truth" : "init", config.clippedScaleMaterialChoice, config.clippedScaleShownRadiance);
+  std::printf("divide %.4g, %d^2, materials %s, albedo %s, choice %d, shown radiance %d, paths %s, texels %s\n",
+              divide, res, keys["materials"].c_str(), keys["albedo"].c_str(), config.clippedScaleMaterialChoice,
+              config.clippedScaleShownRadiance, keys["paths"].c_str(), keys["texels"].c_str());
   for (int seed = 1; seed <= seeds; ++seed) {
     Appearance scaled = a;
-    const ClippedLightScale s = scaleClippedLights(w, space, scaled, emitter, outOfModel, gains, path,
-                                                   clippedLightSettings(config), static_cast<uint64_t>(seed));
+    ClippedLightSettings settings = clippedLightSettings(config);
+    settings.pathsPerRay = std::atoi(keys["paths"].c_str());
+    if (const int texels = std::atoi(keys["texels"].c_str()); texels > 0) settings.texelsPerObject = texels;
+    const ClippedLightScale s = scaleClippedLights(w, space, scaled, emitter, outOfModel, gains, path, settings,
+                                                   static_cast<uint64_t>(seed));
     std::printf("seed %d: %s\n", seed, s.why.c_str());
     for (size_t k = 0; k < s.lights.size(); ++k) {
       const int o = s.lights[k];
@@ -118,7 +137,7 @@ int main(int argc, char** argv) {
   try {
     return run(argc, argv);
   } catch (const relume::Error& e) {
-    std::fprintf(stderr, "scale_at_truth: %s\n", e.what());
+    std::fprintf(stderr, "%s\n", e.what());
     return 1;
   }
 }

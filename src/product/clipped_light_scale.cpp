@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <optional>
 
@@ -33,6 +34,8 @@ constexpr int kSweeps = 6;          // of the coordinate descent
 constexpr int kNewtonSteps = 20;    // at most, after it
 constexpr size_t kMinTexels = 32;   // an object's texels for it to count
 constexpr int kChoiceRounds = 3;    // of choosing the first vertex's materials and fitting the scale again
+// Paths traced at a time (their rays and terms held: about 50 MB with both lobes of 3 lights).
+constexpr size_t kChunkPaths = size_t{1} << 18;
 
 bool saturated(const BatchRay& r) { return (r.reference >= r.clip.high).any(); }
 bool usable(const BatchRay& r) {
@@ -440,82 +443,125 @@ Batch drawTexels(const Workspace& w, const TexelSpace& space, const std::vector<
 // A colour's band: a channel (0-2) or its luminance (3).
 double bandOf(const Color& x, int band) { return band < 3 ? x[band] : luminance(x); }
 
-// Per drawn texel, in one band: the mean of what its rays show, and the means over its paths of
-// each traced term (traced[c][i]: term c of traced ray i, which repeats batch ray rayOf[i]; the
-// first `diffuse` the diffuse terms D_1..D_K, R, any after them the specular ones G_1..G_K, G_R)
-// with their covariance. Texels with fewer than two paths are left out.
-std::vector<ScaleTexel> texelSums(const Batch& batch, const std::vector<size_t>& rayOf,
-                                  const std::vector<std::vector<Color>>& traced, const TexelSpace& space,
-                                  const TriangleMesh& mesh, int band, size_t diffuse) {
-  const size_t terms = traced.size();
-  std::vector<ScaleTexel> perTexel(batch.texel.size());
-  std::vector<std::vector<double>> sums(batch.texel.size(), std::vector<double>(terms, 0.0));
-  std::vector<double> samples(batch.texel.size(), 0.0);
-  for (size_t s = 0; s < perTexel.size(); ++s) {
-    perTexel[s].object = space.objectOf(batch.texel[s], mesh);
-    perTexel[s].covariance.assign(terms * terms, 0.0);
-  }
-  for (size_t i = 0; i < rayOf.size(); ++i) {
-    const size_t j = rayOf[i];
-    ScaleTexel& t = perTexel[batch.slot[j]];
-    std::vector<double>& sum = sums[batch.slot[j]];
-    t.shown += bandOf(batch.rays[j].reference / batch.rays[j].gain, band);
-    for (size_t c = 0; c < terms; ++c) {
-      const double x = bandOf(traced[c][i], band);
-      sum[c] += x;
-      for (size_t d = 0; d < terms; ++d) t.covariance[c * terms + d] += x * bandOf(traced[d][i], band);
-    }
-    samples[batch.slot[j]] += 1;
-  }
-  for (size_t s = 0; s < perTexel.size(); ++s) {
-    const double n = samples[s];
-    ScaleTexel& t = perTexel[s];
-    if (n < 2) {
-      t.shown = 0;
-      continue;
-    }
-    t.shown /= n;
-    std::vector<double>& mean = sums[s];
-    for (double& m : mean) m /= n;
-    for (size_t c = 0; c < terms; ++c)
-      for (size_t d = 0; d < terms; ++d) {
-        double& v = t.covariance[c * terms + d];
-        v = (v / n - mean[c] * mean[d]) / (n - 1);
+// Per drawn texel, in each band (red, green, blue, luminance): the mean of what its rays show and
+// the means over its paths of each traced term (the first `diffuse` the diffuse terms D_1..D_K, R,
+// any after them the specular ones G_1..G_K, G_R) with their covariance, summed chunk by chunk of
+// traced rays (add: traced[c][i] is term c of traced ray i, which repeats batch ray rayOf[i]).
+// Texels with fewer than two paths are left out.
+class TexelSums {
+ public:
+  TexelSums(const Batch& batch, const TexelSpace& space, const TriangleMesh& mesh, size_t terms, size_t diffuse)
+      : batch_(batch), terms_(terms), diffuse_(diffuse), samples_(batch.texel.size(), 0.0) {
+    for (int band = 0; band < 4; ++band) {
+      perTexel_[band].resize(batch.texel.size());
+      sums_[band].assign(batch.texel.size(), std::vector<double>(terms, 0.0));
+      for (size_t s = 0; s < batch.texel.size(); ++s) {
+        perTexel_[band][s].object = space.objectOf(batch.texel[s], mesh);
+        perTexel_[band][s].covariance.assign(terms * terms, 0.0);
       }
-    t.mean.assign(mean.begin(), mean.begin() + diffuse);
-    t.specular.assign(mean.begin() + diffuse, mean.end());
+    }
   }
-  std::erase_if(perTexel, [&](const ScaleTexel& t) { return t.shown <= 0; });
-  return perTexel;
-}
+
+  void add(const std::vector<std::vector<Color>>& traced, const std::vector<size_t>& rayOf) {
+    CHECK(traced.size() == terms_);
+    for (size_t i = 0; i < rayOf.size(); ++i) {
+      const size_t j = rayOf[i];
+      for (int band = 0; band < 4; ++band) {
+        ScaleTexel& t = perTexel_[band][batch_.slot[j]];
+        std::vector<double>& sum = sums_[band][batch_.slot[j]];
+        t.shown += bandOf(batch_.rays[j].reference / batch_.rays[j].gain, band);
+        for (size_t c = 0; c < terms_; ++c) {
+          const double x = bandOf(traced[c][i], band);
+          sum[c] += x;
+          for (size_t d = 0; d < terms_; ++d) t.covariance[c * terms_ + d] += x * bandOf(traced[d][i], band);
+        }
+      }
+      samples_[batch_.slot[j]] += 1;
+    }
+  }
+
+  std::array<std::vector<ScaleTexel>, 4> finish() {
+    for (int band = 0; band < 4; ++band) {
+      for (size_t s = 0; s < perTexel_[band].size(); ++s) {
+        const double n = samples_[s];
+        ScaleTexel& t = perTexel_[band][s];
+        if (n < 2) {
+          t.shown = 0;
+          continue;
+        }
+        t.shown /= n;
+        std::vector<double>& mean = sums_[band][s];
+        for (double& m : mean) m /= n;
+        for (size_t c = 0; c < terms_; ++c)
+          for (size_t d = 0; d < terms_; ++d) {
+            double& v = t.covariance[c * terms_ + d];
+            v = (v / n - mean[c] * mean[d]) / (n - 1);
+          }
+        t.mean.assign(mean.begin(), mean.begin() + diffuse_);
+        t.specular.assign(mean.begin() + diffuse_, mean.end());
+      }
+      std::erase_if(perTexel_[band], [&](const ScaleTexel& t) { return t.shown <= 0; });
+    }
+    return std::move(perTexel_);
+  }
+
+ private:
+  const Batch& batch_;
+  size_t terms_, diffuse_;
+  std::array<std::vector<ScaleTexel>, 4> perTexel_;
+  std::array<std::vector<std::vector<double>>, 4> sums_;
+  std::vector<double> samples_;
+};
 
 // Per object and channel, what the frames show of its drawn texels over what the fit renders of
-// them (their albedo in `a` times the first `diffuse` traced terms' sum, plus the rest): 1 for
-// objects with fewer than kMinRatioRays rays, and within [1/8, 8].
-std::vector<Color> shownOverRendered(const Batch& batch, const std::vector<size_t>& rayOf,
-                                     const std::vector<std::vector<Color>>& traced, const Appearance& a,
-                                     const TexelSpace& space, const TriangleMesh& mesh, int objectCount,
-                                     size_t diffuse) {
-  constexpr size_t kMinRatioRays = 64;
-  std::vector<Eigen::Array3d> seen(objectCount, Eigen::Array3d::Zero()), sent(objectCount, Eigen::Array3d::Zero());
-  std::vector<size_t> count(objectCount, 0);
-  for (size_t i = 0; i < rayOf.size(); ++i) {
-    const size_t j = rayOf[i];
-    const uint32_t t = batch.texel[batch.slot[j]];
-    const int o = space.objectOf(t, mesh);
-    Eigen::Array3d received = Eigen::Array3d::Zero(), specular = Eigen::Array3d::Zero();
-    for (size_t c = 0; c < traced.size(); ++c) (c < diffuse ? received : specular) += traced[c][i].cast<double>();
-    const Eigen::Array3d albedo(a.albedo.rgb[3 * t], a.albedo.rgb[3 * t + 1], a.albedo.rgb[3 * t + 2]);
-    seen[o] += (batch.rays[j].reference / batch.rays[j].gain).cast<double>();
-    sent[o] += albedo * received + specular;
-    ++count[o];
+// them (their albedo in `a` times the first `diffuse` traced terms' sum, plus the rest), summed
+// chunk by chunk as TexelSums: 1 for objects with fewer than kMinRatioRays rays, and within
+// [1/8, 8].
+class ShownOverRendered {
+ public:
+  ShownOverRendered(const Batch& batch, const Appearance& a, const TexelSpace& space, const TriangleMesh& mesh,
+                    size_t diffuse)
+      : batch_(batch),
+        a_(a),
+        space_(space),
+        mesh_(mesh),
+        diffuse_(diffuse),
+        seen_(a.objectCount(), Eigen::Array3d::Zero()),
+        sent_(a.objectCount(), Eigen::Array3d::Zero()),
+        count_(a.objectCount(), 0) {}
+
+  void add(const std::vector<std::vector<Color>>& traced, const std::vector<size_t>& rayOf) {
+    for (size_t i = 0; i < rayOf.size(); ++i) {
+      const size_t j = rayOf[i];
+      const uint32_t t = batch_.texel[batch_.slot[j]];
+      const int o = space_.objectOf(t, mesh_);
+      Eigen::Array3d received = Eigen::Array3d::Zero(), specular = Eigen::Array3d::Zero();
+      for (size_t c = 0; c < traced.size(); ++c) (c < diffuse_ ? received : specular) += traced[c][i].cast<double>();
+      const Eigen::Array3d albedo(a_.albedo.rgb[3 * t], a_.albedo.rgb[3 * t + 1], a_.albedo.rgb[3 * t + 2]);
+      seen_[o] += (batch_.rays[j].reference / batch_.rays[j].gain).cast<double>();
+      sent_[o] += albedo * received + specular;
+      ++count_[o];
+    }
   }
-  std::vector<Color> ratio(objectCount, Color::Ones());
-  for (int o = 0; o < objectCount; ++o)
-    if (count[o] >= kMinRatioRays && (sent[o] > 0).all() && (seen[o] > 0).all())
-      ratio[o] = (seen[o] / sent[o]).min(8.0).max(0.125).cast<float>();
-  return ratio;
-}
+
+  std::vector<Color> ratio() const {
+    constexpr size_t kMinRatioRays = 64;
+    std::vector<Color> ratio(seen_.size(), Color::Ones());
+    for (size_t o = 0; o < seen_.size(); ++o)
+      if (count_[o] >= kMinRatioRays && (sent_[o] > 0).all() && (seen_[o] > 0).all())
+        ratio[o] = (seen_[o] / sent_[o]).min(8.0).max(0.125).cast<float>();
+    return ratio;
+  }
+
+ private:
+  const Batch& batch_;
+  const Appearance& a_;
+  const TexelSpace& space_;
+  const TriangleMesh& mesh_;
+  size_t diffuse_;
+  std::vector<Eigen::Array3d> seen_, sent_;
+  std::vector<size_t> count_;
+};
 
 // "one scale for all", "each its own", or the groups by name ("one scale per group: window_a,
 // window_b; pendant_lamp").
@@ -622,11 +668,9 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
     });
     counts[j] = !seesLight;
   });
-  std::vector<BatchRay> rays;
-  std::vector<size_t> rayOf;  // the batch ray each traced ray repeats
+  std::vector<size_t> counted;  // the batch rays that count
   for (size_t j = 0; j < batch.rays.size(); ++j)
-    if (counts[j])
-      for (int k = 0; k < settings.pathsPerRay; ++k) rays.push_back(batch.rays[j]), rayOf.push_back(j);
+    if (counts[j]) counted.push_back(j);
 
   // D_c: reached from the first vertex (albedo 1) straight from clipped light c; R: everything else.
   // With the material choice, each through the first vertex's diffuse lobe and, apart, its
@@ -640,35 +684,50 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
   for (int o = 0; o < objectCount; ++o) none.emission[o] = Color::Zero();
   for (int o : out.lights) notClipped.emission[o] = Color::Zero();
   const LightSampler lights(*w.scene, a);
-  // The terms (D_1..D_K, R, then G_1..G_K, G_R) per traced ray, the first vertex with the roughness
-  // and specular of `firstVertex`, the second's albedo `secondVertex`'s (nullptr: a's).
-  auto traceTerms = [&](const Appearance& firstVertex, const Appearance* secondVertex) {
+  // The terms (D_1..D_K, R, then G_1..G_K, G_R) of every counted ray's paths, each ray repeated
+  // pathsPerRay times, the first vertex with the roughness and specular of `firstVertex`, the
+  // second's albedo `secondVertex`'s (nullptr: a's). Traced in chunks of at most kChunkPaths paths,
+  // each chunk's terms handed to `use` (traced[c][i]: term c of path i, which repeats batch ray
+  // rayOf[i]) before the next is traced, so that the memory is a chunk's whatever the paths per
+  // ray; path i is seeded by its place among all paths, as if they were traced at once.
+  const size_t terms = lobesApart ? 2 * (K + 1) : K + 1;
+  using TermsOfChunk = std::function<void(const std::vector<std::vector<Color>>&, const std::vector<size_t>&)>;
+  auto traceTerms = [&](const Appearance& firstVertex, const Appearance* secondVertex, const TermsOfChunk& use) {
     const Appearance white = albedoOneAppearance(firstVertex);
     Appearance black = white;
     std::fill(black.albedoConstant.begin(), black.albedoConstant.end(), Color::Zero());
-    std::vector<std::vector<Color>> traced(lobesApart ? 2 * (K + 1) : K + 1);
-    auto traceTerm = [&](size_t term, AppearanceScope scope, uint64_t tag) {
-      auto seedOf = [&](size_t j) { return hashTuple({stream, tag, j}); };
-      scope.bsdfFirst = &white;
-      traced[term] = traceRays(*w.scene, lights, scope, rays, path, seedOf);
-      if (!lobesApart) return;
-      scope.bsdfFirst = &black;
-      traced[K + 1 + term] = traceRays(*w.scene, lights, scope, rays, path, seedOf);
-      for (size_t i = 0; i < rays.size(); ++i) traced[term][i] -= traced[K + 1 + term][i];
-    };
-    for (size_t c = 0; c < K; ++c) {
-      Appearance only = none;
-      only.emission[out.lights[c]] = a.emission[out.lights[c]];
-      traceTerm(c, {&a, &white, &a, &only, &none}, 1 + c);
+    const size_t paths = static_cast<size_t>(settings.pathsPerRay);
+    const size_t raysPerChunk = std::max<size_t>(1, kChunkPaths / paths);
+    std::vector<BatchRay> rays;
+    std::vector<size_t> rayOf;
+    std::vector<std::vector<Color>> traced(terms);
+    for (size_t first = 0; first < counted.size(); first += raysPerChunk) {
+      rays.clear(), rayOf.clear();
+      for (size_t n = first; n < std::min(counted.size(), first + raysPerChunk); ++n)
+        for (size_t k = 0; k < paths; ++k) rays.push_back(batch.rays[counted[n]]), rayOf.push_back(counted[n]);
+      auto traceTerm = [&](size_t term, AppearanceScope scope, uint64_t tag) {
+        auto seedOf = [&](size_t i) { return hashTuple({stream, tag, first * paths + i}); };
+        scope.bsdfFirst = &white;
+        traced[term] = traceRays(*w.scene, lights, scope, rays, path, seedOf);
+        if (!lobesApart) return;
+        scope.bsdfFirst = &black;
+        traced[K + 1 + term] = traceRays(*w.scene, lights, scope, rays, path, seedOf);
+        for (size_t i = 0; i < rays.size(); ++i) traced[term][i] -= traced[K + 1 + term][i];
+      };
+      for (size_t c = 0; c < K; ++c) {
+        Appearance only = none;
+        only.emission[out.lights[c]] = a.emission[out.lights[c]];
+        traceTerm(c, {&a, &white, &a, &only, &none}, 1 + c);
+      }
+      traceTerm(K, {&a, &white, &a, &notClipped, &a, secondVertex}, 0);
+      use(traced, rayOf);
     }
-    traceTerm(K, {&a, &white, &a, &notClipped, &a, secondVertex}, 0);
-    return traced;
   };
   // Per texel and band (red, green, blue, luminance): the means over its paths, their covariance.
-  auto sumBands = [&](const std::vector<std::vector<Color>>& traced) {
-    std::array<std::vector<ScaleTexel>, 4> bands;
-    for (int band = 0; band < 4; ++band) bands[band] = texelSums(batch, rayOf, traced, space, w.mesh, band, K + 1);
-    return bands;
+  auto sumBands = [&](const Appearance& firstVertex, const Appearance* secondVertex) {
+    TexelSums sums(batch, space, w.mesh, terms, K + 1);
+    traceTerms(firstVertex, secondVertex, [&](const auto& traced, const auto& rayOf) { sums.add(traced, rayOf); });
+    return sums.finish();
   };
   // R is the light the surfaces in view send the texels: what the frames show of them, which a
   // change of scale leaves as it is. Traced, it is their albedo times the light they receive, which
@@ -677,16 +736,19 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
   // where it is. So R is traced again with the albedo at the vertex after the texel (x1) scaled, per
   // object and with no ceiling, by what the frames show of the object over what the fit renders of
   // it. Only there: scaled at every vertex, the light would grow without bound in a closed room.
-  std::vector<std::vector<Color>> traced = traceTerms(a, nullptr);
   Appearance shown = a;
+  std::array<std::vector<ScaleTexel>, 4> bands;
   if (settings.shownRadiance) {
-    const std::vector<Color> ratio = shownOverRendered(batch, rayOf, traced, a, space, w.mesh, objectCount, K + 1);
+    ShownOverRendered shownOver(batch, a, space, w.mesh, K + 1);
+    traceTerms(a, nullptr, [&](const auto& traced, const auto& rayOf) { shownOver.add(traced, rayOf); });
+    const std::vector<Color> ratio = shownOver.ratio();
     for (size_t t = 0; t < space.map.texelCount(); ++t)
       if (space.map.valid(t))
         for (int band = 0; band < 3; ++band) shown.albedo.rgb[3 * t + band] *= ratio[space.objectOf(t, w.mesh)][band];
-    traced = traceTerms(a, &shown);
+    bands = sumBands(a, &shown);
+  } else {
+    bands = sumBands(a, nullptr);
   }
-  std::array<std::vector<ScaleTexel>, 4> bands = sumBands(traced);
   // The first vertex's roughness and specular are the fit's, which have not seen a highlight yet
   // (the material stage comes later): at the init's 0.5 and 0.5 the scale of the room's panels
   // held 10-16% short even with the true albedo, within 2% with the true materials. With the
@@ -705,7 +767,7 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
       Appearance candidate = a;
       std::fill(candidate.roughness.begin(), candidate.roughness.end(), m.roughness);
       std::fill(candidate.specular.begin(), candidate.specular.end(), m.specular);
-      under.push_back(sumBands(traceTerms(candidate, settings.shownRadiance ? &shown : nullptr)));
+      under.push_back(sumBands(candidate, settings.shownRadiance ? &shown : nullptr));
     }
     // Judged at the scale all objects share: each at its own best scale, a glossy material let an
     // object agree with a scale no other did, and the common scale followed (single-exposure test

@@ -92,7 +92,7 @@ std::vector<ScaleTexel> chosenTexels(const std::vector<std::vector<ScaleTexel>>&
 struct ClippedLightSettings {
   int texelsPerObject = 1024;  // reflector texels drawn per object
   int framesPerTexel = 4;
-  int pathsPerRay = 8;  // of each D and of R
+  int pathsPerRay = 8;  // of each D and of R (the fit sets clipped_scale_paths)
   // Applied only when the scale is known to ~20%: the init's white point (the brightest surfaces
   // taken for albedo 0.8, when they may be 0.6 or 0.9) is not known better.
   double maxLogError = 0.2;

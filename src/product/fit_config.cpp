@@ -75,6 +75,7 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("light_redecide", ConfigField(&c.lightRedecide));
   fn("clipped_light_scale", ConfigField(&c.clippedLightScale));
   fn("clipped_scale_shown_radiance", ConfigField(&c.clippedScaleShownRadiance));
+  fn("clipped_scale_paths", ConfigField(&c.clippedScalePaths));
   fn("clipped_scale_material_choice", ConfigField(&c.clippedScaleMaterialChoice));
   fn("clipped_light_silhouette_colour", ConfigField(&c.clippedLightSilhouetteColour));
   fn("emission_refit_iterations", ConfigField(&c.emissionRefitIterations));
@@ -175,6 +176,7 @@ void FitConfig::validate(const std::string& where) const {
   need(std::isfinite(c.lightMinContrast) && c.lightMinContrast >= 0, "light_min_contrast must be >= 0");
   need(c.lightEvidenceTexels >= 1 && c.lightEvidenceTexels <= (1 << 20), "light_evidence_texels must be in [1, 2^20]");
   need(c.emissionRefitIterations >= 0, "emission_refit_iterations must be >= 0");
+  need(c.clippedScalePaths >= 2 && c.clippedScalePaths <= 4096, "clipped_scale_paths must be in [2, 4096]");
   need(std::set<std::string>(c.lights.begin(), c.lights.end()).size() == c.lights.size(),
        "lights names an object twice");
   need(c.pruneFraction >= 0 && c.pruneFraction < 1, "prune_fraction must be in [0, 1)");

@@ -229,6 +229,7 @@ bool LightDecisions::decide(const TexelSpace& space, const std::string& after, b
 ClippedLightSettings clippedLightSettings(const FitConfig& c) {
   return {.texelsPerObject = 4 * c.lightEvidenceTexels,
           .framesPerTexel = c.framesPerTexel,
+          .pathsPerRay = c.clippedScalePaths,
           .shownRadiance = c.clippedScaleShownRadiance,
           .materialChoice = c.clippedScaleMaterialChoice};
 }

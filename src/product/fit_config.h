@@ -170,10 +170,10 @@ struct FitConfig {
   // Its light from the surfaces in view taken at what the frames show of them, not at the fit's
   // albedo, which sits at 1 where the lights are still too dark (clipped_light_scale.cpp).
   bool clippedScaleShownRadiance = true;
-  // Paths traced per drawn ray for each of that scale's terms: at 8 its path noise, which the fit
-  // removes from each object's spread only to first order, held the White Room's windows at 1.6x
-  // their truth's scale when run at the truth (docs/notes/2026-12-02-scale-path-noise.md).
-  int clippedScalePaths = 64;
+  // Paths traced per drawn ray for each of that scale's terms. Their noise comes out of each
+  // object's spread only to first order: at the White Room's truth 8 paths biased its scale and 64
+  // did not, but in the fit 64 left the room's panels further off (docs/notes/2026-12-02-scale-path-noise.md).
+  int clippedScalePaths = 8;
   // In that scale, the first vertex's specular lobe apart from its diffuse one, and each object's
   // terms also under kFirstVertexMaterials (clipped_light_scale.h), each object keeping the one its
   // albedo is most uniform under at the lights' shared scale; false: both lobes as one, the fit's

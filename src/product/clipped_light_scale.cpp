@@ -737,7 +737,6 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
   // object and with no ceiling, by what the frames show of the object over what the fit renders of
   // it. Only there: scaled at every vertex, the light would grow without bound in a closed room.
   Appearance shown = a;
-  std::array<std::vector<ScaleTexel>, 4> bands;
   if (settings.shownRadiance) {
     ShownOverRendered shownOver(batch, a, space, w.mesh, K + 1);
     traceTerms(a, nullptr, [&](const auto& traced, const auto& rayOf) { shownOver.add(traced, rayOf); });
@@ -745,10 +744,9 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
     for (size_t t = 0; t < space.map.texelCount(); ++t)
       if (space.map.valid(t))
         for (int band = 0; band < 3; ++band) shown.albedo.rgb[3 * t + band] *= ratio[space.objectOf(t, w.mesh)][band];
-    bands = sumBands(a, &shown);
-  } else {
-    bands = sumBands(a, nullptr);
   }
+  const Appearance* secondVertex = settings.shownRadiance ? &shown : nullptr;
+  std::array<std::vector<ScaleTexel>, 4> bands = sumBands(a, secondVertex);
   // The first vertex's roughness and specular are the fit's, which have not seen a highlight yet
   // (the material stage comes later): at the init's 0.5 and 0.5 the scale of the room's panels
   // held 10-16% short even with the true albedo, within 2% with the true materials. With the
@@ -767,7 +765,7 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
       Appearance candidate = a;
       std::fill(candidate.roughness.begin(), candidate.roughness.end(), m.roughness);
       std::fill(candidate.specular.begin(), candidate.specular.end(), m.specular);
-      under.push_back(sumBands(candidate, settings.shownRadiance ? &shown : nullptr));
+      under.push_back(sumBands(candidate, secondVertex));
     }
     // Judged at the scale all objects share: each at its own best scale, a glossy material let an
     // object agree with a scale no other did, and the common scale followed (single-exposure test

@@ -5,12 +5,13 @@
 // A scale of `divide` for each light is exact; what it gives instead is the estimator's own error
 // on this capture. With albedo=absorbed each albedo is the truth's times `divide`, at most 1: what
 // a fit holds while its lights are that much too dark (its albedo takes up the missing light up to
-// its ceiling). Prints, per seed, the fit's line, each light's scale and error and each object's
-// own most uniform scale.
+// its ceiling). Prints, per seed, the fit's line, each light's scale and error, each object's
+// own most uniform scale and the objects whose albedo ceiling bounds the lights the most.
 // Usage: scale_at_truth WORK TRUTH_SCENE.json [KEY=VALUE...] with keys (defaults)
 //   divide (1.5), resolution (512), seeds (2), materials (truth | init), albedo (truth | absorbed),
 //   choice (1: clipped_scale_material_choice), shown (1: clipped_scale_shown_radiance),
-//   paths (8: the paths traced per ray for each term), texels (0: the fit's texels drawn per object)
+//   paths (8: the paths traced per ray for each term), texels (0: the fit's texels drawn per object),
+//   ceiling (1: clipped_scale_albedo_ceiling)
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -53,12 +54,13 @@ Texture truthAlbedo(const Workspace& w, const TexelSpace& space, const SceneDesc
 int run(int argc, char** argv) {
   if (argc < 3) {
     std::fprintf(stderr, "usage: scale_at_truth WORK TRUTH_SCENE.json [divide=1.5] [resolution=512] [seeds=2] "
-                         "[materials=truth|init] [albedo=truth|absorbed] [choice=1] [shown=1]\n");
+                         "[materials=truth|init] [albedo=truth|absorbed] [choice=1] [shown=1] [ceiling=1]\n");
     return 2;
   }
   std::map<std::string, std::string> keys = {{"divide", "1.5"},    {"resolution", "512"}, {"seeds", "2"},
                                              {"materials", "truth"}, {"albedo", "truth"},  {"choice", "1"},
-                                             {"shown", "1"},         {"paths", "8"},        {"texels", "0"}};
+                                             {"shown", "1"},         {"paths", "8"},        {"texels", "0"},
+                                             {"ceiling", "1"}};
   for (int i = 3; i < argc; ++i) {
     const std::string arg = argv[i];
     const size_t eq = arg.find('=');
@@ -71,6 +73,7 @@ int run(int argc, char** argv) {
   FitConfig config;
   config.clippedScaleMaterialChoice = keys["choice"] != "0";
   config.clippedScaleShownRadiance = keys["shown"] != "0";
+  config.clippedScaleAlbedoCeiling = keys["ceiling"] != "0";
   if (!(divide > 0) || res < 16 || seeds < 1 || (!trueMaterials && keys["materials"] != "init") ||
       (!absorbed && keys["albedo"] != "truth"))
     fail("scale_at_truth: divide > 0, resolution >= 16, seeds >= 1, materials truth or init, albedo truth or absorbed");
@@ -124,6 +127,14 @@ int run(int argc, char** argv) {
     }
     std::printf("  objects' own scales:");
     for (const auto& [o, own] : s.fit.perObject) std::printf(" %s %.3g;", a.names[o].c_str(), own);
+    std::printf("\n");
+    // The objects whose albedo bounds the lights from below the most (at the scales the uniformity gave).
+    std::vector<CeilingBound> bounds = s.ceiling.perObject;
+    const auto below = [&](const CeilingBound& b) { return b.factor - settings.ceilingSigmas * b.error; };
+    std::sort(bounds.begin(), bounds.end(), [&](const auto& x, const auto& y) { return below(x) > below(y); });
+    std::printf("  albedo ceiling x %.4f; objects' bounds:", s.ceiling.factor);
+    for (size_t i = 0; i < std::min<size_t>(bounds.size(), 10); ++i)
+      std::printf(" %s %.3g+-%.2g;", a.names[bounds[i].object].c_str(), bounds[i].factor, bounds[i].error);
     std::printf("\n");
     std::fflush(stdout);
   }

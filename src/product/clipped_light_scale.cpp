@@ -402,6 +402,50 @@ std::vector<ScaleTexel> chosenTexels(const std::vector<std::vector<ScaleTexel>>&
   return chosen;
 }
 
+AlbedoCeiling albedoCeiling(const std::vector<ScaleTexel>& texels, size_t minTexels, const std::vector<double>& scale,
+                            double sigmas) {
+  const size_t K = scale.size();
+  int objectCount = 0;
+  for (const ScaleTexel& t : texels) objectCount = std::max(objectCount, t.object + 1);
+  const Objects byObject = usableByObject(texels, objectCount, K);
+  AlbedoCeiling ceiling;
+  for (int o = 0; o < objectCount; ++o) {
+    const auto& own = byObject[o];
+    if (own.size() < std::max<size_t>(minTexels, 2)) continue;
+    // Per texel: what t must make up (I - G_R - R) and what t scales (s.D + s.G).
+    std::vector<std::pair<double, double>> terms;
+    double missing = 0, scaled = 0;
+    for (const ScaleTexel* t : own) {
+      double received = 0;
+      for (size_t c = 0; c < K; ++c)
+        received += scale[c] * (t->mean[c] + (t->specular.empty() ? 0.0 : t->specular[c]));
+      const double unexplained = t->shown - t->mean[K] - (t->specular.empty() ? 0.0 : t->specular[K]);
+      terms.emplace_back(unexplained, received);
+      missing += unexplained, scaled += received;
+    }
+    if (!(scaled > 0)) continue;
+    const double factor = missing / scaled;
+    double squares = 0;
+    for (const auto& [m, r] : terms) squares += (m - factor * r) * (m - factor * r);
+    const double n = static_cast<double>(terms.size());
+    const double error = std::sqrt(squares * n / (n - 1)) / scaled;
+    ceiling.perObject.push_back({o, factor, error});
+    if (const double bound = factor - sigmas * error; bound > ceiling.factor) ceiling.factor = bound, ceiling.object = o;
+  }
+  return ceiling;
+}
+
+Json AlbedoCeiling::toJson(const Appearance& a) const {
+  Json perObjectJson = Json::array();
+  for (const CeilingBound& b : perObject)
+    perObjectJson.push_back({{"id", b.object}, {"name", a.names[b.object]}, {"factor", b.factor}, {"error", b.error}});
+  return {{"factor", factor},
+          {"object", object >= 0 ? Json(a.names[object]) : Json(nullptr)},
+          {"per_object", perObjectJson}};
+}
+
+bool ClippedLightScale::movesLights() const { return applied && (fit.movesLights() || ceiling.factor > 1); }
+
 Json ClippedLightScale::toJson(const Appearance& a) const {
   Json perLight = Json::array(), perObject = Json::array();
   for (size_t k = 0; k < lights.size(); ++k)
@@ -425,7 +469,7 @@ Json ClippedLightScale::toJson(const Appearance& a) const {
   }
   return {{"lights", perLight},   {"common", fit.common},    {"coloured", coloured}, {"objects", fit.objects},
           {"texels", fit.texels}, {"per_object", perObject}, {"applied", applied},   {"why", why},
-          {"materials_deferred", materialsDeferred}};
+          {"materials_deferred", materialsDeferred}, {"albedo_ceiling", ceiling.toJson(a)}};
 }
 
 namespace {
@@ -789,31 +833,43 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
 
   std::string names;
   for (int o : out.lights) names += fmt::format("{}{} ({})", names.empty() ? "" : ", ", o, a.names[o]);
-  // Applied when some group's scale is known to maxLogError: the others' ratios to it are known to
-  // a third of themselves (a lamp 3x brighter than the windows beside it keeps that ratio even
-  // where its own scale is known only to 28%).
-  if (!out.fit.known(settings.maxLogError)) {
-    const double best = *std::min_element(out.fit.logError.begin(), out.fit.logError.end());
+  // The uniformity's scale is applied when some group's is known to maxLogError: the others'
+  // ratios to it are known to a third of themselves (a lamp 3x brighter than the windows beside it
+  // keeps that ratio even where its own scale is known only to 28%). Then, or in its place, the
+  // lights are raised until no object's albedo exceeds 1: in a room of white furniture, what the
+  // uniformity may not tell, the ceiling does.
+  const bool known = out.fit.known(settings.maxLogError);
+  const std::vector<double> base = known ? out.fit.scale : std::vector<double>(K, 1.0);
+  if (settings.albedoCeiling) out.ceiling = albedoCeiling(bands[3], kMinTexels, base, settings.ceilingSigmas);
+  const std::string ceilingText =
+      out.ceiling.factor > 1 ? fmt::format("; raised x {:.3g} so that no albedo exceeds 1 ({}'s)", out.ceiling.factor,
+                                           a.names[out.ceiling.object])
+                             : std::string();
+  const double best = *std::min_element(out.fit.logError.begin(), out.fit.logError.end());
+  const std::string unknownText = fmt::format(
+      "the surfaces they light do not tell their emission apart from the albedo (scale {:.3g}, log error {:.3g} over "
+      "{} objects)",
+      out.fit.scale.front(), best, out.fit.objects);
+  if (!known && out.ceiling.factor <= 1) {
     out.why = fmt::format(
-        "lights {} are seen only saturated and the surfaces they light do not tell their emission apart from the "
-        "albedo (scale {:.3g}, log error {:.3g} over {} objects): both keep the scale init_white_point gave them{}",
-        names, out.fit.scale.front(), best, out.fit.objects, adviseDarkerFrames(out, a));
+        "lights {} are seen only saturated and {}: both keep the scale init_white_point gave them{}", names,
+        unknownText, adviseDarkerFrames(out, a));
     return out;
   }
   // The colour as well when each channel's own fit is resolved (a warm light's pixels clip white,
   // and its colour, like its scale, shows only in how the surfaces' colour changes where it
   // reaches them directly); else the luminance scale for all three.
   std::vector<Color> scale(K);
-  for (size_t c = 0; c < K; ++c) scale[c] = Color::Constant(static_cast<float>(out.fit.scale[c]));
+  for (size_t c = 0; c < K; ++c) scale[c] = Color::Constant(static_cast<float>(base[c]));
   // Where the luminance put the lights in groups, each channel keeps them (alone, it would have to
   // find them with a third of the signal); where it found one scale for all or each its own, a
   // channel decides for itself (a warm and a cool panel differ more in colour than in brightness:
   // held to each its own, the room's channels were not resolved, and its warm panel kept the
   // emission stage's bluish colour).
   const bool grouped = !out.fit.common && groupCount(out.fit.groupOf) < static_cast<int>(K);
-  bool coloured = true;
+  bool coloured = known;
   std::array<ScaleFit, 3> channel;
-  for (int band = 0; band < 3; ++band) {
+  for (int band = 0; band < 3 && known; ++band) {
     channel[band] =
         fitClippedScales(bands[band], kMinTexels, settings.maxLogError, grouped ? out.fit.groupOf : std::vector<int>{});
     for (double e : channel[band].logError) coloured &= e <= settings.maxLogError;
@@ -822,6 +878,7 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
   for (size_t c = 0; c < K; ++c) {
     if (coloured)
       for (int band = 0; band < 3; ++band) scale[c][band] = static_cast<float>(channel[band].scale[c]);
+    scale[c] *= static_cast<float>(out.ceiling.factor);
     // Never below what the light's pixels bound it by.
     const Color raised = a.emission[out.lights[c]] * scale[c];
     const double atLeast = out.floors[c].lowerBound * luminance(a.emission[out.lights[c]]);
@@ -833,15 +890,20 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
     const Color before = a.emission[out.lights[c]];
     a.emission[out.lights[c]] *= scale[c];
     const Color& after = a.emission[out.lights[c]];
-    scales +=
-        fmt::format("{}{} x {:.3g} (+-{:.0f}%): {:.3g} {:.3g} {:.3g}", c ? ", " : "", a.names[out.lights[c]],
-                    luminance(after) / luminance(before), 100 * out.fit.logError[c], after[0], after[1], after[2]);
+    scales += fmt::format("{}{} x {:.3g}{}: {:.3g} {:.3g} {:.3g}", c ? ", " : "", a.names[out.lights[c]],
+                          luminance(after) / luminance(before),
+                          known ? fmt::format(" (+-{:.0f}%)", 100 * out.fit.logError[c]) : std::string(), after[0],
+                          after[1], after[2]);
   }
-  out.why = fmt::format(
-      "lights {} are seen only saturated; the albedo is most uniform within each object at emission {} ({}, {}; "
-      "{} objects, {} texels){}",
-      names, scales, groupingText(out.fit, out.lights, a), coloured ? "colour from each channel" : "colour kept",
-      out.fit.objects, out.fit.texels, adviseDarkerFrames(out, a));
+  if (known)
+    out.why = fmt::format(
+        "lights {} are seen only saturated; the albedo is most uniform within each object at emission {} ({}, {}; "
+        "{} objects, {} texels){}{}",
+        names, scales, groupingText(out.fit, out.lights, a), coloured ? "colour from each channel" : "colour kept",
+        out.fit.objects, out.fit.texels, ceilingText, adviseDarkerFrames(out, a));
+  else
+    out.why = fmt::format("lights {} are seen only saturated and {}; emission {}{}{}", names, unknownText, scales,
+                          ceilingText, adviseDarkerFrames(out, a));
   // Each reflector's albedo by its texels' mean ratio a(s) / a(1), per channel (the next stages
   // refit it).
   std::vector<Eigen::Array3d> logRatio(objectCount, Eigen::Array3d::Zero());

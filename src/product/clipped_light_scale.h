@@ -73,6 +73,28 @@ struct ScaleFit {
 ScaleFit fitClippedScales(const std::vector<ScaleTexel>& texels, size_t minTexels, double maxLogError,
                           const std::vector<int>& groups = {});
 
+// No albedo exceeds 1. An object's albedo as one value over its texels (what they show over what
+// they receive: its texels' albedo weighted by the light each receives, so at most their largest)
+// falls as the clipped lights brighten; at the lights' scales s times a common factor t it is at
+// most 1 where
+//   t >= sum(I - G_R - R) / sum(s.D + s.G),
+// a ratio estimate whose standard error comes from its texels' spread about it. The ceiling is the
+// largest such bound, less `sigmas` of its error, over the objects with at least `minTexels` texels
+// whose bound is finite; 1 when none exceeds 1. A white wall at albedo 0.95 bounds the lights'
+// emission from below at 0.95 of the truth, whatever the uniformity of its albedo says.
+struct CeilingBound {
+  int object = 0;
+  double factor = 0, error = 0;  // t_o and its standard error
+};
+struct AlbedoCeiling {
+  double factor = 1;  // the least common factor of the scales that keeps every object's albedo at most 1
+  int object = -1;    // the object that sets it (-1: none exceeds 1)
+  std::vector<CeilingBound> perObject;
+  Json toJson(const Appearance& a) const;
+};
+AlbedoCeiling albedoCeiling(const std::vector<ScaleTexel>& texels, size_t minTexels, const std::vector<double>& scale,
+                            double sigmas);
+
 // The first vertex's roughness and specular each object may take instead of the fit's while its
 // clipped lights are scaled: glossy to matte, as interiors have them.
 struct FirstVertexMaterial {
@@ -104,6 +126,10 @@ struct ClippedLightSettings {
   // most uniform under at the lights' shared scale (chooseFirstVertexMaterials), once the scale
   // under the fit's own has settled; false: both lobes as one, the fit's materials.
   bool materialChoice = true;
+  // The lights raised, after the uniformity's scale or in its place when that is not known, until
+  // no object's albedo exceeds 1 (albedoCeiling, at this many of its errors); false: not.
+  bool albedoCeiling = true;
+  double ceilingSigmas = 3;
 };
 
 // What the clipped pixels of a light seen only saturated say.
@@ -126,6 +152,10 @@ struct ClippedLightScale {
   std::vector<int> firstVertexMaterial;
   // The choice was to be made but waited: the scale under the fit's own materials still moved.
   bool materialsDeferred = false;
+  // At the scales the uniformity gave (1 where it was not known); applied when its factor exceeds 1.
+  AlbedoCeiling ceiling;
+  // The lights' emission changed by more than its error: by the uniformity's scale, or by the ceiling.
+  bool movesLights() const;
   std::string why;        // one line: what was decided and why
   Json toJson(const Appearance& a) const;
 };

@@ -77,6 +77,7 @@ void forEachConfigKey(FitConfig& c, Fn&& fn) {
   fn("clipped_scale_shown_radiance", ConfigField(&c.clippedScaleShownRadiance));
   fn("clipped_scale_paths", ConfigField(&c.clippedScalePaths));
   fn("clipped_scale_material_choice", ConfigField(&c.clippedScaleMaterialChoice));
+  fn("clipped_scale_albedo_ceiling", ConfigField(&c.clippedScaleAlbedoCeiling));
   fn("clipped_light_silhouette_colour", ConfigField(&c.clippedLightSilhouetteColour));
   fn("emission_refit_iterations", ConfigField(&c.emissionRefitIterations));
   fn("lights", ConfigField(&c.lights));

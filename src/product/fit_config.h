@@ -179,6 +179,9 @@ struct FitConfig {
   // albedo is most uniform under at the lights' shared scale; false: both lobes as one, the fit's
   // materials.
   bool clippedScaleMaterialChoice = true;
+  // Then, or where that scale is not known, the lights raised until no object's albedo exceeds 1
+  // (albedoCeiling, at light_significance of its errors); false: the uniformity alone.
+  bool clippedScaleAlbedoCeiling = true;
   // After their last scale, each one's colour measured where its outline mixes into its pixels
   // unclipped (product/silhouette_colour.h), where that is known; false = the colour the emission
   // stage and the per-channel scales gave them.

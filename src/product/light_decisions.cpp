@@ -231,7 +231,9 @@ ClippedLightSettings clippedLightSettings(const FitConfig& c) {
           .framesPerTexel = c.framesPerTexel,
           .pathsPerRay = c.clippedScalePaths,
           .shownRadiance = c.clippedScaleShownRadiance,
-          .materialChoice = c.clippedScaleMaterialChoice};
+          .materialChoice = c.clippedScaleMaterialChoice,
+          .albedoCeiling = c.clippedScaleAlbedoCeiling,
+          .ceilingSigmas = c.lightSignificance};
 }
 
 void LightDecisions::findClippedLights(const TexelSpace& space) {
@@ -296,7 +298,7 @@ bool LightDecisions::scaleClippedLights(const TexelSpace& space, const std::stri
   // The first scale under the chosen materials always has a successor: the albedo it started from
   // had followed the scale under the fit's own (on the bracketed room it stopped there 6-7% short).
   const bool firstChoice = !scale.firstVertexMaterial.empty() && !r_.clippedScaleChose;
-  r_.clippedScaleMoving = scale.applied && (scale.fit.movesLights() || firstChoice);
+  r_.clippedScaleMoving = scale.movesLights() || (scale.applied && firstChoice);
   r_.clippedScaleChose |= !scale.firstVertexMaterial.empty();
   return scale.applied;
 }

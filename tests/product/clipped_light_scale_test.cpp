@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <random>
 
 using namespace relume;
@@ -260,4 +261,69 @@ TEST(ClippedLightScale, AMaterialIsJudgedAtTheScaleTheObjectsShare) {
   for (const ScaleTexel& t : chosenTexels({exact, second}, {0, 0, 1, 0})) got.push_back(t.mean);
   std::sort(expected.begin(), expected.end()), std::sort(got.begin(), got.end());
   EXPECT_EQ(got, expected);
+}
+
+namespace {
+
+// The texels of `texels` with object o's albedo set to `albedo` (what the frames show of it scaled).
+std::vector<ScaleTexel> withAlbedo(std::vector<ScaleTexel> all, const std::vector<double>& truth, int o,
+                                   double albedo) {
+  for (ScaleTexel& t : all) {
+    if (t.object != o) continue;
+    double lit = t.mean.back();
+    for (size_t c = 0; c < truth.size(); ++c) lit += truth[c] * t.mean[c];
+    t.shown = albedo * lit;
+  }
+  return all;
+}
+
+}  // namespace
+
+// With the lights 1.8x too dark, an object of albedo 1 needs them exactly 1.8x brighter, and one of
+// albedo 0.95 (white paint) a little less, its light from the rest of the room (R) not scaled: the
+// ceiling is a lower bound, set by the whitest object. At the true scale, no object exceeds 1.
+TEST(ClippedLightScale, TheAlbedoCeilingBoundsTheLightsFromBelow) {
+  const std::vector<double> truth = {1.8};
+  const std::vector<ScaleTexel> room = texels(truth, 6, 200, 0.0, 31);  // albedo in [0.2, 0.8]
+  const AlbedoCeiling white = albedoCeiling(withAlbedo(room, truth, 3, 1.0), 32, {1.0}, 3.0);
+  EXPECT_EQ(white.object, 3);
+  EXPECT_NEAR(white.factor, 1.8, 1e-6);  // noise-free: no error to take off
+  EXPECT_EQ(white.perObject.size(), 6u);
+  const AlbedoCeiling paint = albedoCeiling(withAlbedo(room, truth, 3, 0.95), 32, {1.0}, 3.0);
+  EXPECT_EQ(paint.object, 3);
+  EXPECT_LT(paint.factor, 0.95 * 1.8);
+  EXPECT_GT(paint.factor, 0.85 * 1.8);
+  // The bound does not depend on the scales it starts from: from the lights at 1.2, the factor left is 1.5.
+  EXPECT_NEAR(albedoCeiling(withAlbedo(room, truth, 3, 1.0), 32, {1.2}, 3.0).factor, 1.5, 1e-6);
+  // At the true scale every albedo is at most 1: no factor, no object.
+  const AlbedoCeiling atTruth = albedoCeiling(withAlbedo(room, truth, 3, 1.0), 32, truth, 3.0);
+  EXPECT_EQ(atTruth.factor, 1.0);
+  EXPECT_EQ(atTruth.object, -1);
+  // Too few texels: the object does not count.
+  EXPECT_EQ(albedoCeiling(withAlbedo(room, truth, 3, 1.0), 1000, {1.0}, 3.0).object, -1);
+}
+
+// The frames' noise widens each object's bound by its standard error, and the ceiling takes
+// `sigmas` of it off: over seeds, an albedo-1 object's noisy bound stays below the truth, and its
+// error is the spread of the bound over those seeds.
+TEST(ClippedLightScale, TheAlbedoCeilingTakesItsNoiseOff) {
+  const std::vector<double> truth = {1.8};
+  std::vector<double> factors, errors;
+  for (uint32_t seed = 40; seed < 80; ++seed) {
+    std::vector<ScaleTexel> room = withAlbedo(texels(truth, 6, 200, 0.0, seed), truth, 3, 1.0);
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> n(0, 1);
+    for (ScaleTexel& t : room) t.shown *= 1 + 0.1 * n(rng);
+    const AlbedoCeiling c = albedoCeiling(room, 32, {1.0}, 3.0);
+    EXPECT_LT(c.factor, 1.8) << seed;
+    const auto own = std::find_if(c.perObject.begin(), c.perObject.end(), [](const auto& b) { return b.object == 3; });
+    ASSERT_NE(own, c.perObject.end());
+    factors.push_back(own->factor), errors.push_back(own->error);
+  }
+  double mean = 0, squares = 0;
+  for (double f : factors) mean += f / factors.size();
+  for (double f : factors) squares += (f - mean) * (f - mean) / (factors.size() - 1);
+  const double meanError = std::accumulate(errors.begin(), errors.end(), 0.0) / errors.size();
+  EXPECT_NEAR(mean, 1.8, 3 * std::sqrt(squares / factors.size()));
+  EXPECT_NEAR(meanError / std::sqrt(squares), 1.0, 0.3);
 }

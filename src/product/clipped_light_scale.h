@@ -18,7 +18,8 @@
 // apart. The lobes depend on the first vertex's roughness and specular, which no highlight has
 // fixed yet when this runs; optionally the lobes are taken apart and each object takes the
 // material, among the fit's and a few glossy to matte, under which its albedo is most uniform. The scale is applied only when its
-// error is small, and never below what the clipped pixels bound the emission by.
+// error is small, and never below what the clipped pixels bound the emission by; then, or in its
+// place, the lights are raised until no object's albedo exceeds 1 (albedoCeiling).
 #pragma once
 #include <array>
 #include <cmath>

@@ -273,6 +273,13 @@ bool usableTexel(const ScaleTexel& t, size_t K) {
   return valid;
 }
 
+// One past the largest object id among the texels.
+int objectsIn(const std::vector<ScaleTexel>& texels) {
+  int count = 0;
+  for (const ScaleTexel& t : texels) count = std::max(count, t.object + 1);
+  return count;
+}
+
 // The usable texels (K clipped lights) of each of `objectCount` objects.
 Objects usableByObject(const std::vector<ScaleTexel>& texels, int objectCount, size_t K) {
   Objects byObject(objectCount);
@@ -301,8 +308,7 @@ bool ScaleFit::movesLights() const {
 ScaleFit fitClippedScales(const std::vector<ScaleTexel>& texels, size_t minTexels, double maxLogError,
                           const std::vector<int>& groups) {
   const size_t K = texels.empty() ? 0 : texels.front().mean.size() - 1;
-  int objectCount = 0;
-  for (const ScaleTexel& t : texels) objectCount = std::max(objectCount, t.object + 1);
+  const int objectCount = objectsIn(texels);
   const Objects byObject = usableByObject(texels, objectCount, K);
   ScaleFit fit;
   fit.scale.assign(K, 1.0);
@@ -405,8 +411,7 @@ std::vector<ScaleTexel> chosenTexels(const std::vector<std::vector<ScaleTexel>>&
 AlbedoCeiling albedoCeiling(const std::vector<ScaleTexel>& texels, size_t minTexels, const std::vector<double>& scale,
                             double sigmas) {
   const size_t K = scale.size();
-  int objectCount = 0;
-  for (const ScaleTexel& t : texels) objectCount = std::max(objectCount, t.object + 1);
+  const int objectCount = objectsIn(texels);
   const Objects byObject = usableByObject(texels, objectCount, K);
   AlbedoCeiling ceiling;
   for (int o = 0; o < objectCount; ++o) {
@@ -416,10 +421,10 @@ AlbedoCeiling albedoCeiling(const std::vector<ScaleTexel>& texels, size_t minTex
     std::vector<std::pair<double, double>> terms;
     double missing = 0, scaled = 0;
     for (const ScaleTexel* t : own) {
+      const auto specular = [&](size_t c) { return t->specular.empty() ? 0.0 : t->specular[c]; };
       double received = 0;
-      for (size_t c = 0; c < K; ++c)
-        received += scale[c] * (t->mean[c] + (t->specular.empty() ? 0.0 : t->specular[c]));
-      const double unexplained = t->shown - t->mean[K] - (t->specular.empty() ? 0.0 : t->specular[K]);
+      for (size_t c = 0; c < K; ++c) received += scale[c] * (t->mean[c] + specular(c));
+      const double unexplained = t->shown - t->mean[K] - specular(K);
       terms.emplace_back(unexplained, received);
       missing += unexplained, scaled += received;
     }

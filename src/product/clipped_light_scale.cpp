@@ -69,72 +69,6 @@ double jackknifeError(const std::vector<double>& leftOut) {
 
 using Objects = std::vector<std::vector<const ScaleTexel*>>;
 
-// Of what the frames show of a texel, the diffuse lobe explains at least this share: where the
-// specular lobe would explain more, the texel says little of its albedo, and its log stays finite.
-constexpr double kMinDiffuseShare = 0.1;
-
-// At scales s: what the texel's diffuse lobe receives (s.D + R) and shows (I - s.G - G_R, at
-// least kMinDiffuseShare I; `floored` when held there).
-struct DiffuseTerms {
-  double received = 0, shown = 0;
-  bool floored = false;
-};
-DiffuseTerms diffuseTerms(const ScaleTexel& t, const std::vector<double>& s) {
-  const size_t K = s.size();
-  DiffuseTerms d;
-  d.received = t.mean[K];
-  double specular = t.specular.empty() ? 0.0 : t.specular[K];
-  for (size_t c = 0; c < K; ++c) {
-    d.received += s[c] * t.mean[c];
-    if (!t.specular.empty()) specular += s[c] * t.specular[c];
-  }
-  const double least = kMinDiffuseShare * t.shown;
-  d.floored = t.shown - specular < least;
-  d.shown = d.floored ? least : t.shown - specular;
-  return d;
-}
-
-// One object's term of the negative log-likelihood at light scales s, profiled over its mean
-// log-albedo and its own variance: n/2 log(S/n), S the sum of squared deviations of
-// log(I - s.G - G_R) - log(s.D + R) from their mean, less the paths' noise (the delta method: the
-// variance of the log-albedo is g' C g, g its gradient in the means, C their covariance).
-double objectTerm(const std::vector<const ScaleTexel*>& texels, const std::vector<double>& s) {
-  const size_t K = s.size();
-  // The covariance's weights, per term of each lobe: the lights' scales, then 1 for the rest.
-  std::vector<double> w(2 * (K + 1), 1.0);
-  for (size_t c = 0; c < K; ++c) w[c] = w[K + 1 + c] = s[c];
-  double sum = 0, squares = 0, noise = 0;
-  for (const ScaleTexel* t : texels) {
-    const DiffuseTerms d = diffuseTerms(*t, s);
-    // The covariance's blocks weighted by the scales: diffuse-diffuse, diffuse-specular, specular-specular.
-    const size_t n = t->specular.empty() ? K + 1 : 2 * (K + 1);
-    std::array<double, 3> block{};
-    for (size_t i = 0; i < n; ++i) {
-      const double* row = &t->covariance[i * n];
-      const size_t first = i > K;
-      for (size_t j = 0; j <= K; ++j) block[first] += w[i] * w[j] * row[j];
-      for (size_t j = K + 1; j < n; ++j) block[first + 1] += w[i] * w[j] * row[j];
-    }
-    double variance = block[0] / (d.received * d.received);
-    if (!d.floored) variance += 2 * block[1] / (d.received * d.shown) + block[2] / (d.shown * d.shown);
-    const double logAlbedo = std::log(d.shown) - std::log(d.received);
-    sum += logAlbedo, squares += logAlbedo * logAlbedo, noise += variance;
-  }
-  // The delta method holds for small noise: it may take at most 90% of the spread away.
-  const double n = static_cast<double>(texels.size()), spread = squares - sum * sum / n;
-  return 0.5 * n * std::log(std::max(1e-300, std::max(spread - noise * (n - 1) / n, 0.1 * spread) / n));
-}
-
-// Per object (rows), the term at every common scale of the grid.
-std::vector<std::vector<double>> commonTerms(const Objects& objects, size_t K) {
-  std::vector<std::vector<double>> terms(objects.size(), std::vector<double>(kGridSteps + 1));
-  tbb::parallel_for(size_t{0}, objects.size(), [&](size_t o) {
-    for (int i = 0; i <= kGridSteps; ++i)
-      terms[o][i] = objectTerm(objects[o], std::vector<double>(K, std::exp(gridLog(i, kGridSteps, kRange))));
-  });
-  return terms;
-}
-
 // Per light: the group whose scale it takes.
 using Grouping = std::vector<int>;
 int groupCount(const Grouping& groupOf) { return *std::max_element(groupOf.begin(), groupOf.end()) + 1; }
@@ -143,14 +77,138 @@ std::vector<double> perLight(const std::vector<double>& groupScale, const Groupi
   for (size_t c = 0; c < groupOf.size(); ++c) s[c] = groupScale[groupOf[c]];
   return s;
 }
+// Each of K lights in a group of its own.
+Grouping eachOwn(size_t K) {
+  Grouping groupOf(K);
+  for (size_t c = 0; c < K; ++c) groupOf[c] = static_cast<int>(c);
+  return groupOf;
+}
+
+// Of what the frames show of a texel, the diffuse lobe explains at least this share: where the
+// specular lobe would explain more, the texel says little of its albedo, and its log stays finite.
+constexpr double kMinDiffuseShare = 0.1;
+
+// The powers of G groups' scales t that a texel's terms are polynomials in: u = (1, t_1..t_G),
+// and the products u_p u_q (p <= q, row by row).
+struct Monomials {
+  std::vector<double> linear, quadratic;
+};
+Monomials monomials(const std::vector<double>& t) {
+  Monomials m;
+  m.linear.push_back(1.0);
+  m.linear.insert(m.linear.end(), t.begin(), t.end());
+  for (size_t p = 0; p < m.linear.size(); ++p)
+    for (size_t q = p; q < m.linear.size(); ++q) m.quadratic.push_back(m.linear[p] * m.linear[q]);
+  return m;
+}
+double dot(const double* x, const std::vector<double>& y) {
+  double sum = 0;
+  for (size_t i = 0; i < y.size(); ++i) sum += x[i] * y[i];
+  return sum;
+}
+
+// At the groups' scales: what a texel's diffuse lobe receives (s.D + R) and shows (I - s.G - G_R,
+// at least kMinDiffuseShare I; `floored` when held there).
+struct DiffuseTerms {
+  double received = 0, shown = 0;
+  bool floored = false;
+};
+
+// Texels whose terms are polynomials in the scales of groups of lights (each light at its
+// group's): what the diffuse lobe receives and the specular lobe returns are linear in u, the
+// covariance of the means weighted by the scales is quadratic, in three blocks: diffuse-diffuse,
+// diffuse-specular (both off-diagonal blocks), specular-specular. The coefficients are summed
+// once per grouping from the texels' terms; each of the fit's thousands of evaluations is then a
+// few short dot products per texel.
+class GroupedTexels {
+ public:
+  GroupedTexels(const std::vector<const ScaleTexel*>& texels, const Grouping& groupOf) {
+    U_ = static_cast<size_t>(groupCount(groupOf)) + 1, P_ = U_ * (U_ + 1) / 2, stride_ = 1 + 2 * U_ + 3 * P_;
+    count_ = texels.size();
+    data_.assign(stride_ * count_, 0.0);
+    const size_t K = groupOf.size();
+    // The power of u each term is weighed by: its light's group, 0 for R and G_R.
+    auto power = [&](size_t i) { return i % (K + 1) == K ? size_t{0} : 1 + static_cast<size_t>(groupOf[i % (K + 1)]); };
+    auto pair = [&](size_t p, size_t q) {
+      if (p > q) std::swap(p, q);
+      return p * U_ - p * (p - 1) / 2 + (q - p);
+    };
+    for (size_t k = 0; k < count_; ++k) {
+      const ScaleTexel& t = *texels[k];
+      CHECK_EQ(t.mean.size(), K + 1);
+      const size_t n = t.specular.empty() ? K + 1 : 2 * (K + 1);
+      double* x = &data_[k * stride_];
+      x[0] = t.shown;
+      for (size_t i = 0; i <= K; ++i) {
+        x[1 + power(i)] += t.mean[i];
+        if (!t.specular.empty()) x[1 + U_ + power(i)] += t.specular[i];
+      }
+      for (size_t i = 0; i < n; ++i)
+        for (size_t j = 0; j < n; ++j) {
+          const size_t block = i <= K && j <= K ? 0 : i > K && j > K ? 2 : 1;
+          x[1 + 2 * U_ + block * P_ + pair(power(i), power(j))] += t.covariance[i * n + j];
+        }
+    }
+  }
+  size_t size() const { return count_; }
+  DiffuseTerms diffuse(size_t k, const Monomials& m) const {
+    const double* x = &data_[k * stride_];
+    DiffuseTerms d;
+    d.received = dot(x + 1, m.linear);
+    const double specular = dot(x + 1 + U_, m.linear), least = kMinDiffuseShare * x[0];
+    d.floored = x[0] - specular < least;
+    d.shown = d.floored ? least : x[0] - specular;
+    return d;
+  }
+  // The object's term of the negative log-likelihood, profiled over its mean log-albedo and its
+  // own variance: n/2 log(S/n), S the sum of squared deviations of log(I - s.G - G_R) -
+  // log(s.D + R) from their mean, less the paths' noise (the delta method: the variance of the
+  // log-albedo is g' C g, g its gradient in the means, C their covariance).
+  double term(const Monomials& m) const {
+    double sum = 0, squares = 0, noise = 0;
+    for (size_t k = 0; k < count_; ++k) {
+      const DiffuseTerms d = diffuse(k, m);
+      const double* variances = &data_[k * stride_ + 1 + 2 * U_];
+      double variance = dot(variances, m.quadratic) / (d.received * d.received);
+      if (!d.floored)
+        variance += 2 * dot(variances + P_, m.quadratic) / (d.received * d.shown) +
+                    dot(variances + 2 * P_, m.quadratic) / (d.shown * d.shown);
+      const double logAlbedo = std::log(d.shown / d.received);
+      sum += logAlbedo, squares += logAlbedo * logAlbedo, noise += variance;
+    }
+    // The delta method holds for small noise: it may take at most 90% of the spread away.
+    const double n = static_cast<double>(count_), spread = squares - sum * sum / n;
+    return 0.5 * n * std::log(std::max(1e-300, std::max(spread - noise * (n - 1) / n, 0.1 * spread) / n));
+  }
+
+ private:
+  size_t U_ = 0, P_ = 0, stride_ = 0, count_ = 0;
+  std::vector<double> data_;  // per texel: I, then the coefficients of s.D + R, s.G + G_R, and the three blocks
+};
+
+std::vector<GroupedTexels> groupedObjects(const Objects& objects, const Grouping& groupOf) {
+  std::vector<GroupedTexels> out(objects.size(), GroupedTexels({}, groupOf));
+  tbb::parallel_for(size_t{0}, objects.size(), [&](size_t o) { out[o] = GroupedTexels(objects[o], groupOf); });
+  return out;
+}
+
+// Per object (rows), the term at every common scale of the grid.
+std::vector<std::vector<double>> commonTerms(const Objects& objects, size_t K) {
+  const std::vector<GroupedTexels> one = groupedObjects(objects, Grouping(K, 0));
+  std::vector<std::vector<double>> terms(objects.size(), std::vector<double>(kGridSteps + 1));
+  tbb::parallel_for(size_t{0}, objects.size(), [&](size_t o) {
+    for (int i = 0; i <= kGridSteps; ++i) terms[o][i] = one[o].term(monomials({std::exp(gridLog(i, kGridSteps, kRange))}));
+  });
+  return terms;
+}
 
 // The pooled negative log-likelihood at group scales s, over the objects not left out (`leftOut`
 // < 0: none).
-double pooledTerm(const Objects& objects, const Grouping& groupOf, const std::vector<double>& s, int leftOut) {
-  const std::vector<double> at = perLight(s, groupOf);
+double pooledTerm(const std::vector<GroupedTexels>& objects, const std::vector<double>& s, int leftOut) {
+  const Monomials m = monomials(s);
   double sum = 0;
   for (size_t o = 0; o < objects.size(); ++o)
-    if (static_cast<int>(o) != leftOut) sum += objectTerm(objects[o], at);
+    if (static_cast<int>(o) != leftOut) sum += objects[o].term(m);
   return sum;
 }
 
@@ -159,13 +217,13 @@ struct Curvature {
   Eigen::VectorXd gradient;
   Eigen::MatrixXd hessian;
 };
-Curvature curvature(const Objects& objects, const Grouping& groupOf, const std::vector<double>& s, int leftOut) {
+Curvature curvature(const std::vector<GroupedTexels>& objects, const std::vector<double>& s, int leftOut) {
   constexpr double h = 0.002;
   const size_t G = s.size();
   auto at = [&](size_t c, double hc, size_t d, double hd) {
     std::vector<double> step = s;
     step[c] *= std::exp(hc), step[d] *= std::exp(hd);
-    return pooledTerm(objects, groupOf, step, leftOut);
+    return pooledTerm(objects, step, leftOut);
   };
   Curvature out{Eigen::VectorXd(G), Eigen::MatrixXd(G, G)};
   for (size_t c = 0; c < G; ++c) {
@@ -182,7 +240,7 @@ Curvature curvature(const Objects& objects, const Grouping& groupOf, const std::
 // then Newton steps in the log scales, which coordinate descent takes many sweeps to match where
 // two groups' light falls in similar proportions. NaN entries where a group ends on the grid's
 // edge or the Newton steps leave it.
-std::vector<double> scalesApart(const Objects& objects, const Grouping& groupOf, std::vector<double> s, double common,
+std::vector<double> scalesApart(const std::vector<GroupedTexels>& objects, std::vector<double> s, double common,
                                 int leftOut) {
   std::vector<uint8_t> onEdge(s.size(), 0);
   for (int sweep = 0; sweep < kSweeps; ++sweep)
@@ -191,7 +249,7 @@ std::vector<double> scalesApart(const Objects& objects, const Grouping& groupOf,
       tbb::parallel_for(0, kApartSteps + 1, [&](int i) {
         std::vector<double> trial = s;
         trial[g] = common * std::exp(gridLog(i, kApartSteps, kApartRange));
-        J[i] = pooledTerm(objects, groupOf, trial, leftOut);
+        J[i] = pooledTerm(objects, trial, leftOut);
       });
       const double u = argminLog(J, kApartRange);
       onEdge[g] = std::isnan(u);
@@ -201,15 +259,15 @@ std::vector<double> scalesApart(const Objects& objects, const Grouping& groupOf,
   const auto nan = std::vector<double>(s.size(), std::numeric_limits<double>::quiet_NaN());
   if (std::any_of(onEdge.begin(), onEdge.end(), [](uint8_t e) { return e; })) return nan;
   for (int step = 0; step < kNewtonSteps; ++step) {
-    const Curvature c = curvature(objects, groupOf, s, leftOut);
+    const Curvature c = curvature(objects, s, leftOut);
     const Eigen::LLT<Eigen::MatrixXd> llt(c.hessian);
     if (llt.info() != Eigen::Success) break;  // not convex here: the grid's answer stands
     const Eigen::VectorXd delta = -llt.solve(c.gradient);
-    const double before = pooledTerm(objects, groupOf, s, leftOut);
+    const double before = pooledTerm(objects, s, leftOut);
     std::vector<double> next = s;
     for (double t = 1; t > 1.0 / 64; t /= 2) {
       for (size_t g = 0; g < s.size(); ++g) next[g] = s[g] * std::exp(t * delta(g));
-      if (pooledTerm(objects, groupOf, next, leftOut) < before) break;
+      if (pooledTerm(objects, next, leftOut) < before) break;
       next = s;
     }
     if (next == s) break;
@@ -233,16 +291,17 @@ struct GroupScales {
 };
 std::optional<GroupScales> fitGroups(const Objects& objects, const Grouping& groupOf, double common) {
   const int G = groupCount(groupOf);
+  const std::vector<GroupedTexels> inGroups = groupedObjects(objects, groupOf);
   GroupScales out;
-  out.scale = scalesApart(objects, groupOf, std::vector<double>(G, common), common, -1);
+  out.scale = scalesApart(inGroups, std::vector<double>(G, common), common, -1);
   if (std::any_of(out.scale.begin(), out.scale.end(), [](double x) { return std::isnan(x); })) return std::nullopt;
   Eigen::MatrixXd leftOut(objects.size(), G);  // the log scales with each object left out
   for (size_t o = 0; o < objects.size(); ++o) {
-    const std::vector<double> s = scalesApart(objects, groupOf, out.scale, common, static_cast<int>(o));
+    const std::vector<double> s = scalesApart(inGroups, out.scale, common, static_cast<int>(o));
     for (int g = 0; g < G; ++g) leftOut(o, g) = std::log(s[g]);
   }
   // The covariance from the curvature: the inverse Hessian, where it is regular.
-  const Eigen::MatrixXd H = curvature(objects, groupOf, out.scale, -1).hessian;
+  const Eigen::MatrixXd H = curvature(inGroups, out.scale, -1).hessian;
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(H);
   std::optional<Eigen::MatrixXd> C;
   if (eigen.info() == Eigen::Success && eigen.eigenvalues().minCoeff() > 0) C = H.inverse();
@@ -348,10 +407,7 @@ ScaleFit fitClippedScales(const std::vector<ScaleTexel>& texels, size_t minTexel
   // all. (A pendant lamp seven times brighter than the windows beside it is told apart at 7
   // errors, two windows alike in a wall are not.)
   Grouping groupOf = groups;
-  if (groupOf.empty()) {
-    groupOf.resize(K);
-    for (size_t c = 0; c < K; ++c) groupOf[c] = static_cast<int>(c);
-  }
+  if (groupOf.empty()) groupOf = eachOwn(K);
   CHECK_EQ(groupOf.size(), K);
   while (groupCount(groupOf) > 1) {
     const std::optional<GroupScales> apart = fitGroups(objects, groupOf, common);
@@ -391,9 +447,10 @@ std::vector<int> chooseFirstVertexMaterials(const std::vector<std::vector<ScaleT
     const size_t K = under[h].front().mean.size() - 1;
     CHECK_EQ(scale.size(), K);
     const Objects byObject = usableByObject(under[h], objectCount, K);
+    const Monomials m = monomials(scale);
     for (int o = 0; o < objectCount; ++o) {
       if (byObject[o].size() < std::max<size_t>(minTexels, 2)) continue;
-      const double spread = objectTerm(byObject[o], scale) / static_cast<double>(byObject[o].size());
+      const double spread = GroupedTexels(byObject[o], eachOwn(K)).term(m) / static_cast<double>(byObject[o].size());
       if (spread < least[o]) least[o] = spread, choice[o] = static_cast<int>(h);
     }
   }
@@ -916,8 +973,13 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
   for (int band = 0; band < 3; ++band) {
     std::vector<double> after(K);
     for (size_t c = 0; c < K; ++c) after[c] = scale[c][band];
-    for (const ScaleTexel& t : bands[band]) {
-      const DiffuseTerms before = diffuseTerms(t, std::vector<double>(K, 1.0)), now = diffuseTerms(t, after);
+    std::vector<const ScaleTexel*> all;
+    for (const ScaleTexel& t : bands[band]) all.push_back(&t);
+    const GroupedTexels texels(all, eachOwn(K));
+    const Monomials unscaled = monomials(std::vector<double>(K, 1.0)), scaled = monomials(after);
+    for (size_t k = 0; k < all.size(); ++k) {
+      const ScaleTexel& t = *all[k];
+      const DiffuseTerms before = texels.diffuse(k, unscaled), now = texels.diffuse(k, scaled);
       const double ratio = now.shown / before.shown * (before.received / now.received);
       if (ratio > 0 && std::isfinite(ratio)) logRatio[t.object][band] += std::log(ratio), count[t.object][band] += 1;
     }

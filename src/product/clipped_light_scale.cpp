@@ -150,7 +150,6 @@ class GroupedTexels {
         }
     }
   }
-  size_t size() const { return count_; }
   DiffuseTerms diffuse(size_t k, const Monomials& m) const {
     const double* x = &data_[k * stride_];
     DiffuseTerms d;

@@ -11,16 +11,21 @@
 //   divide (1.5), resolution (512), seeds (2), materials (truth | init), albedo (truth | absorbed),
 //   choice (1: clipped_scale_material_choice), shown (1: clipped_scale_shown_radiance),
 //   paths (8: the paths traced per ray for each term), texels (0: the fit's texels drawn per object),
-//   ceiling (1: clipped_scale_albedo_ceiling)
+//   ceiling (1: clipped_scale_albedo_ceiling), diagnose (0; 1: also the model's error per object,
+//   below)
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <map>
 #include <string>
+#include <vector>
 
+#include "core/check.h"
 #include "core/error.h"
+#include "core/math.h"
 #include "product/evaluate.h"
 #include "product/light_decisions.h"
 
@@ -51,16 +56,61 @@ Texture truthAlbedo(const Workspace& w, const TexelSpace& space, const SceneDesc
   return albedo;
 }
 
+// Where the estimator's model misses, seen at the true scale: each texel's albedo from its terms at
+// every light's true scale s (`scale`; the texels of the first fit, under the fit's materials),
+// (I - s.G - G_R) / (s.D + R), over the truth's, in red, green and blue. Per object the median of that ratio and the
+// slope of its log against the share of the texel's light that comes straight from the clipped
+// lights, s.D / (s.D + R): a scale that makes the albedo uniform moves by about that slope in log
+// (a negative slope pulls it down), so an object with a slope beyond its noise pulls the pooled
+// scale by its model's error, not by its light.
+void printModelError(const ClippedLightScale& s, const Texture& truth, double scale, const Appearance& a) {
+  struct Sums {
+    std::vector<double> logRatio;
+    double n = 0, f = 0, ff = 0, y = 0, fy = 0;
+  };
+  std::map<int, Sums> perObject;
+  Sums all;
+  for (int band = 0; band < 3; ++band)
+    for (const ScaleTexel& t : s.texels[band]) {
+      const size_t K = t.mean.size() - 1;
+      double direct = 0, specular = 0;
+      for (size_t c = 0; c < K; ++c) direct += scale * t.mean[c];
+      if (!t.specular.empty()) {
+        for (size_t c = 0; c < K; ++c) specular += scale * t.specular[c];
+        specular += t.specular[K];
+      }
+      CHECK(3 * size_t{t.texel} + 2 < truth.rgb.size());
+      const double received = direct + t.mean[K], shown = t.shown - specular, albedo = truth.rgb[3 * t.texel + band];
+      if (!(received > 0 && shown > 0 && albedo > 0.02)) continue;
+      const double y = std::log(shown / received / albedo), f = direct / received;
+      for (Sums* x : {&perObject[t.object], &all}) {
+        x->logRatio.push_back(y);
+        x->n += 1, x->f += f, x->ff += f * f, x->y += y, x->fy += f * y;
+      }
+    }
+  auto slope = [](const Sums& x) { return (x.n * x.fy - x.f * x.y) / (x.n * x.ff - x.f * x.f); };
+  std::printf("  at the true scale, albedo over the truth's (median; slope of its log in the direct share):");
+  auto print = [&](const std::string& name, const Sums& x) {
+    std::printf(" %s %.3f", name.c_str(), std::exp(medianOf(x.logRatio)));
+    if (const double b = slope(x); std::isfinite(b)) std::printf(" (%+.3f)", b);  // none without direct light
+    std::printf(";");
+  };
+  for (const auto& [o, x] : perObject) print(a.names[o], x);
+  print("all", all);
+  std::printf("\n");
+}
+
 int run(int argc, char** argv) {
   if (argc < 3) {
     std::fprintf(stderr, "usage: scale_at_truth WORK TRUTH_SCENE.json [divide=1.5] [resolution=512] [seeds=2] "
-                         "[materials=truth|init] [albedo=truth|absorbed] [choice=1] [shown=1] [ceiling=1]\n");
+                         "[materials=truth|init] [albedo=truth|absorbed] [choice=1] [shown=1] [ceiling=1] "
+                         "[diagnose=0]\n");
     return 2;
   }
   std::map<std::string, std::string> keys = {{"divide", "1.5"},    {"resolution", "512"}, {"seeds", "2"},
                                              {"materials", "truth"}, {"albedo", "truth"},  {"choice", "1"},
                                              {"shown", "1"},         {"paths", "8"},        {"texels", "0"},
-                                             {"ceiling", "1"}};
+                                             {"ceiling", "1"},       {"diagnose", "0"}};
   for (int i = 3; i < argc; ++i) {
     const std::string arg = argv[i];
     const size_t eq = arg.find('=');
@@ -89,7 +139,8 @@ int run(int argc, char** argv) {
   for (const auto& [id, name] : w.names)
     if (id >= 0 && id < objects) a.names[id] = name;
   std::fill(a.albedoFromTexture.begin(), a.albedoFromTexture.end(), 1);
-  a.albedo = truthAlbedo(w, space, truth);
+  const Texture trueAlbedo = truthAlbedo(w, space, truth);
+  a.albedo = trueAlbedo;
   if (absorbed)
     for (float& x : a.albedo.rgb) x = std::min(1.0f, x * static_cast<float>(divide));
   std::vector<uint8_t> emitter(objects, 0), outOfModel(objects, 0);
@@ -115,6 +166,7 @@ int run(int argc, char** argv) {
     Appearance scaled = a;
     ClippedLightSettings settings = clippedLightSettings(config);
     settings.pathsPerRay = std::atoi(keys["paths"].c_str());
+    settings.keepTexels = keys["diagnose"] == "1";
     if (const int texels = std::atoi(keys["texels"].c_str()); texels > 0) settings.texelsPerObject = texels;
     const ClippedLightScale s = scaleClippedLights(w, space, scaled, emitter, outOfModel, gains, path, settings,
                                                    static_cast<uint64_t>(seed));
@@ -136,6 +188,7 @@ int run(int argc, char** argv) {
     for (size_t i = 0; i < std::min<size_t>(bounds.size(), 10); ++i)
       std::printf(" %s %.3g+-%.2g;", a.names[bounds[i].object].c_str(), bounds[i].factor, bounds[i].error);
     std::printf("\n");
+    if (settings.keepTexels) printModelError(s, trueAlbedo, divide, a);
     std::fflush(stdout);
   }
   return 0;

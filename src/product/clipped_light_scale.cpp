@@ -562,6 +562,7 @@ class TexelSums {
       sums_[band].assign(batch.texel.size(), std::vector<double>(terms, 0.0));
       for (size_t s = 0; s < batch.texel.size(); ++s) {
         perTexel_[band][s].object = space.objectOf(batch.texel[s], mesh);
+        perTexel_[band][s].texel = batch.texel[s];
         perTexel_[band][s].covariance.assign(terms * terms, 0.0);
       }
     }
@@ -852,6 +853,7 @@ ClippedLightScale scaleClippedLights(const Workspace& w, const TexelSpace& space
   }
   const Appearance* secondVertex = settings.shownRadiance ? &shown : nullptr;
   std::array<std::vector<ScaleTexel>, 4> bands = sumBands(a, secondVertex);
+  if (settings.keepTexels) out.texels = bands;
   // The first vertex's roughness and specular are the fit's, which have not seen a highlight yet
   // (the material stage comes later): at the init's 0.5 and 0.5 the scale of the room's panels
   // held 10-16% short even with the true albedo, within 2% with the true materials. With the

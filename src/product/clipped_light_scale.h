@@ -23,6 +23,7 @@
 #pragma once
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -42,6 +43,7 @@ namespace relume {
 // s D + R as s grows, and left in it pulls s up).
 struct ScaleTexel {
   int object = 0;
+  uint32_t texel = 0;  // in the texel space the scale was drawn in
   double shown = 0;
   std::vector<double> mean;        // D_1..D_K, R
   std::vector<double> specular;    // G_1..G_K, G_R; empty: no specular lobe
@@ -131,6 +133,9 @@ struct ClippedLightSettings {
   // no object's albedo exceeds 1 (albedoCeiling, at this many of its errors); false: not.
   bool albedoCeiling = true;
   double ceilingSigmas = 3;
+  // Keep the texels of the first fit (under the fit's own materials) in ClippedLightScale::texels,
+  // for the lab's diagnosis of the estimator (bench/scale_at_truth.cpp).
+  bool keepTexels = false;
 };
 
 // What the clipped pixels of a light seen only saturated say.
@@ -157,6 +162,9 @@ struct ClippedLightScale {
   AlbedoCeiling ceiling;
   // The lights' emission changed by more than its error: by the uniformity's scale, or by the ceiling.
   bool movesLights() const;
+  // With ClippedLightSettings::keepTexels: the first fit's texels, per band (red, green, blue,
+  // luminance); else empty.
+  std::array<std::vector<ScaleTexel>, 4> texels;
   std::string why;        // one line: what was decided and why
   Json toJson(const Appearance& a) const;
 };

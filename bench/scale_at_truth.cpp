@@ -58,15 +58,15 @@ Texture truthAlbedo(const Workspace& w, const TexelSpace& space, const SceneDesc
 
 // Where the estimator's model misses, seen at the true scale: each texel's albedo from its terms at
 // every light's true scale s (`scale`; the texels of the first fit, under the fit's materials),
-// (I - s.G - G_R) / (s.D + R), over the truth's, in red, green and blue. Per object the median of that ratio and the
-// slope of its log against the share of the texel's light that comes straight from the clipped
-// lights, s.D / (s.D + R): a scale that makes the albedo uniform moves by about that slope in log
-// (a negative slope pulls it down), so an object with a slope beyond its noise pulls the pooled
-// scale by its model's error, not by its light.
+// (I - s.G - G_R) / (s.D + R), over the truth's, in red, green and blue. Per object the median of
+// that ratio and the slope of its log against the share of the texel's light that comes straight
+// from the clipped lights, s.D / (s.D + R): a scale that makes the albedo uniform moves by about
+// that slope in log (a negative slope pulls it down), so an object with a slope beyond its noise
+// pulls the pooled scale by its model's error, not by its light.
 void printModelError(const ClippedLightScale& s, const Texture& truth, double scale, const Appearance& a) {
   struct Sums {
     std::vector<double> logRatio;
-    double n = 0, f = 0, ff = 0, y = 0, fy = 0;
+    double f = 0, ff = 0, y = 0, fy = 0;
   };
   std::map<int, Sums> perObject;
   Sums all;
@@ -85,10 +85,13 @@ void printModelError(const ClippedLightScale& s, const Texture& truth, double sc
       const double y = std::log(shown / received / albedo), f = direct / received;
       for (Sums* x : {&perObject[t.object], &all}) {
         x->logRatio.push_back(y);
-        x->n += 1, x->f += f, x->ff += f * f, x->y += y, x->fy += f * y;
+        x->f += f, x->ff += f * f, x->y += y, x->fy += f * y;
       }
     }
-  auto slope = [](const Sums& x) { return (x.n * x.fy - x.f * x.y) / (x.n * x.ff - x.f * x.f); };
+  auto slope = [](const Sums& x) {
+    const double n = static_cast<double>(x.logRatio.size());
+    return (n * x.fy - x.f * x.y) / (n * x.ff - x.f * x.f);
+  };
   std::printf("  at the true scale, albedo over the truth's (median; slope of its log in the direct share):");
   auto print = [&](const std::string& name, const Sums& x) {
     std::printf(" %s %.3f", name.c_str(), std::exp(medianOf(x.logRatio)));

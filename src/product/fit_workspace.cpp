@@ -83,8 +83,18 @@ int Workspace::resolvedResolution(const Batch& batch) const {
   return w.resolutions.back();
 }
 
+namespace {
+// A texel space's resolution: at least the prepared one its coverage is looked up at.
+int atLeastPrepared(const Workspace& w, int res) {
+  if (res < w.initResolution)
+    fail("texel space at {}^2: below the prepared resolution {}^2 (visibility.bin, coverage.exr)", res,
+         w.initResolution);
+  return res;
+}
+}  // namespace
+
 TexelSpace::TexelSpace(const Workspace& w, int res, const std::vector<uint8_t>& excluded)
-    : resolution(res), map(w.mesh, res), updatable(map.texelCount(), 0) {
+    : resolution(atLeastPrepared(w, res)), map(w.mesh, res), updatable(map.texelCount(), 0) {
   for (size_t t = 0; t < map.texelCount(); ++t) {
     if (!map.valid(t) || w.coverageOf(t, res) <= 0) continue;
     if (!excluded.empty() && excluded[w.mesh.faceObject[map.triangle(t)]]) continue;
